@@ -1,0 +1,21 @@
+"""The ``handover`` command line. Thin: parse, call one engine function, render.
+
+Importing this package registers every command module on the app.
+"""
+
+from __future__ import annotations
+
+import sys
+
+from engine.cli.app import app, kb_app, state
+from engine.cli.app import main as _main
+
+# Command modules register themselves on `app` / `kb_app` when imported.
+from engine.cli import commands as _commands  # noqa: F401,E402
+
+__all__ = ["app", "kb_app", "state", "main"]
+
+
+def main() -> None:
+    """Console-script entry point."""
+    sys.exit(_main())

@@ -1,0 +1,101 @@
+"""The ``handover`` Typer application, its global options and error-to-exit-code mapping.
+
+Command modules (``engine.cli.kb``, ``engine.cli.grasps``, ...) register their commands on
+``app`` or ``kb_app``; they import heavy modules inside the command functions so that
+``handover --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import typer
+
+__all__ = ["app", "kb_app", "State", "state", "main"]
+
+app = typer.Typer(
+    name="handover",
+    help="Plan how a robot hands an object to a person, and explain every decision.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+kb_app = typer.Typer(help="Check, list, show and describe the knowledge base.", no_args_is_help=True)
+app.add_typer(kb_app, name="kb")
+
+
+@dataclass
+class State:
+    """Global options, set by the app callback before any command runs."""
+
+    kb_dir: Path | None = None
+    debug: bool = False
+
+
+state = State()
+
+
+@app.callback()
+def _global_options(
+    kb: Path | None = typer.Option(
+        None,
+        "--kb",
+        envvar="HANDOVER_KB",
+        help="Knowledge-base folder (default: the built-in kb/). Also $HANDOVER_KB.",
+        file_okay=False,
+    ),
+    debug: bool = typer.Option(False, "--debug", help="Show Python tracebacks on errors."),
+) -> None:
+    state.kb_dir = kb
+    state.debug = debug
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; map the project's errors to their exit codes, never show a traceback
+    unless ``--debug`` was given."""
+    from rich.console import Console
+
+    from engine.errors import EXIT_INTERNAL, KBError, HandoverError
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in args or os.environ.get("HANDOVER_DEBUG") == "1"
+    err = Console(stderr=True, highlight=False, soft_wrap=True)
+    try:
+        app(args=args, prog_name="handover", standalone_mode=False)
+    except SystemExit as e:  # typer/click exit paths
+        return int(e.code or 0)
+    except KBError as e:
+        if debug:
+            raise
+        err.print(f"[bold red]invalid knowledge base[/]: {len(e.issues)} problem(s)")
+        for issue in e.issues:
+            err.print(str(issue), markup=False)
+        return e.exit_code
+    except HandoverError as e:
+        if debug:
+            raise
+        err.print(f"[bold red]error[/]: {e}", markup=True)
+        return e.exit_code
+    except _click_exceptions() as e:
+        e.show()
+        return e.exit_code
+    except KeyboardInterrupt:
+        return 130
+    except Exception as e:  # noqa: BLE001 - the last line of defence: no tracebacks
+        if debug:
+            raise
+        err.print(
+            f"[bold red]internal error[/]: {type(e).__name__}: {e}\n"
+            "This is a bug in handover-grasp. Run again with --debug for the traceback.",
+        )
+        return EXIT_INTERNAL
+    return 0
+
+
+def _click_exceptions() -> tuple[type[BaseException], ...]:
+    import click
+
+    return (click.exceptions.ClickException,)
