@@ -7,11 +7,10 @@ from __future__ import annotations
 
 import sys
 
-from engine.cli.app import app, kb_app, state
-from engine.cli.app import main as _main
-
 # Command modules register themselves on `app` / `kb_app` when imported.
 from engine.cli import commands as _commands  # noqa: F401,E402
+from engine.cli.app import app, kb_app, state
+from engine.cli.app import main as _main
 
 __all__ = ["app", "kb_app", "state", "main"]
 

@@ -23,7 +23,9 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-kb_app = typer.Typer(help="Check, list, show and describe the knowledge base.", no_args_is_help=True)
+kb_app = typer.Typer(
+    help="Check, list, show and describe the knowledge base.", no_args_is_help=True
+)
 app.add_typer(kb_app, name="kb")
 
 
@@ -58,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     unless ``--debug`` was given."""
     from rich.console import Console
 
-    from engine.errors import EXIT_INTERNAL, KBError, HandoverError
+    from engine.errors import EXIT_INTERNAL, HandoverError, KBError
 
     args = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in args or os.environ.get("HANDOVER_DEBUG") == "1"
