@@ -4,3 +4,4 @@ Add a new command module here (one line) when you add one.
 """
 
 from __future__ import annotations
+from engine.cli import plan  # noqa: F401,E402  (plan, explain-graph)

@@ -1,0 +1,119 @@
+"""``handover plan`` and ``handover explain-graph``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from engine.cli.app import app, state
+
+MODE_HELP = "auto (default: H1G1 first, then two hands as rules require) or h1g1|h2g2|h2g1."
+
+
+def _query(object_: str, task, receiver, culture, scene, mode, gripper):
+    from engine.query import DEFAULTS, Query
+
+    return Query(
+        object=object_,
+        task=task,
+        receiver=receiver or DEFAULTS["receiver"],
+        culture=culture or DEFAULTS["culture"],
+        scene=scene or DEFAULTS["scene"],
+        mode=(mode or "auto").lower(),
+        gripper=gripper,
+    )
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and a rename: never half-written."""
+    import os
+    import tempfile
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+@app.command()
+def plan(
+    object_: str = typer.Argument(..., metavar="OBJECT", help="Object id, or a mesh file."),
+    task: str | None = typer.Option(None, "--task", "-t", help="Task id (e.g. drive_nail)."),
+    receiver: str | None = typer.Option(None, "--receiver", "-r", help="Receiver profile id."),
+    culture: str | None = typer.Option(None, "--culture", "-c", help="Culture id."),
+    scene: str | None = typer.Option(None, "--scene", "-s", help="Scene id."),
+    mode: str = typer.Option("auto", "--mode", "-m", help=MODE_HELP),
+    gripper: str | None = typer.Option(None, "--gripper", help="Gripper id."),
+    json_out: bool = typer.Option(False, "--json", help="Print the JSON result."),
+    output: Path | None = typer.Option(None, "-o", "--output", help="Write the JSON here."),
+    explain: bool = typer.Option(False, "--explain", "-e", help="Show the full rule trace."),
+    why_not: list[int] = typer.Option([], "--why-not", help="Explain why candidate ID lost."),
+    rrd: Path | None = typer.Option(None, "--rrd", help="Write a rerun recording here."),
+) -> None:
+    """Plan a handover of OBJECT and explain every decision.
+
+    Exit codes: 0 plan found, 4 no feasible handover (the result still says why),
+    2 usage error, 3 invalid KB, 5 bad mesh, 1 internal error.
+    """
+    from rich.console import Console
+
+    from engine.errors import EXIT_INFEASIBLE
+    from engine.loader import load_kb
+    from engine.planners import plan as run_plan
+
+    kb = load_kb(state.kb_dir)
+    query = _query(object_, task, receiver, culture, scene, mode, gripper)
+    result, ctx = run_plan(kb, query, why_not=tuple(why_not))
+    data = result.to_dict()
+    if rrd is not None:
+        from engine.record import write_recording
+
+        write_recording(result, ctx, rrd)
+    text = result.to_json()
+    if output is not None:
+        write_atomic(output, text)
+    if json_out:
+        typer.echo(text, nl=False)
+    else:
+        from engine.trace import render_plan
+
+        render_plan(data, Console(highlight=False, soft_wrap=False), explain=explain)
+    if not result.feasible:
+        raise typer.Exit(EXIT_INFEASIBLE)
+
+
+@app.command("explain-graph")
+def explain_graph(
+    object_: str = typer.Argument(..., metavar="OBJECT", help="Object id, or a mesh file."),
+    task: str | None = typer.Option(None, "--task", "-t"),
+    receiver: str | None = typer.Option(None, "--receiver", "-r"),
+    culture: str | None = typer.Option(None, "--culture", "-c"),
+    scene: str | None = typer.Option(None, "--scene", "-s"),
+    mode: str = typer.Option("H1G1", "--mode", "-m", help="Mode to compile for."),
+    dot: bool = typer.Option(False, "--dot", help="Print Graphviz dot instead of text."),
+) -> None:
+    """Print the constraint graph compiled for a query: features, rules, overrides and the
+    evaluation order."""
+    from rich.console import Console
+
+    from engine.compiler import compile, graph_to_dot
+    from engine.loader import load_kb
+    from engine.planners import prepare
+    from engine.trace import render_graph
+
+    kb = load_kb(state.kb_dir)
+    ctx = prepare(kb, _query(object_, task, receiver, culture, scene, "auto", None))
+    mode = mode.upper()
+    ctx.cache["mode"] = mode
+    cg = compile(kb, ctx, mode)
+    if dot:
+        typer.echo(graph_to_dot(cg), nl=False)
+    else:
+        render_graph(cg, Console(highlight=False))

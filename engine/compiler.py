@@ -1,0 +1,238 @@
+"""Compile a culture's rules, for one query, into a constraint graph.
+
+The graph (networkx DiGraph) has feature nodes (``feature:<name>``: quantities computed on
+candidates, with a cost) and rule nodes (``rule:<id>``), with an edge from each feature a rule
+reads to the rule, and an ``overrides`` edge from each overriding rule to the rule it
+replaced (which stays in the graph, inactive, so the explanation can show it). Rules whose
+conditions do not hold for this query, or that cannot apply to this object, are inactive
+with a reason.
+
+Evaluation order: the active rules, hard before soft, each ranked by the cost of the most
+expensive feature it reads (collision last), ties kept in KB order. It is a topological
+order of the graph, since features never depend on rules.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import networkx as nx
+
+from engine.errors import KBError, KBIssue
+from engine.rules import FEATURES, not_applicable_reason, rule_features
+from engine.schema import Applies, Rule
+
+if TYPE_CHECKING:
+    from engine.context import ObjectFacts, PlanContext
+    from engine.loader import KB
+    from engine.query import Situation
+
+__all__ = ["CompiledRule", "ConstraintGraph", "compile", "conditions_hold", "graph_to_dot"]
+
+
+@dataclass
+class CompiledRule:
+    """A rule as compiled for one query.
+
+    culture : id of the culture that wrote it. overrides : ids of the rules it replaced.
+    active : it is evaluated. reason : why not, when inactive. cost : of its features.
+    """
+
+    rule: Rule
+    culture: str
+    overrides: tuple[str, ...] = ()
+    overridden_sources: tuple[str, ...] = ()
+    overridden_safety: tuple[str, ...] = ()
+    active: bool = True
+    reason: str | None = None
+    features: tuple[str, ...] = ()
+    cost: float = 0.0
+
+    @property
+    def id(self) -> str:
+        return self.rule.id
+
+    @property
+    def source(self) -> str:
+        return str(self.rule.source)
+
+
+@dataclass
+class ConstraintGraph:
+    """The compiled constraints of one query and mode.
+
+    graph : feature and rule nodes (see module docstring). order : active rules in
+    evaluation order. inactive : the rest, each with its reason. mode : the mode compiled for.
+    """
+
+    graph: nx.DiGraph
+    order: list[CompiledRule]
+    inactive: list[CompiledRule]
+    mode: str
+    overridden: list[CompiledRule] = field(default_factory=list)
+
+    @property
+    def hard(self) -> list[CompiledRule]:
+        return [c for c in self.order if c.rule.hard]
+
+    @property
+    def soft(self) -> list[CompiledRule]:
+        return [c for c in self.order if not c.rule.hard]
+
+    def by_id(self, rule_id: str) -> CompiledRule:
+        for c in self.order + self.inactive + self.overridden:
+            if c.id == rule_id:
+                return c
+        raise KeyError(rule_id)
+
+
+def conditions_hold(
+    applies: Applies, facts: ObjectFacts, situation: Situation, mode: str
+) -> tuple[bool, str]:
+    """Whether a rule's ``applies`` conditions hold; the second item says which failed (or
+    why they hold, for the trace)."""
+    checks: list[tuple[bool, str]] = []
+    if applies.object_tags_any:
+        hit = facts.tags.intersection(applies.object_tags_any)
+        checks.append((bool(hit), f"object tagged {'/'.join(applies.object_tags_any)}"))
+    if applies.object_tags_none:
+        hit = facts.tags.intersection(applies.object_tags_none)
+        checks.append((not hit, f"object not tagged {'/'.join(applies.object_tags_none)}"))
+    if applies.receiver_roles:
+        role = situation.receiver.role
+        checks.append((role in applies.receiver_roles,
+                       f"receiver role in {'/'.join(applies.receiver_roles)} (is {role})"))
+    if applies.tasks:
+        checks.append((situation.task_id in applies.tasks,
+                       f"task in {'/'.join(applies.tasks)} (is {situation.task_id})"))
+    if applies.modes:
+        checks.append((mode in applies.modes, f"mode in {'/'.join(applies.modes)} (is {mode})"))
+    if applies.min_mass is not None:
+        checks.append((facts.mass >= applies.min_mass,
+                       f"mass >= {applies.min_mass:g} kg (is {facts.mass:g})"))
+    if applies.min_size is not None:
+        checks.append((facts.size >= applies.min_size,
+                       f"size >= {applies.min_size:g} m (is {facts.size:.3f})"))
+    if applies.exceeds_payload is not None:
+        exceeds = facts.mass > facts.payload
+        checks.append((exceeds == applies.exceeds_payload,
+                       f"mass {facts.mass:g} kg {'>' if exceeds else '<='} payload "
+                       f"{facts.payload:g} kg"))
+    if applies.exceeds_opening is not None:
+        exceeds = facts.min_width > facts.max_opening
+        checks.append((exceeds == applies.exceeds_opening,
+                       f"thinnest extent {facts.min_width:.3f} m "
+                       f"{'>' if exceeds else '<='} opening {facts.max_opening:g} m"))
+    failed = [text for ok, text in checks if not ok]
+    if failed:
+        return False, "condition not met: " + "; ".join(failed)
+    return True, "; ".join(text for _, text in checks) or "always"
+
+
+def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  # noqa: A001
+    """Compile the query's culture into a constraint graph for ``mode``.
+
+    Raises KBError (with the rules' file:line) when the graph has a cycle (rules overriding
+    each other in a loop).
+    """
+    from engine.etiquette import resolve_culture
+
+    situation = ctx.situation
+    resolved = resolve_culture(kb, situation.query.culture)
+    graph = nx.DiGraph()
+    for name, (cost, varies, text) in FEATURES.items():
+        graph.add_node(f"feature:{name}", kind="feature", cost=cost, varies=varies, text=text)
+
+    compiled: list[CompiledRule] = []
+    overridden: list[CompiledRule] = []
+    for rr in resolved:
+        chain = list(_override_chain(rr))
+        features = tuple(rule_features(rr.rule))
+        cost = max((FEATURES[f][0] for f in features), default=0.0)
+        holds, why = conditions_hold(rr.rule.applies, ctx.facts, situation, mode)
+        reason = None if holds else why
+        if holds:
+            reason = not_applicable_reason(rr.rule, ctx)
+        item = CompiledRule(
+            rule=rr.rule,
+            culture=rr.culture,
+            overrides=tuple(o.rule.id for o in chain),
+            overridden_sources=tuple(str(o.rule.source) for o in chain),
+            overridden_safety=tuple(o.rule.id for o in chain if o.rule.safety),
+            active=reason is None,
+            reason=reason,
+            features=features,
+            cost=cost,
+        )
+        compiled.append(item)
+        node = f"rule:{rr.rule.id}"
+        graph.add_node(
+            node,
+            kind="rule",
+            hard=rr.rule.hard,
+            active=item.active,
+            reason=reason,
+            source=str(rr.rule.source),
+            culture=rr.culture,
+            cost=cost,
+        )
+        for f in features:
+            graph.add_edge(f"feature:{f}", node, kind="reads")
+        for old in chain:
+            old_node = f"rule:{old.rule.id}@{old.culture}"
+            graph.add_node(old_node, kind="rule", hard=old.rule.hard, active=False,
+                           reason=f"overridden by {rr.rule.id} ({rr.rule.source})",
+                           source=str(old.rule.source), culture=old.culture, cost=0.0)
+            graph.add_edge(node, old_node, kind="overrides")
+            overridden.append(CompiledRule(rule=old.rule, culture=old.culture, active=False,
+                                           reason=f"overridden by {rr.rule.id}"))
+
+    if not nx.is_directed_acyclic_graph(graph):
+        cycle = nx.find_cycle(graph)
+        issues = []
+        for u, _v in cycle:
+            src = graph.nodes[u].get("source", "<graph>:0")
+            file, _, line = src.rpartition(":")
+            issues.append(KBIssue(file or src, int(line or 0), 0,
+                                  f"rule {u} is part of an override cycle"))
+        raise KBError(issues)
+
+    position = {c.id: i for i, c in enumerate(compiled)}
+    active = [c for c in compiled if c.active]
+    order = sorted(active, key=lambda c: (not c.rule.hard, c.cost, position[c.id]))
+    inactive = [c for c in compiled if not c.active]
+    return ConstraintGraph(graph=graph, order=order, inactive=inactive, mode=mode,
+                           overridden=overridden)
+
+
+def _override_chain(rr) -> list:
+    out = []
+    stack = list(rr.overrides)
+    while stack:
+        item = stack.pop(0)
+        out.append(item)
+        stack.extend(item.overrides)
+    return out
+
+
+def graph_to_dot(cg: ConstraintGraph) -> str:
+    """The graph in Graphviz dot: features as ellipses, hard rules as boxes, soft rules as
+    rounded boxes, inactive rules grey, override edges dashed."""
+    lines = ["digraph constraints {", "  rankdir=LR;", '  node [fontname="Helvetica"];']
+    for node, data in sorted(cg.graph.nodes(data=True)):
+        label = node.split(":", 1)[1]
+        if data["kind"] == "feature":
+            lines.append(f'  "{node}" [shape=ellipse, label="{label}\\ncost {data["cost"]:g}"];')
+        else:
+            style = "rounded" if not data.get("hard", True) else "solid"
+            colour = "black" if data.get("active") else "grey"
+            lines.append(
+                f'  "{node}" [shape=box, style="{style}", color={colour}, '
+                f'fontcolor={colour}, label="{label}\\n{data.get("source", "")}"];'
+            )
+    for u, v, data in sorted(cg.graph.edges(data=True)):
+        style = "dashed" if data.get("kind") == "overrides" else "solid"
+        lines.append(f'  "{u}" -> "{v}" [style={style}];')
+    lines.append("}")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,192 @@
+"""Evaluate a constraint graph over every (grasp, presentation) row: the decision table.
+
+Hard rules run in the graph's order. Every non-collision hard rule is evaluated on all rows
+(a cheap indexing operation) so an infeasible query can say which rules, in the smallest
+combination, removed the last candidates; collision rules, the expensive ones, run only on
+the rows that passed every other hard rule. Soft rules then score the survivors.
+
+Rows are ordered grasp-major: row ``r`` is grasp ``r // K`` in presentation ``r % K``. The
+best row has the highest score; ties go to the lower row index, so the choice is
+deterministic.
+"""
+
+from __future__ import annotations
+
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from engine.compiler import CompiledRule, ConstraintGraph
+from engine.context import PlanContext
+from engine.rules import Outcome, evaluate_rule
+
+__all__ = ["Decision", "evaluate", "trace_row", "ROW_LIMIT"]
+
+# Rows beyond this are a sign of a mis-set generator; the error says how to fix it.
+ROW_LIMIT = 5_000_000
+
+
+@dataclass
+class Decision:
+    """The decision table of one constraint graph over one context.
+
+    gi, pk : (R,) int. The rows (grasp index, presentation index).
+    fails : (R, H) bool. Hard rule h failed on row r (collision rules only where checked).
+    checked : (R, H) bool. Hard rule h was evaluated on row r.
+    kept : (R,) bool. score : (R,) float in [0, 1] (NaN where not kept).
+    soft_scores : (R, S) float. Each soft rule's score on the kept rows.
+    first_fail : (R,) int, index into ``hard`` of the first failing rule in order (-1: kept).
+    hard, soft : the compiled rules, in evaluation order.
+    """
+
+    gi: np.ndarray
+    pk: np.ndarray
+    hard: list[CompiledRule]
+    soft: list[CompiledRule]
+    fails: np.ndarray
+    checked: np.ndarray
+    kept: np.ndarray
+    score: np.ndarray
+    first_fail: np.ndarray
+    soft_scores: np.ndarray
+    measured: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def n_rows(self) -> int:
+        return len(self.gi)
+
+    def ranking(self) -> np.ndarray:
+        """Indices of kept rows, best first (score descending, then row index)."""
+        idx = np.flatnonzero(self.kept)
+        order = np.lexsort((idx, -self.score[idx]))
+        return idx[order]
+
+    def rejected_by(self) -> dict[str, int]:
+        """Rows removed by each hard rule: the first rule (in order) a row failed."""
+        counts = Counter(int(i) for i in self.first_fail if i >= 0)
+        return {self.hard[i].id: counts[i] for i in range(len(self.hard)) if counts[i]}
+
+    def blocking_sets(self, limit: int = 5) -> list[tuple[tuple[str, ...], int]]:
+        """The smallest sets of hard rules that, if lifted, would let some row through, with
+        the number of rows each set blocks: smallest set first, then most rows."""
+        if self.kept.any() or self.n_rows == 0:
+            return []
+        # Rows that were fully checked (collision rules evaluated) give exact sets; rows that
+        # failed cheap rules were not collision-checked, their sets are lower bounds.
+        keys = Counter()
+        for row in np.flatnonzero(self.fails.any(axis=1)):
+            ids = tuple(self.hard[h].id for h in np.flatnonzero(self.fails[row]))
+            keys[ids] += 1
+        ranked = sorted(keys.items(), key=lambda kv: (len(kv[0]), -kv[1], kv[0]))
+        return ranked[:limit]
+
+
+def evaluate(cg: ConstraintGraph, ctx: PlanContext) -> Decision:
+    """Build the decision table of ``cg`` over all rows of ``ctx``."""
+    n, k = ctx.n, ctx.k
+    if n * k > ROW_LIMIT:
+        from engine.errors import UsageError
+
+        raise UsageError(
+            f"{n} grasp candidates x {k} presentations = {n * k} rows is more than "
+            f"{ROW_LIMIT}; raise the roll step (--roll-step-deg) or simplify the mesh"
+        )
+    gi = np.repeat(np.arange(n, dtype=np.int64), k)
+    pk = np.tile(np.arange(k, dtype=np.int64), n)
+    hard, soft = cg.hard, cg.soft
+    rows = len(gi)
+    fails = np.zeros((rows, len(hard)), dtype=bool)
+    checked = np.zeros((rows, len(hard)), dtype=bool)
+    measured: dict[str, np.ndarray] = {}
+
+    is_collision = [c.rule.kind == "collision" for c in hard]
+    for h, c in enumerate(hard):
+        if is_collision[h]:
+            continue
+        out = evaluate_rule(c.rule, ctx, gi, pk)
+        fails[:, h] = ~out.passed
+        checked[:, h] = True
+        measured[c.id] = out.measured
+    alive = ~fails.any(axis=1)
+    for h, c in enumerate(hard):
+        if not is_collision[h]:
+            continue
+        idx = np.flatnonzero(alive)
+        if len(idx):
+            out = evaluate_rule(c.rule, ctx, gi[idx], pk[idx])
+            fails[idx, h] = ~out.passed
+            checked[idx, h] = True
+        alive &= ~fails[:, h]
+
+    # First failing hard rule in evaluation order (collision rules come last by cost).
+    any_fail = fails.any(axis=1)
+    first_fail = np.where(any_fail, np.argmax(fails, axis=1), -1)
+
+    score = np.full(rows, np.nan)
+    soft_scores = np.full((rows, len(soft)), np.nan)
+    kept_idx = np.flatnonzero(alive)
+    if len(kept_idx):
+        total_w = sum(c.rule.weight for c in soft)
+        acc = np.zeros(len(kept_idx))
+        for s, c in enumerate(soft):
+            out = evaluate_rule(c.rule, ctx, gi[kept_idx], pk[kept_idx])
+            soft_scores[kept_idx, s] = out.score
+            acc += c.rule.weight * out.score
+        score[kept_idx] = acc / total_w if total_w > 0 else 1.0
+    return Decision(
+        gi=gi, pk=pk, hard=hard, soft=soft, fails=fails, checked=checked, kept=alive,
+        score=score, first_fail=first_fail, soft_scores=soft_scores, measured=measured,
+    )  # fmt: skip
+
+
+def trace_row(cg: ConstraintGraph, ctx: PlanContext, grasp: int, presentation: int) -> list[dict]:
+    """Every rule's outcome on one row, active rules first in evaluation order, then the
+    inactive ones with their reason. Each entry: rule, kind, hard, status (pass | fail |
+    scored | not_applicable), measured, unit, threshold, score, weight, why, source,
+    culture, overrides, safety, note."""
+    gi = np.array([grasp])
+    pk = np.array([presentation])
+    entries = []
+    for c in cg.order:
+        out: Outcome = evaluate_rule(c.rule, ctx, gi, pk)
+        passed = bool(out.passed[0])
+        if c.rule.hard:
+            status = "pass" if passed else "fail"
+        else:
+            status = "scored"
+        entries.append(_entry(c, status, out, passed))
+    for c in cg.inactive:
+        entries.append(_entry(c, "not_applicable", None, None))
+    return entries
+
+
+def _entry(c: CompiledRule, status: str, out: Outcome | None, passed: bool | None) -> dict:
+    measured = None
+    if out is not None:
+        value = float(out.measured[0])
+        measured = None if not np.isfinite(value) else round(value, 6)
+    entry = {
+        "rule": c.id,
+        "kind": c.rule.kind,
+        "hard": c.rule.hard,
+        "status": status,
+        "measured": measured,
+        "unit": out.unit if out is not None else "",
+        "threshold": out.threshold if out is not None else "",
+        "score": round(float(out.score[0]), 6) if out is not None else None,
+        "weight": c.rule.weight if not c.rule.hard else None,
+        "within": passed,
+        "why": c.rule.why,
+        "source": c.source,
+        "culture": c.culture,
+        "overrides": list(c.overrides),
+        "safety": c.rule.safety,
+        "note": c.reason,
+    }
+    if c.overridden_safety:
+        entry["overrides_safety"] = {
+            "rules": list(c.overridden_safety),
+            "reason": c.rule.override_safety,
+        }
+    return entry

@@ -1,0 +1,186 @@
+"""How the object is presented at the handover, and where the receiver will hold it.
+
+Presentations are the 24 rotations that map the object's frame axes onto the receiver-frame
+basis ``[toward_receiver, robot's left, up]`` (every signed permutation with determinant +1).
+KB objects are written with their named axes along their frame axes, so the presentations
+cover "tip away", "handle toward", "upright", "handle to the receiver's right" exactly; the
+axis rules then choose among them.
+
+The receiver's grasp site (the seed's C, section 3.1) lies on the part the task or etiquette
+gives the receiver. Along the robot->receiver direction, the receiver takes the middle of the
+half of that part near them (``middle``) or its far end (``far_end``); the robot keeps to the
+half of the object near itself (a ``giver_side`` rule).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import permutations, product
+
+import numpy as np
+
+__all__ = [
+    "presentation_rotations",
+    "handover_poses",
+    "ReceiverRegion",
+    "ReceiverSites",
+    "receiver_region",
+    "predict_receiver_sites",
+]
+
+
+def presentation_rotations(toward: np.ndarray) -> np.ndarray:
+    """The 24 candidate orientations of the object at the handover.
+
+    toward : (3,) unit, world, horizontal. Robot -> receiver.
+    Returns (24, 3, 3) float: rotation matrices object frame -> world, in a fixed order
+    (identity-aligned first: object x toward the receiver, z up).
+    """
+    up = np.array([0.0, 0.0, 1.0])
+    basis = np.stack([toward, np.cross(up, toward), up], axis=1)  # columns: x, y, z targets
+    mats = []
+    for perm in permutations(range(3)):
+        for signs in product((1.0, -1.0), repeat=3):
+            p = np.zeros((3, 3))
+            for col, (row, sign) in enumerate(zip(perm, signs, strict=True)):
+                p[row, col] = sign
+            if np.linalg.det(p) > 0:
+                mats.append(basis @ p)
+    return np.asarray(mats)
+
+
+def handover_poses(
+    vertices: np.ndarray, rotations: np.ndarray, handover_point: np.ndarray
+) -> np.ndarray:
+    """Object poses at the handover: each rotation, translated so that the centre of the
+    object's world-axis-aligned bounding box sits at ``handover_point``.
+
+    vertices : (V, 3) float, m, object frame.
+    rotations : (K, 3, 3) object -> world.
+    handover_point : (3,) m, world.
+    Returns (K, 4, 4) float, object -> world.
+    """
+    rotated = np.einsum("kij,vj->kvi", rotations, vertices)  # (K, V, 3)
+    centre = 0.5 * (rotated.min(axis=1) + rotated.max(axis=1))  # (K, 3)
+    poses = np.zeros((len(rotations), 4, 4))
+    poses[:, :3, :3] = rotations
+    poses[:, :3, 3] = handover_point[None, :] - centre
+    poses[:, 3, 3] = 1.0
+    return poses
+
+
+@dataclass
+class ReceiverRegion:
+    """Surface samples of the parts the receiver may hold, in the object frame.
+
+    points : (M, 3) float, m. Area-weighted face centroids of the allowed parts.
+    parts : (M,) int. Part index of each point.
+    axis : (3,) unit. Long direction of the region (the hand wraps around it).
+    tags : the tags that selected the region (empty: every part not forbidden).
+    """
+
+    points: np.ndarray
+    parts: np.ndarray
+    axis: np.ndarray
+    tags: tuple[str, ...]
+
+    @property
+    def empty(self) -> bool:
+        return len(self.points) == 0
+
+
+def receiver_region(
+    face_centroids: np.ndarray,
+    face_part: np.ndarray,
+    part_tags: list[set[str]],
+    want_tags: set[str],
+    forbid_tags: set[str],
+) -> ReceiverRegion:
+    """Select the faces the receiver may hold.
+
+    face_centroids : (F, 3) m, object frame. face_part : (F,) int.
+    part_tags : tags of each part index.
+    want_tags : the receiver should hold a part with one of these (empty: any part).
+    forbid_tags : never a part with any of these.
+    """
+    allowed = np.array([not (tags & forbid_tags) for tags in part_tags], dtype=bool)
+    wanted = np.array([bool(tags & want_tags) for tags in part_tags], dtype=bool)
+    chosen = allowed & wanted if want_tags and (allowed & wanted).any() else allowed
+    mask = chosen[face_part] if len(part_tags) else np.zeros(len(face_part), dtype=bool)
+    points = face_centroids[mask]
+    axis = np.array([1.0, 0.0, 0.0])
+    if len(points) >= 2:
+        centred = points - points.mean(axis=0)
+        _, _, vt = np.linalg.svd(centred, full_matrices=False)
+        axis = vt[0] / np.linalg.norm(vt[0])
+        # Fix the sign for determinism: largest component positive.
+        if axis[np.argmax(np.abs(axis))] < 0:
+            axis = -axis
+    used = tuple(sorted(want_tags)) if want_tags and (allowed & wanted).any() else ()
+    return ReceiverRegion(points=points, parts=face_part[mask], axis=axis, tags=used)
+
+
+@dataclass
+class ReceiverSites:
+    """The receiver's predicted grasp site in each presentation.
+
+    site : (K, 3) m, object frame. Centre of the grasped section (NaN where none).
+    part : (K,) int. Part index at the site (-1 where none).
+    thickness : (K,) m. Size of the grasped section across the region's axis.
+    valid : (K,) bool.
+    """
+
+    site: np.ndarray
+    part: np.ndarray
+    thickness: np.ndarray
+    valid: np.ndarray
+
+
+def predict_receiver_sites(
+    region: ReceiverRegion,
+    rotations: np.ndarray,
+    toward: np.ndarray,
+    grip_width: float,
+    where: str = "middle",
+) -> ReceiverSites:
+    """The seed's C for every presentation.
+
+    Along the robot->receiver direction (``toward``, world, seen in the object frame through
+    each rotation), the region spans [s_min, s_max]. ``middle``: C is centred at the middle of
+    the receiver's half, s* = (3 s_max + s_min) / 4; ``far_end``: at s* = s_max - grip_width/2
+    (clamped into the region). C is the mean of the region samples within ``grip_width / 2``
+    of s*, which for a handle is a point on its axis.
+
+    rotations : (K, 3, 3) object -> world. grip_width : m, the hand's width along the part.
+    """
+    k = len(rotations)
+    site = np.full((k, 3), np.nan)
+    part = np.full(k, -1, dtype=np.int64)
+    thickness = np.zeros(k)
+    if region.empty:
+        return ReceiverSites(site, part, thickness, np.zeros(k, dtype=bool))
+    d_obj = np.einsum("kji,j->ki", rotations, toward)  # R^T toward, (K, 3)
+    s = region.points @ d_obj.T  # (M, K)
+    s_min, s_max = s.min(axis=0), s.max(axis=0)
+    if where == "far_end":
+        target = np.maximum(s_max - grip_width / 2.0, 0.5 * (s_min + s_max))
+    else:
+        target = (3.0 * s_max + s_min) / 4.0
+    band = np.abs(s - target[None, :]) <= grip_width / 2.0  # (M, K)
+    counts = band.sum(axis=0)
+    # Where the band is empty (a tiny region), fall back to the nearest sample.
+    nearest = np.argmin(np.abs(s - target[None, :]), axis=0)
+    band[nearest, np.arange(k)] |= counts == 0
+    counts = band.sum(axis=0)
+    site = (band.T.astype(float) @ region.points) / counts[:, None]
+    n_parts = int(region.parts.max()) + 1
+    votes = np.zeros((k, n_parts))
+    for col in range(k):  # K = 24: a per-presentation tally, not per candidate
+        np.add.at(votes[col], region.parts[band[:, col]], 1.0)
+    part = votes.argmax(axis=1)
+    # Section thickness: spread of the band samples across the region axis.
+    across = region.points - np.outer(region.points @ region.axis, region.axis)
+    for col in range(k):
+        pts = across[band[:, col]]
+        thickness[col] = float(np.ptp(pts, axis=0).max()) if len(pts) > 1 else 0.02
+    return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool))

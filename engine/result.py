@@ -1,0 +1,118 @@
+"""The plan result: the contract other tools read (see ARCHITECTURE.md, "The JSON result").
+
+A :class:`PlanResult` is plain data (dicts, lists, floats) so that JSON, the text trace and
+the rerun recording all render the same thing. ``to_json`` rounds floats to micrometres and
+microradians and sorts nothing that has an order of its own, so the same query gives
+byte-identical JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["PlanResult", "to_jsonable", "dumps"]
+
+DECIMALS = 6
+
+
+def to_jsonable(value: Any) -> Any:
+    """Numpy arrays and scalars to lists and floats, rounded to ``DECIMALS``; NaN/inf to None."""
+    if isinstance(value, dict):
+        return {str(k): to_jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return to_jsonable(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        f = float(value)
+        if not math.isfinite(f):
+            return None
+        r = round(f, DECIMALS)
+        return 0.0 if r == 0 else r  # no "-0.0"
+    return value
+
+
+def dumps(data: Any) -> str:
+    """Deterministic JSON text (indent 2, key order as built, trailing newline)."""
+    return json.dumps(to_jsonable(data), indent=2, ensure_ascii=False) + "\n"
+
+
+@dataclass
+class PlanResult:
+    """A plan, feasible or not. Field meanings: ARCHITECTURE.md; extras documented here.
+
+    modes_tried : [{"mode", "feasible", "reason"}] in the order tried.
+    mode_reason : why this mode was chosen (or forced).
+    presentation : {"index", "rotation", "axes_world": {axis: [x, y, z]}}.
+    alternatives : the next best rows [{"grasp", "presentation", "score"}].
+    rules : every compiled rule with source and activity (the graph's rule nodes).
+    why_not : explanations of candidates asked about (``--why-not``).
+    """
+
+    object: str
+    query: dict
+    mode: str | None
+    feasible: bool
+    reason: str | None
+    object_pose: Any
+    receiver: dict
+    robot_grasps: list[dict]
+    human_grasps: list[dict]
+    gripper: dict
+    candidates: dict
+    trace: list[dict]
+    regrasp: dict | None = None
+    initial_pose: Any = None
+    modes_tried: list[dict] = field(default_factory=list)
+    mode_reason: str = ""
+    presentation: dict | None = None
+    alternatives: list[dict] = field(default_factory=list)
+    rules: list[dict] = field(default_factory=list)
+    why_not: list[dict] = field(default_factory=list)
+    scene: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        out = {
+            "object": self.object,
+            "query": self.query,
+            "mode": self.mode,
+            "feasible": self.feasible,
+            "reason": self.reason,
+            "object_pose": self.object_pose,
+            "receiver": self.receiver,
+            "robot_grasps": self.robot_grasps,
+            "human_grasps": self.human_grasps,
+        }
+        if self.regrasp is not None:
+            out["regrasp"] = self.regrasp
+        out.update(
+            {
+                "gripper": self.gripper,
+                "candidates": self.candidates,
+                "trace": self.trace,
+                "initial_pose": self.initial_pose,
+                "modes_tried": self.modes_tried,
+                "mode_reason": self.mode_reason,
+                "presentation": self.presentation,
+                "alternatives": self.alternatives,
+                "rules": self.rules,
+                "scene": self.scene,
+                "warnings": self.warnings,
+            }
+        )
+        if self.why_not:
+            out["why_not"] = self.why_not
+        return to_jsonable(out)
+
+    def to_json(self) -> str:
+        return dumps(self.to_dict())
