@@ -24,12 +24,11 @@ from engine.presentation import (
 from engine.query import Situation
 
 if TYPE_CHECKING:
+    from geometry.candidates import CandidateSet
     from geometry.collision import BoxWorld
+    from geometry.gripper import Gripper
     from geometry.hand import HumanHand
     from geometry.mesh import PartMesh
-
-    from geometry.candidates import CandidateSet
-    from geometry.gripper import Gripper
 
 __all__ = ["ObjectFacts", "PlanContext", "build_context", "initial_pose", "scene_boxes"]
 
@@ -88,6 +87,11 @@ class PlanContext:
     @property
     def k(self) -> int:
         return len(self.rotations)
+
+    def receiver_sites(self) -> list[ReceiverSites]:
+        """The receiver's hands in use: ``sites`` alone, or the two hands a two-handed
+        handover of a large object sets in ``cache["receiver_sites"]``."""
+        return self.cache.get("receiver_sites") or [self.sites]
 
     def d_obj(self) -> np.ndarray:
         """(K, 3): robot->receiver direction in the object frame, per presentation."""

@@ -31,6 +31,8 @@ __all__ = [
     "prepare",
     "plan",
     "plan_h1g1",
+    "build_result",
+    "required_mode",
     "grasp_record",
     "mesh_file_spec",
 ]
@@ -92,11 +94,10 @@ def _receiver_tags(kb: KB, situation: Situation) -> tuple[set[str], set[str]]:
 
 def prepare(kb: KB, query: Query) -> PlanContext:
     """Resolve the query, build the object's mesh and candidates, and the plan context."""
+    from engine import assets
     from geometry.collision import ObjectCollider
     from geometry.generate import generate_candidates
     from geometry.hand import HumanHand
-
-    from engine import assets
 
     path = Path(query.object)
     obj = None
@@ -197,16 +198,18 @@ def grasp_record(ctx: PlanContext, hand: str, i: int, k: int, score: float | Non
     }
 
 
-def human_record(ctx: PlanContext, k: int, hand: str) -> dict | None:
-    """The receiver's predicted grasp (seed's C) in presentation ``k``."""
-    if not ctx.sites.valid[k]:
+def human_record(ctx: PlanContext, k: int, hand: str, sites=None) -> dict | None:
+    """A receiver's predicted grasp (seed's C) in presentation ``k`` (``sites``: which hand's
+    predictions, default the single-hand ones)."""
+    sites = ctx.sites if sites is None else sites
+    if not sites.valid[k]:
         return None
-    site = ctx.sites.site[k]
+    site = sites.site[k]
     return {
         "hand": hand,
         "position": site,
         "position_world": ctx.poses[k, :3, :3] @ site + ctx.poses[k, :3, 3],
-        "part": ctx.part_mesh.part_names[int(ctx.sites.part[k])],
+        "part": ctx.part_mesh.part_names[int(sites.part[k])],
     }
 
 
@@ -252,24 +255,71 @@ def _why_not(attempt: Attempt, ctx: PlanContext, grasp: int) -> dict:
             "feasible_presentations": feasible_in, "trace": trace}
 
 
+def _other_gripper_check(ctx: PlanContext, partner: int):
+    """A callable for the ``other_gripper`` collision rule: rows against one fixed grasp."""
+    from geometry.collision import grippers_collide
+
+    def hit(gi: np.ndarray, pk: np.ndarray) -> np.ndarray:
+        poses, widths = ctx.cache.get("poses", ctx.candidates.poses()), ctx.candidates.width
+        other = np.repeat(poses[partner][None], len(gi), axis=0)
+        return grippers_collide(ctx.gripper, poses[gi], widths[gi], other,
+                                np.full(len(gi), widths[partner]), paired=True)
+
+    return hit
+
+
+def _traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
+    """The trace of every chosen grasp, with the other hand's grasp as the obstacle for the
+    ``other_gripper`` rule in the two-hand modes."""
+    from engine.regrasp import first_rules, first_trace
+
+    trace: list[dict] = []
+    chosen = attempt.chosen
+    for n, (hand, i, k) in enumerate(chosen):
+        partner = chosen[1 - n][1] if len(chosen) == 2 else None
+        ctx.cache["other_gripper_hit"] = (
+            _other_gripper_check(ctx, partner) if partner is not None else None
+        )
+        if attempt.mode == "H2G2" and n == 0:
+            entries = first_trace(ctx, first_rules(attempt.graph.hard), attempt.graph.order, i)
+            stage = "pick"
+        else:
+            if attempt.mode == "H2G2":
+                ctx.cache.update(pickup=False, receiver_present=True)
+            entries = trace_row(attempt.graph, ctx, i, k)
+            stage = "handover"
+        trace.extend({"grasp": i, "hand": hand, "stage": stage, **e} for e in entries)
+    ctx.cache["other_gripper_hit"] = None
+    return trace
+
+
 def build_result(
     ctx: PlanContext, attempt: Attempt, tried: list[Attempt], mode_reason: str,
     why_not: tuple[int, ...] = (),
 ) -> PlanResult:
     """Assemble the JSON-able result of the chosen attempt."""
     s = ctx.situation
-    k = attempt.chosen[0][2] if attempt.chosen else 0
+    k = attempt.chosen[-1][2] if attempt.chosen else 0
     robot_grasps = [grasp_record(ctx, hand, i, kk, attempt.score)
                     for hand, i, kk in attempt.chosen]
-    human = []
+    human: list[dict] = []
     trace: list[dict] = []
+    regrasp = None
     if attempt.feasible:
-        rec = human_record(ctx, k, s.receiver.dominant_hand)
-        if rec is not None:
-            human.append(rec)
-        for hand, i, kk in attempt.chosen:
-            for entry in trace_row(attempt.graph, ctx, i, kk):
-                trace.append({"grasp": i, "hand": hand, **entry})
+        if attempt.mode == "H2G2":
+            first, second = robot_grasps
+            first["stage"], second["stage"] = "pick", "handover"
+            first["pose_world"] = ctx.initial @ first["pose"]
+            midair = attempt.extra["midair"]
+            regrasp = {"first": first | {"pose_midair": midair @ first["pose"]},
+                       "midair_pose": midair, "second": second}
+        sites = ctx.receiver_sites()
+        hands = [s.receiver.dominant_hand] if len(sites) == 1 else ["right", "left"]
+        for sites_h, hand_name in zip(sites, hands, strict=True):
+            rec = human_record(ctx, k, hand_name, sites_h)
+            if rec is not None:
+                human.append(rec)
+        trace = _traces(ctx, attempt)
     d = attempt.decision
     candidates = {
         "generated": int(d.n_rows) if d is not None else 0,
@@ -279,6 +329,10 @@ def build_result(
         "rejected_by": d.rejected_by() if d is not None else {},
         "generation": ctx.generation,
     }
+    for key in ("first_rejected_by", "first_feasible", "pairs_checked", "pairs_colliding",
+                "receiver_hands", "receiver_hands_why", "balance_offset_m"):
+        if key in attempt.extra:
+            candidates[key] = attempt.extra[key]
     if d is not None and not attempt.feasible:
         candidates["blocking_sets"] = [
             {"rules": list(ids), "candidates": n} for ids, n in d.blocking_sets()
@@ -303,12 +357,12 @@ def build_result(
         robot_grasps=robot_grasps,
         human_grasps=human,
         gripper={"id": s.gripper.id, "max_width": g.max_opening, "min_width": g.min_opening,
-                 "finger_depth": g.finger_length, "finger_width": g.finger_width,
-                 "finger_thickness": g.finger_thickness, "palm": list(g.palm),
-                 "friction": g.friction, "clearance": g.clearance},
+                 "finger_depth": g.finger_length / 2.0, "finger_length": g.finger_length,
+                 "finger_width": g.finger_width, "finger_thickness": g.finger_thickness,
+                 "palm": list(g.palm), "friction": g.friction, "clearance": g.clearance},
         candidates=candidates,
         trace=trace,
-        regrasp=attempt.extra.get("regrasp"),
+        regrasp=regrasp,
         initial_pose=ctx.initial,
         modes_tried=[{"mode": a.mode, "feasible": a.feasible, "reason": a.reason}
                      for a in tried],
@@ -328,16 +382,76 @@ def build_result(
                 f"safety rule {', '.join(c.overridden_safety)} overridden by {c.id} "
                 f"({c.source}): {c.rule.override_safety}"
             )
+    ctx.cache["attempt"] = attempt
     return result
 
 
+def required_mode(kb: KB, ctx: PlanContext) -> tuple[str | None, str, str | None, str]:
+    """The mode the KB requires (hard mode rules) and the one it prefers (soft), each with the
+    rule that says so, for this query. Returns (required, why, preferred, why)."""
+    ctx.cache["mode"] = "H1G1"
+    cg = compile(kb, ctx, "H1G1")
+    required = preferred = None
+    req_why = pref_why = ""
+    for c in cg.order:
+        if c.rule.kind != "mode":
+            continue
+        text = f"rule {c.id} ({c.source}) asks for {c.rule.mode}: {c.rule.why}"
+        if c.rule.hard and required is None:
+            required, req_why = c.rule.mode, text
+        elif not c.rule.hard and preferred is None:
+            preferred, pref_why = c.rule.mode, text
+    return required, req_why, preferred, pref_why
+
+
 def plan(kb: KB, query: Query, why_not: tuple[int, ...] = ()) -> tuple[PlanResult, PlanContext]:
-    """Plan a handover. Returns the result (feasible or not) and its context (for
-    recordings)."""
+    """Plan a handover, choosing the mode (``auto``) or using the forced one.
+
+    auto: a mode a hard rule requires is the only one tried (the others are reported as
+    ruled out by that rule); otherwise H1G1, then H2G2 when H1G1 has no feasible grasp, then
+    H2G1; a mode a soft rule prefers goes first. Returns the result (feasible or not) and its
+    context (for recordings).
+    """
+    from engine.regrasp import plan_h2g2
+    from engine.twohand import plan_h2g1
+
+    planners = {"H1G1": plan_h1g1, "H2G2": plan_h2g2, "H2G1": plan_h2g1}
     ctx = prepare(kb, query)
-    mode = query.mode.lower()
-    if mode in ("auto", "h1g1"):
-        attempt = plan_h1g1(kb, ctx)
-        reason = "forced by --mode h1g1" if mode == "h1g1" else "one hand, one grasp tried first"
-        return build_result(ctx, attempt, [attempt], reason, why_not), ctx
-    raise UsageError(f"mode '{query.mode}' is not available yet")
+    asked = query.mode.lower()
+    tried: list[Attempt] = []
+    if asked != "auto":
+        mode = asked.upper()
+        attempt = planners[mode](kb, ctx)
+        tried.append(attempt)
+        return build_result(ctx, attempt, tried, f"forced by --mode {asked}", why_not), ctx
+
+    required, req_why, preferred, pref_why = required_mode(kb, ctx)
+    if required is not None:
+        order = [required]
+        for m in planners:
+            if m != required:
+                tried.append(Attempt(m, False, f"{m}: not tried, {req_why}"))
+    else:
+        order = list(planners)
+        if preferred is not None:
+            order.remove(preferred)
+            order.insert(0, preferred)
+    last = None
+    for mode in order:
+        attempt = planners[mode](kb, ctx)
+        tried.append(attempt)
+        last = attempt
+        if attempt.feasible:
+            if required is not None:
+                why = req_why
+            elif preferred == mode:
+                why = pref_why
+            elif mode == "H1G1":
+                why = "one hand, one grasp is tried first and is feasible"
+            else:
+                why = f"{mode} tried because " + "; ".join(
+                    a.reason or "" for a in tried if not a.feasible and a.mode != mode)
+            return build_result(ctx, attempt, tried, why, why_not), ctx
+    tried_order = {m: n for n, m in enumerate(planners)}
+    tried.sort(key=lambda a: tried_order[a.mode])
+    return build_result(ctx, last, tried, "no mode is feasible", why_not), ctx

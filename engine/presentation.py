@@ -26,6 +26,7 @@ __all__ = [
     "ReceiverSites",
     "receiver_region",
     "predict_receiver_sites",
+    "predict_two_hand_sites",
 ]
 
 
@@ -128,12 +129,15 @@ class ReceiverSites:
     part : (K,) int. Part index at the site (-1 where none).
     thickness : (K,) m. Size of the grasped section across the region's axis.
     valid : (K,) bool.
+    axis : (K, 3) unit, object frame, or None. The direction the hand wraps around, where
+        it differs from the region's axis (an edge held by one of two hands).
     """
 
     site: np.ndarray
     part: np.ndarray
     thickness: np.ndarray
     valid: np.ndarray
+    axis: np.ndarray | None = None
 
 
 def predict_receiver_sites(
@@ -184,3 +188,54 @@ def predict_receiver_sites(
         pts = across[band[:, col]]
         thickness[col] = float(np.ptp(pts, axis=0).max()) if len(pts) > 1 else 0.02
     return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool))
+
+
+def predict_two_hand_sites(
+    region: ReceiverRegion,
+    rotations: np.ndarray,
+    toward: np.ndarray,
+    grip_width: float,
+) -> list[ReceiverSites]:
+    """Sites of the receiver's two hands for a large object (seed 3.3, four hands): on the
+    receiver's edge of the region (s* = s_max - grip_width / 2 along robot->receiver), one
+    hand width in from its left and right ends. Returns [receiver's right, receiver's left].
+
+    The receiver faces the robot, so their right hand is on the robot's left,
+    ``up x toward``. Each site is the mean of the region samples within half a grip width
+    of (s*, t*) in the horizontal plane; the hand wraps around the lateral direction.
+    """
+    k = len(rotations)
+    empty = ReceiverSites(np.full((k, 3), np.nan), np.full(k, -1, dtype=np.int64),
+                          np.zeros(k), np.zeros(k, dtype=bool))
+    if region.empty:
+        return [empty, empty]
+    up = np.array([0.0, 0.0, 1.0])
+    lateral = np.cross(up, toward)
+    d_obj = np.einsum("kji,j->ki", rotations, toward)
+    l_obj = np.einsum("kji,j->ki", rotations, lateral)
+    h_obj = np.cross(d_obj, l_obj)
+    s = region.points @ d_obj.T  # (M, K)
+    t = region.points @ l_obj.T
+    h = region.points @ h_obj.T
+    s_target = s.max(axis=0) - grip_width / 2.0
+    t_mid = 0.5 * (t.min(axis=0) + t.max(axis=0))
+    t_half = np.maximum(0.5 * (t.max(axis=0) - t.min(axis=0)) - grip_width, 0.0)
+    n_parts = int(region.parts.max()) + 1
+    out = []
+    for sign in (1.0, -1.0):
+        t_target = t_mid + sign * t_half
+        dist = np.maximum(np.abs(s - s_target), np.abs(t - t_target))  # (M, K)
+        band = dist <= grip_width / 2.0
+        nearest = np.argmin(dist, axis=0)
+        band[nearest, np.arange(k)] |= ~band.any(axis=0)
+        counts = band.sum(axis=0)
+        site = (band.T.astype(float) @ region.points) / counts[:, None]
+        part = np.zeros(k, dtype=np.int64)
+        thickness = np.zeros(k)
+        for col in range(k):  # K = 24 presentations
+            parts = np.bincount(region.parts[band[:, col]], minlength=n_parts)
+            part[col] = int(parts.argmax())
+            hs = h[band[:, col], col]
+            thickness[col] = float(np.ptp(hs)) if len(hs) > 1 else 0.02
+        out.append(ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj))
+    return out

@@ -133,14 +133,17 @@ def _contact(rule: Rule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray) -> Ou
             ok &= require[parts].any(axis=1)
         threshold = _contact_threshold(rule)
         return Outcome(ok, bad, ok.astype(float), threshold, "contacts on forbidden parts")
-    part = ctx.sites.part[pk]
-    valid = ctx.sites.valid[pk]
-    ok = valid.copy()
-    if forbid is not None:
-        ok &= ~forbid[np.maximum(part, 0)]
-    if require is not None:
-        ok &= require[np.maximum(part, 0)]
-    measured = np.where(valid, part, -1).astype(float)
+    ok = np.ones(len(pk), dtype=bool)
+    measured = np.full(len(pk), -1.0)
+    for sites in ctx.receiver_sites():  # every receiver hand must pass
+        part = sites.part[pk]
+        valid = sites.valid[pk]
+        ok &= valid
+        if forbid is not None:
+            ok &= ~forbid[np.maximum(part, 0)]
+        if require is not None:
+            ok &= require[np.maximum(part, 0)]
+        measured = np.where(measured < 0, np.where(valid, part, -1), measured)
     return Outcome(ok, measured, ok.astype(float), _contact_threshold(rule), "part index")
 
 
@@ -203,9 +206,10 @@ def _approach(rule: Rule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray) -> O
 
 
 def _clearance(rule: Rule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray) -> Outcome:
-    site = ctx.sites.site[pk]
-    dist = np.linalg.norm(ctx.candidates.centre[gi] - site, axis=1)
-    dist = np.where(ctx.sites.valid[pk], dist, np.inf)
+    dist = np.full(len(gi), np.inf)
+    for sites in ctx.receiver_sites():  # the nearest receiver hand counts
+        d = np.linalg.norm(ctx.candidates.centre[gi] - sites.site[pk], axis=1)
+        dist = np.minimum(dist, np.where(sites.valid[pk], d, np.inf))
     ok = dist >= rule.min_m - 1e-9
     score = np.clip(dist / max(2.0 * rule.min_m, 1e-9), 0.0, 1.0)
     return Outcome(ok, dist, score, f">= {rule.min_m:g} m", "m")
@@ -248,18 +252,22 @@ def _poses(ctx: PlanContext) -> np.ndarray:
 
 
 def receiver_hand_boxes(ctx: PlanContext, k: int) -> list:
-    """The receiver's hand model at the predicted site of presentation ``k`` (world boxes)."""
+    """The receiver's hand models at the predicted sites of presentation ``k`` (world boxes,
+    every hand of ``ctx.receiver_sites()``)."""
     cache = ctx.cache.setdefault("hand_boxes", {})
-    if k not in cache:
-        if not ctx.sites.valid[k]:
-            cache[k] = []
-        else:
-            rot, pose = ctx.rotations[k], ctx.poses[k]
-            site = pose[:3, :3] @ ctx.sites.site[k] + pose[:3, 3]
-            axis = rot @ ctx.region.axis
+    key = (ctx.cache.get("hands_variant", "one"), k)
+    if key not in cache:
+        boxes = []
+        rot, pose = ctx.rotations[k], ctx.poses[k]
+        for sites in ctx.receiver_sites():
+            if not sites.valid[k]:
+                continue
+            site = pose[:3, :3] @ sites.site[k] + pose[:3, 3]
+            axis = rot @ (sites.axis[k] if sites.axis is not None else ctx.region.axis)
             approach = _hand_approach(axis, ctx.situation.toward)
-            cache[k] = ctx.hand.boxes(site, axis, approach, float(ctx.sites.thickness[k]))
-    return cache[k]
+            boxes.extend(ctx.hand.boxes(site, axis, approach, float(sites.thickness[k])))
+        cache[key] = boxes
+    return cache[key]
 
 
 def _hand_approach(axis: np.ndarray, toward: np.ndarray) -> np.ndarray:
@@ -293,9 +301,14 @@ def _collision(rule: Rule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray) -> 
     hit = np.zeros(len(gi), dtype=bool)
     for target in rule.against:
         if target == "scene":
-            hit |= collision_scene(ctx, gi)
+            # The scene is met at pick-up; a hand that never picks (H2G2's second hand)
+            # sets ctx.cache["pickup"] = False.
+            if ctx.cache.get("pickup", True):
+                hit |= collision_scene(ctx, gi)
         elif target == "receiver_hand":
-            hit |= collision_receiver_hand(ctx, gi, pk)
+            # Absent while the robot passes the object between its own hands (H2G2 pick).
+            if ctx.cache.get("receiver_present", True):
+                hit |= collision_receiver_hand(ctx, gi, pk)
         elif target == "other_gripper":
             other = ctx.cache.get("other_gripper_hit")
             if other is not None:

@@ -1,0 +1,128 @@
+"""H2G1: the robot gives the object with both hands (seed section 3.3).
+
+For a large or heavy object, or when etiquette asks for two hands (an elder or a superior in
+some cultures), the robot holds the object at its far left and far right and presents it.
+The receiver's hands are predicted first: two hands for a large object, one for the
+etiquette case (which it is is read from the KB: two hands when the mode rule that asked for
+H2G1 is about mass or size). Their hand models are obstacles for both robot grippers.
+
+Every rule of the culture applies to each robot grasp. The left hand's candidates lie in the
+outer ``SIDE_BAND`` of the object's extent on the robot's left, the right hand's on its right,
+both in the same presentation. Pairs are kept when the two grippers do not collide and each
+hand's share of the weight is within its payload, and scored for balance: the mean of the two
+grasps' rule scores, and how close the line between the grasps passes to the centre of mass.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from engine.compiler import ConstraintGraph, compile
+from engine.context import PlanContext
+from engine.evaluate import evaluate
+from engine.presentation import predict_two_hand_sites
+from engine.rules import _poses
+
+if TYPE_CHECKING:
+    from engine.loader import KB
+    from engine.planners import Attempt
+
+__all__ = ["plan_h2g1", "receiver_hand_count", "SIDE_BAND", "BALANCE_WEIGHT"]
+
+# Fraction of the object's left-right extent, at each end, where that side's hand may grasp.
+SIDE_BAND = 0.25
+# Weight of balance against the rules' mean score in a pair's score.
+BALANCE_WEIGHT = 0.5
+# How many of the best rows per side and presentation are paired.
+SIDE_POOL = 48
+
+
+def receiver_hand_count(cg: ConstraintGraph) -> tuple[int, str]:
+    """How many hands the receiver uses, and why: two when an active mode rule asking for
+    H2G1 is about the object's mass or size (the large-object case), else one (etiquette)."""
+    for c in cg.order:
+        a = c.rule.applies
+        if c.rule.kind == "mode" and c.rule.mode == "H2G1":
+            if a.exceeds_payload or a.exceeds_opening or a.min_mass is not None \
+                    or a.min_size is not None:
+                return 2, f"{c.id} ({c.source}): a large or heavy object takes two hands"
+    for c in cg.order:
+        if c.rule.kind == "mode" and c.rule.mode == "H2G1":
+            return 1, f"{c.id} ({c.source}): etiquette; the receiver takes it in one hand"
+    return 1, "no rule asks for two hands; the receiver takes it in one hand"
+
+
+def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
+    """Plan a two-handed handover; see the module docstring."""
+    from engine.planners import Attempt, _reason
+    from geometry.collision import grippers_collide
+
+    ctx.cache.update({"pickup": True, "receiver_present": True, "mode": "H2G1"})
+    cg = compile(kb, ctx, "H2G1")
+    hands, hands_why = receiver_hand_count(cg)
+    if hands == 2:
+        ctx.cache["receiver_sites"] = predict_two_hand_sites(
+            ctx.region, ctx.rotations, ctx.situation.toward, ctx.situation.hand.grip_width)
+        ctx.cache["hands_variant"] = "two"
+    decision = evaluate(cg, ctx)
+    extra = {"receiver_hands": hands, "receiver_hands_why": hands_why}
+    facts = ctx.facts
+    if facts.mass / 2.0 > facts.payload:
+        return Attempt("H2G1", False,
+                       f"H2G1: half the mass ({facts.mass / 2:g} kg) exceeds one hand's payload "
+                       f"({facts.payload:g} kg)", cg, decision, extra=extra)
+    ranking = decision.ranking()
+    if len(ranking) == 0:
+        return Attempt("H2G1", False, _reason(decision, "H2G1"), cg, decision, extra=extra)
+
+    up = np.array([0.0, 0.0, 1.0])
+    lateral = np.cross(up, ctx.situation.toward)  # the robot's left
+    l_obj = np.einsum("kji,j->ki", ctx.rotations, lateral)
+    verts = np.asarray(ctx.part_mesh.mesh.vertices)
+    t_all = verts @ l_obj.T  # (V, K)
+    t_min, t_max = t_all.min(axis=0), t_all.max(axis=0)
+    gi, pk = decision.gi[ranking], decision.pk[ranking]
+    t = np.einsum("ri,ri->r", ctx.candidates.centre[gi], l_obj[pk])
+    span = np.maximum(t_max - t_min, 1e-9)[pk]
+    left = t >= t_max[pk] - SIDE_BAND * span
+    right = t <= t_min[pk] + SIDE_BAND * span
+    com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
+    poses, widths = _poses(ctx), ctx.candidates.width
+    best = None
+    checked = colliding = 0
+    for k in np.unique(pk):  # at most 24 presentations; pairs within one are vectorised
+        li = ranking[(pk == k) & left][:SIDE_POOL]
+        ri = ranking[(pk == k) & right][:SIDE_POOL]
+        if not len(li) or not len(ri):
+            continue
+        gl, gr = decision.gi[li], decision.gi[ri]
+        hit = grippers_collide(ctx.gripper, poses[gl], widths[gl], poses[gr], widths[gr],
+                               paired=False)
+        checked += hit.size
+        colliding += int(hit.sum())
+        cl, cr = ctx.candidates.centre[gl], ctx.candidates.centre[gr]
+        seg = cr[None, :, :] - cl[:, None, :]  # (L, R, 3)
+        rel = com[None, None, :] - cl[:, None, :]
+        cross = np.linalg.norm(np.cross(seg, rel), axis=2)
+        off = cross / np.maximum(np.linalg.norm(seg, axis=2), 1e-9)  # COM to the grasp line
+        balance = 1.0 - np.clip(off / max(facts.size / 2.0, 1e-9), 0.0, 1.0)
+        mean = 0.5 * (decision.score[li][:, None] + decision.score[ri][None, :])
+        score = (1 - BALANCE_WEIGHT) * mean + BALANCE_WEIGHT * balance
+        score = np.where(hit, -np.inf, score)
+        flat = int(np.argmax(score))
+        a, b = divmod(flat, score.shape[1])
+        if np.isfinite(score[a, b]) and (best is None or score[a, b] > best[0] + 1e-12):
+            best = (float(score[a, b]), int(gl[a]), int(gr[b]), int(k), float(off[a, b]))
+    extra.update(pairs_checked=checked, pairs_colliding=colliding)
+    if best is None:
+        return Attempt("H2G1", False,
+                       f"H2G1: no pair of grasps at the far left and far right ({checked} pairs "
+                       f"checked, {colliding} with colliding grippers)", cg, decision,
+                       extra=extra)
+    score, i_left, i_right, k, off = best
+    extra["balance_offset_m"] = off
+    ctx.cache["partner"] = (i_left, i_right)
+    return Attempt("H2G1", True, None, cg, decision,
+                   [("left", i_left, k), ("right", i_right, k)], score, extra=extra)
