@@ -60,7 +60,8 @@ def main(argv: list[str] | None = None) -> int:
     unless ``--debug`` was given."""
     from rich.console import Console
 
-    from engine.errors import EXIT_INTERNAL, HandoverError, KBError
+    from engine.errors import EXIT_BAD_MESH, EXIT_INTERNAL, HandoverError, KBError
+    from geometry.mesh import MeshError
 
     args = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in args or os.environ.get("HANDOVER_DEBUG") == "1"
@@ -81,6 +82,13 @@ def main(argv: list[str] | None = None) -> int:
             raise
         err.print(f"[bold red]error[/]: {e}", markup=True)
         return e.exit_code
+    except MeshError as e:  # geometry's own error (geometry does not import engine)
+        if debug:
+            raise
+        from rich.markup import escape
+
+        err.print(f"[bold red]bad mesh[/]: {escape(str(e))}")
+        return EXIT_BAD_MESH
     except _click_exceptions() as e:
         e.show()
         return e.exit_code

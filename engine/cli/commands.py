@@ -4,4 +4,8 @@ Add a new command module here (one line) when you add one.
 """
 
 from __future__ import annotations
-from engine.cli import plan  # noqa: F401,E402  (plan, explain-graph)
+
+from engine.cli import (
+    grasps,  # noqa: F401,E402  (grasps)
+    plan,  # noqa: F401,E402  (plan, explain-graph)
+)

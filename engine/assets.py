@@ -1,0 +1,93 @@
+"""From KB specs to geometry objects: an object's part-tagged mesh, the gripper model.
+
+The bridge between the knowledge base (``engine.schema``) and ``geometry`` (which knows
+nothing of the KB). Nothing is cached here: each call builds afresh.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from engine.loader import KB
+    from engine.schema import GripperSpec, ObjectSpec, Primitive
+    from geometry.gripper import Gripper
+    from geometry.mesh import PartMesh
+
+__all__ = ["object_part_mesh", "primitive_mesh", "gripper_from_spec", "mesh_file_object"]
+
+MESH_FILE_PART = "body"
+"""Part name of every face of a mesh file given with no KB entry."""
+
+
+def primitive_mesh(prim: Primitive):
+    """The ``trimesh.Trimesh`` of one KB primitive, placed in the object frame.
+
+    ``position`` (m) then ``rotation_deg`` (extrinsic x, y, z, degrees) place the shape:
+    ``T = translate(position) @ rotate(rotation_deg)`` about the primitive's own centre.
+    """
+    from geometry import mesh as gm
+    from geometry.frames import rotation_from_euler_deg, transform_from
+
+    transform = transform_from(rotation_from_euler_deg(prim.rotation_deg), prim.position)
+    if prim.shape == "box":
+        return gm.box(prim.extents, transform)
+    if prim.shape == "cylinder":
+        return gm.cylinder(prim.radius, prim.height, prim.sections, transform)
+    if prim.shape == "capsule":
+        return gm.capsule(prim.radius, prim.height, transform, sections=prim.sections)
+    return gm.icosphere(prim.radius, prim.subdivisions, transform)
+
+
+def object_part_mesh(kb: KB, obj: ObjectSpec) -> PartMesh:
+    """The object's surface with its faces tagged by part (object frame, m).
+
+    Primitives are unioned into one surface (:func:`geometry.mesh.compose`); a mesh file
+    (``kb.mesh_path(obj)``, scaled by ``geometry.mesh.scale``) is tagged by its regions, the
+    rest of its faces by ``default_part``. Raises ``geometry.mesh.MeshError`` on a missing or
+    bad mesh file.
+    """
+    from geometry import mesh as gm
+
+    if obj.geometry.primitives:
+        return gm.compose([(p.part, primitive_mesh(p)) for p in obj.geometry.primitives])
+    spec = obj.geometry.mesh
+    path = kb.mesh_path(obj)
+    if spec is None or path is None:
+        raise gm.MeshError(f"object '{obj.id}' has neither primitives nor a mesh file")
+    mesh = gm.load_mesh(path, scale=spec.scale)
+    regions = [(r.part, np.asarray(r.center), np.asarray(r.extents)) for r in spec.regions]
+    return gm.part_mesh_from_regions(mesh, spec.default_part, regions)
+
+
+def mesh_file_object(path: str | Path) -> PartMesh:
+    """A mesh file with no KB entry: one part named ``body`` (metres assumed)."""
+    from geometry import mesh as gm
+
+    return gm.part_mesh_from_regions(gm.load_mesh(path), MESH_FILE_PART, [])
+
+
+def gripper_from_spec(spec: GripperSpec) -> Gripper:
+    """The geometry model of a KB gripper (lengths in m, tolerances in degrees).
+
+    ``max_finger_depth`` has no counterpart in the model: the model's finger depth is half
+    the finger length (the pads are centred on the contacts).
+    """
+    from geometry.gripper import Gripper
+
+    return Gripper(
+        max_opening=spec.max_opening,
+        min_opening=spec.min_opening,
+        finger_length=spec.finger_length,
+        finger_width=spec.finger_width,
+        finger_thickness=spec.finger_thickness,
+        palm=tuple(spec.palm),
+        clearance=spec.clearance,
+        friction=spec.friction,
+        parallel_tol_deg=spec.parallel_tol_deg,
+        min_overlap_area=spec.min_overlap_area,
+        roll_step_deg=spec.roll_step_deg,
+    )

@@ -1,0 +1,395 @@
+"""Grasp sites on pairs of parallel planar facets: the seed's section 3.1, at scale.
+
+The seed tests every pair of faces of a convex polyhedron: nearly antiparallel, closer
+than the gripper's opening, and overlapping enough when projected along their common
+normal; the overlap's centre is a grasp site. Here:
+
+1. Faces are grouped into planar facets (trimesh's ``mesh.facets``: connected coplanar
+   faces, plus single faces in no group). Only facets of area >= the least overlap take
+   part: a smaller facet cannot overlap that much, so this prunes exactly (on a curved
+   mesh that is nearly every face; those go to :mod:`geometry.antipodal`).
+2. Antiparallel pairs are found with a KD-tree on unit normals (query the antipode within
+   the angle tolerance), not by testing all pairs; then their planes' separation is
+   screened against the opening.
+3. Both facet polygons (holes included) are projected along the common normal into one 2D
+   frame and intersected with vectorised shapely; overlaps of at least the least area
+   are kept.
+4. Sites: a grid at finger-width spacing, aligned with the overlap's long axis and anchored
+   at its centroid, over the overlap shrunk by an inset (half a finger width, so the pad
+   fits, but at most a quarter of the overlap's short side, so a strip narrower than a
+   finger still gets a line of sites). An overlap with no grid point inside gets one site
+   at its representative point. A small overlap therefore has exactly one site, at its
+   centroid (the seed's ``P_ic``) when the centroid lies inside it.
+5. Contacts: the line through a site along the common normal meets each facet's plane; the
+   grasp centre is their midpoint. A ray cast (embree) from each contact to the other must
+   meet the other facet first, at the expected distance: the material between the
+   fingers is solid (no hole or cavity in between), and the rays name the contact faces.
+
+The closing direction ``o`` is the common normal, from facet ``i`` to facet ``j`` (``i < j``).
+The reference approach (roll 0) is the overlap's long axis, perpendicular to ``o``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from geometry.frames import perpendicular, unit
+from geometry.mesh import ray_first_hits
+from geometry.quality import ContactPairs, in_friction_cone
+
+if TYPE_CHECKING:
+    import trimesh
+
+__all__ = [
+    "Facets",
+    "FacetSites",
+    "planar_facets",
+    "antiparallel_pairs",
+    "project_overlaps",
+    "overlap_site_points",
+    "facet_sites",
+]
+
+
+@dataclass
+class Facets:
+    """Planar facets of a mesh (only those of at least some area), K of them.
+
+    faces : list of K int arrays, the mesh faces of each facet.
+    normal : (K, 3) unit outward normal (area-weighted mean of its faces').
+    origin : (K, 3) m, area centroid, object frame.
+    area : (K,) m^2.
+    basis : (K, 2, 3) unit in-plane axes ``U, V`` with ``U x V = normal``.
+    polygon : (K,) shapely polygons in the facet's 2D frame: point ``(x, y)`` is
+        ``origin + x U + y V`` (holes kept).
+    radius : (K,) m, largest distance from ``origin`` to the polygon's bounding box.
+    """
+
+    faces: list[np.ndarray]
+    normal: np.ndarray
+    origin: np.ndarray
+    area: np.ndarray
+    basis: np.ndarray
+    polygon: np.ndarray
+    radius: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.faces)
+
+
+@dataclass
+class FacetSites:
+    """What :func:`facet_sites` found.
+
+    sites : ContactPairs, one row per site (source ``SOURCE_FACET``).
+    pair : (S, 2) int, the two facets (indices into ``facets``) of each site.
+    facets : the large facets considered.
+    paired_faces : (F,) bool, faces of facets that gave at least one site (the antipodal
+        sampler leaves these alone).
+    candidate_pairs : antiparallel facet pairs within the opening (before overlap).
+    overlapping_pairs : pairs whose projected overlap has the least area.
+    """
+
+    sites: ContactPairs
+    pair: np.ndarray
+    facets: Facets
+    paired_faces: np.ndarray
+    candidate_pairs: int
+    overlapping_pairs: int
+
+
+def _local_coords(points: np.ndarray, origin: np.ndarray, basis: np.ndarray) -> np.ndarray:
+    """Points (..., 3) into a plane's 2D frame: ``((p - origin) . U, (p - origin) . V)``."""
+    return np.einsum("...j,kj->...k", points - origin, basis)
+
+
+def planar_facets(mesh: trimesh.Trimesh, min_area: float) -> Facets:
+    """The mesh's planar facets of area >= ``min_area`` (m^2), with polygons.
+
+    A facet is a group of trimesh's ``mesh.facets`` or a single face in no group. Facets are
+    ordered: groups in trimesh's order, then single faces by index.
+    """
+    import shapely
+
+    groups = [np.asarray(g, dtype=np.int64) for g in mesh.facets]
+    grouped = np.zeros(len(mesh.faces), dtype=bool)
+    if groups:
+        grouped[np.concatenate(groups)] = True
+    area_faces = mesh.area_faces
+    big_groups = [g for g in groups if area_faces[g].sum() >= min_area]
+    singles = np.flatnonzero(~grouped & (area_faces >= min_area))
+    faces = big_groups + [singles[k : k + 1] for k in range(len(singles))]
+    k_count = len(faces)
+    if k_count == 0:
+        empty = np.zeros((0, 3))
+        return Facets([], empty, empty.copy(), np.zeros(0), np.zeros((0, 2, 3)),
+                      np.zeros(0, dtype=object), np.zeros(0))  # fmt: skip
+
+    flat = np.concatenate(faces)
+    owner = np.repeat(np.arange(k_count), [len(f) for f in faces])
+    w = area_faces[flat]
+    area = np.bincount(owner, w, minlength=k_count)
+    normal = np.zeros((k_count, 3))
+    origin = np.zeros((k_count, 3))
+    for axis in range(3):
+        normal[:, axis] = np.bincount(owner, w * mesh.face_normals[flat, axis], k_count)
+        origin[:, axis] = np.bincount(owner, w * mesh.triangles_center[flat, axis], k_count)
+    normal = unit(normal)
+    origin /= area[:, None]
+    u_axis = perpendicular(normal)
+    basis = np.stack([u_axis, np.cross(normal, u_axis)], axis=1)
+
+    # every facet triangle in its facet's 2D frame
+    tri2d = np.einsum("tvj,tkj->tvk", mesh.triangles[flat] - origin[owner][:, None], basis[owner])
+    rings = np.concatenate([tri2d, tri2d[:, :1]], axis=1)
+    triangles = shapely.polygons(rings)
+    polygon = np.empty(k_count, dtype=object)
+    n_big = len(big_groups)
+    starts = np.concatenate([[0], np.cumsum([len(f) for f in faces])])
+    polygon[n_big:] = triangles[starts[n_big:-1]]
+    for k in range(n_big):
+        tris = triangles[starts[k] : starts[k + 1]]
+        merged = shapely.coverage_union_all(tris)
+        if not shapely.is_valid(merged) or abs(merged.area - area[k]) > 1e-9 * max(area[k], 1e-12):
+            merged = shapely.union_all(tris)  # the triangles were not an exact coverage
+        polygon[k] = merged
+    bounds = shapely.bounds(polygon)
+    radius = np.hypot(np.abs(bounds[:, [0, 2]]).max(axis=1), np.abs(bounds[:, [1, 3]]).max(axis=1))
+    return Facets(faces, normal, origin, area, basis, polygon, radius)
+
+
+def antiparallel_pairs(
+    facets: Facets, tol_rad: float, min_opening: float, max_opening: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Facet pairs that could be grasped across: ``(i, j, u)``, with ``i < j``.
+
+    Normals antiparallel within ``tol_rad`` (a KD-tree on unit normals queried at the
+    antipodes), facets facing away from each other, and their planes' separation along the
+    common normal, widened by how far the facets' tilt can move it, overlapping the range
+    ``[min_opening, max_opening]`` (m). ``u`` (P, 3) is the common normal, unit, from ``i``
+    to ``j``. Pairs are sorted by ``(i, j)``.
+    """
+    from scipy.spatial import cKDTree
+
+    none = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros((0, 3)))
+    if len(facets) < 2:
+        return none
+    chord = 2.0 * np.sin(tol_rad / 2.0)
+    found = cKDTree(facets.normal).sparse_distance_matrix(
+        cKDTree(-facets.normal), chord, output_type="ndarray"
+    )
+    i = found["i"].astype(np.int64)
+    j = found["j"].astype(np.int64)
+    keep = i < j
+    i, j = i[keep], j[keep]
+    if len(i) == 0:
+        return none
+    u = unit(facets.normal[j] - facets.normal[i])
+    gap = np.einsum("ij,ij->i", facets.origin[j] - facets.origin[i], u)
+    slack = (facets.radius[i] + facets.radius[j]) * np.sin(tol_rad)
+    keep = (gap + slack > max(min_opening, 0.0)) & (gap - slack <= max_opening)
+    order = np.lexsort((j[keep], i[keep]))
+    return i[keep][order], j[keep][order], u[keep][order]
+
+
+def _pair_frame(facets: Facets, i: np.ndarray, j: np.ndarray, u: np.ndarray):
+    """Per pair: origin C (P, 3) midway between the facet origins and in-plane axes
+    E (P, 2, 3) perpendicular to u."""
+    e1 = perpendicular(u)
+    e2 = np.cross(u, e1)
+    centre = (facets.origin[i] + facets.origin[j]) / 2.0
+    return centre, np.stack([e1, e2], axis=1)
+
+
+def _into_pair_frame(facets: Facets, k: np.ndarray, centre: np.ndarray, frame: np.ndarray):
+    """Facet polygons ``k`` (P,) projected along the pair normals into the pair frames."""
+    import shapely
+
+    geoms = facets.polygon[k]
+    # facet 2D (x, y) -> 3D origin + x U + y V -> pair 2D ((. - C) . E1, (. - C) . E2)
+    mat = np.einsum("pkj,pmj->pkm", frame, facets.basis[k])  # (P, 2 pair, 2 facet)
+    off = np.einsum("pkj,pj->pk", frame, facets.origin[k] - centre)
+    rep = np.repeat(np.arange(len(k)), shapely.get_num_coordinates(geoms))
+
+    def affine(xy: np.ndarray) -> np.ndarray:
+        return np.einsum("nkm,nm->nk", mat[rep], xy) + off[rep]
+
+    return shapely.transform(geoms, affine)
+
+
+def project_overlaps(facets: Facets, i: np.ndarray, j: np.ndarray, u: np.ndarray):
+    """Intersections of facet pairs projected along their common normals.
+
+    Returns ``(overlap, centre, frame)``: (P,) shapely geometries in each pair's 2D frame,
+    whose point ``(x, y)`` is ``centre + x E1 + y E2`` (+ any multiple of ``u``);
+    ``centre`` (P, 3) m; ``frame`` (P, 2, 3) the unit axes ``E1, E2``.
+    """
+    import shapely
+
+    centre, frame = _pair_frame(facets, i, j, u)
+    poly_i = _into_pair_frame(facets, i, centre, frame)
+    poly_j = _into_pair_frame(facets, j, centre, frame)
+    return shapely.intersection(poly_i, poly_j), centre, frame
+
+
+def overlap_site_points(
+    overlap: np.ndarray, spacing: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Grasp-site points on overlap polygons (see the module docstring, step 4).
+
+    overlap : (P,) shapely polygons (2D). spacing : m, grid spacing (the finger width).
+    Returns ``(owner, xy, long_axis)``: (M,) int index of the overlap of each point, (M, 2)
+    points, and (P, 2) unit long axis of each overlap's minimum rotated rectangle. Points
+    of one overlap are in grid order (along the long axis, then across).
+    """
+    import shapely
+
+    p_count = len(overlap)
+    env = shapely.oriented_envelope(overlap)
+    coords, owner = shapely.get_coordinates(env, return_index=True)
+    counts = np.bincount(owner, minlength=p_count)
+    if p_count and np.all(counts == 5):
+        rect = coords.reshape(p_count, 5, 2)
+    else:  # a degenerate envelope: fall back to the bounding boxes
+        b = shapely.bounds(overlap)
+        rect = np.stack([b[:, [0, 1]], b[:, [2, 1]], b[:, [2, 3]], b[:, [0, 3]], b[:, [0, 1]]], 1)
+    side1 = rect[:, 1] - rect[:, 0]
+    side2 = rect[:, 2] - rect[:, 1]
+    len1 = np.linalg.norm(side1, axis=1)
+    len2 = np.linalg.norm(side2, axis=1)
+    first_long = len1 >= len2
+    long_vec = np.where(first_long[:, None], side1, side2)
+    long_axis = long_vec / np.maximum(np.linalg.norm(long_vec, axis=1, keepdims=True), 1e-300)
+    across = np.stack([-long_axis[:, 1], long_axis[:, 0]], axis=1)
+    short = np.minimum(len1, len2)
+
+    inset = np.minimum(spacing / 2.0, short / 4.0)
+    shrunk = shapely.buffer(overlap, -inset, join_style="mitre")
+    anchor = shapely.get_coordinates(shapely.centroid(overlap))
+    rel = rect[:, :4] - anchor[:, None]
+    along = np.einsum("pck,pk->pc", rel, long_axis)
+    side = np.einsum("pck,pk->pc", rel, across)
+    k1_lo = np.ceil(along.min(axis=1) / spacing - 1e-9).astype(np.int64)
+    k1_hi = np.floor(along.max(axis=1) / spacing + 1e-9).astype(np.int64)
+    k2_lo = np.ceil(side.min(axis=1) / spacing - 1e-9).astype(np.int64)
+    k2_hi = np.floor(side.max(axis=1) / spacing + 1e-9).astype(np.int64)
+    n1 = np.maximum(k1_hi - k1_lo + 1, 0)
+    n2 = np.maximum(k2_hi - k2_lo + 1, 0)
+    per = n1 * n2
+    owner = np.repeat(np.arange(p_count), per)
+    local = np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per)
+    k1 = k1_lo[owner] + local // np.maximum(n2[owner], 1)
+    k2 = k2_lo[owner] + local % np.maximum(n2[owner], 1)
+    xy = (
+        anchor[owner]
+        + (k1 * spacing)[:, None] * long_axis[owner]
+        + (k2 * spacing)[:, None] * across[owner]
+    )
+    inside = shapely.intersects_xy(shrunk[owner], xy[:, 0], xy[:, 1])
+    owner, xy = owner[inside], xy[inside]
+
+    missing = np.setdiff1d(np.arange(p_count), owner)
+    if len(missing):
+        base = np.where(shapely.is_empty(shrunk[missing]), overlap[missing], shrunk[missing])
+        extra = shapely.get_coordinates(shapely.point_on_surface(base))
+        owner = np.concatenate([owner, missing])
+        xy = np.concatenate([xy, extra])
+        order = np.argsort(owner, kind="stable")
+        owner, xy = owner[order], xy[order]
+    return owner, xy, long_axis
+
+
+def facet_sites(
+    mesh: trimesh.Trimesh,
+    *,
+    min_opening: float,
+    max_opening: float,
+    finger_width: float,
+    min_area: float,
+    friction: float,
+    parallel_tol_rad: float,
+) -> FacetSites:
+    """Grasp sites across pairs of parallel planar facets (see the module docstring).
+
+    mesh : validated, object frame, m. min_opening, max_opening : m, allowed contact
+    distance. finger_width : m, grid spacing and pad size. min_area : m^2, least
+    projected overlap. friction : mu for the friction-cone test. parallel_tol_rad : how far
+    from antiparallel two facet normals may be.
+
+    Sites come out ordered by facet pair ``(i, j)``, then grid order.
+    """
+    import shapely
+
+    from geometry.candidates import SOURCE_FACET
+
+    facets = planar_facets(mesh, min_area)
+    i, j, u = antiparallel_pairs(facets, parallel_tol_rad, min_opening, max_opening)
+    paired = np.zeros(len(mesh.faces), dtype=bool)
+    empty = FacetSites(ContactPairs.empty(), np.zeros((0, 2), np.int64), facets, paired, len(i), 0)
+    if len(i) == 0:
+        return empty
+    overlap, centre, frame = project_overlaps(facets, i, j, u)
+    area = shapely.area(overlap)
+    big = area >= min_area * (1.0 - 1e-9)
+    if not big.any():
+        return empty
+    i, j, u, overlap, centre, frame, area = (
+        x[big] for x in (i, j, u, overlap, centre, frame, area)
+    )
+    owner, xy, long_axis = overlap_site_points(overlap, finger_width)
+
+    # the line through each site point along u meets both facet planes
+    q = centre[owner] + np.einsum("mk,mkj->mj", xy, frame[owner])
+    uu = u[owner]
+    fi, fj = i[owner], j[owner]
+
+    def plane_t(k: np.ndarray) -> np.ndarray:
+        n = facets.normal[k]
+        return np.einsum("mj,mj->m", facets.origin[k] - q, n) / np.einsum("mj,mj->m", uu, n)
+
+    t0, t1 = plane_t(fi), plane_t(fj)
+    width = t1 - t0
+    ok = (width >= min_opening) & (width <= max_opening) & (width > 0)
+    owner, q, uu, fi, fj, t0, width = (x[ok] for x in (owner, q, uu, fi, fj, t0, width))
+    c0 = q + t0[:, None] * uu
+    c1 = c0 + width[:, None] * uu
+
+    # solid between the contacts: each contact's ray meets the other facet first
+    step = 1e-5 * float(mesh.scale)
+    tol = 1e-3 * width + 2.0 * step
+    face1, d1 = ray_first_hits(mesh, c0 + step * uu, uu)
+    face0, d0 = ray_first_hits(mesh, c1 - step * uu, -uu)
+    ok = (np.abs(d1 - (width - step)) <= tol) & (np.abs(d0 - (width - step)) <= tol)
+    ok &= (face0 >= 0) & (face1 >= 0)
+    owner, uu, fi, fj, c0, c1, face0, face1 = (
+        x[ok] for x in (owner, uu, fi, fj, c0, c1, face0, face1)
+    )
+    normals = np.stack([mesh.face_normals[face0], mesh.face_normals[face1]], axis=1)
+    ok = in_friction_cone(normals, uu, friction)
+    owner, fi, fj, c0, c1, face0, face1, normals = (
+        x[ok] for x in (owner, fi, fj, c0, c1, face0, face1, normals)
+    )
+
+    approach = np.einsum("mk,mkj->mj", long_axis[owner], frame[owner])
+    sites = ContactPairs(
+        contacts=np.stack([c0, c1], axis=1),
+        normals=normals,
+        faces=np.stack([face0, face1], axis=1),
+        approach=unit(approach),
+        overlap_area=area[owner],
+        source=np.full(len(owner), SOURCE_FACET, dtype=np.int8),
+    )
+    used = np.unique(np.concatenate([fi, fj]))
+    if len(used):
+        paired[np.concatenate([facets.faces[k] for k in used])] = True
+    return FacetSites(
+        sites=sites,
+        pair=np.stack([fi, fj], axis=1),
+        facets=facets,
+        paired_faces=paired,
+        candidate_pairs=int(len(big)),
+        overlapping_pairs=int(big.sum()),
+    )

@@ -1,0 +1,245 @@
+"""Every physically sensible parallel-jaw grasp on an object: the candidate pipeline.
+
+1. Sites on pairs of parallel planar facets (:mod:`geometry.facets`, the seed's 3.1).
+2. Sites on the rest of the surface by sampled antipodal pairs (:mod:`geometry.antipodal`),
+   on the faces the facet step left alone.
+3. Each site gets every roll angle ``k * roll_step`` (``k = 0, 1, ...`` while below 360
+   degrees): the approach ``a`` is the site's reference approach rotated by the roll about
+   the closing direction ``o``; ``n = o x a``. Rolls 180 degrees apart approach from
+   opposite sides and are distinct candidates.
+4. With a collider, candidates whose gripper (open at ``width + 2 * clearance``) touches
+   or penetrates the object are dropped (the seed: "storing the angles without
+   collisions"). This step is separate: ``collider=None`` skips it.
+
+Row order (deterministic): facet sites first, by facet pair then grid order; then antipodal
+sites in sample order; within a site, rolls ascending from 0. Site indices are renumbered
+0, 1, 2, ... in that order after the collision filter (a site whose rolls all collide
+disappears).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict, dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from geometry.antipodal import antipodal_sites
+from geometry.candidates import CandidateSet
+from geometry.facets import facet_sites
+from geometry.quality import ContactPairs, antipodal_quality, com_distance
+
+if TYPE_CHECKING:
+    from geometry.collision import ObjectCollider
+    from geometry.gripper import Gripper
+    from geometry.mesh import PartMesh
+
+__all__ = [
+    "GenerationStats",
+    "generate_candidates",
+    "generate_with_stats",
+    "roll_angles",
+    "min_overlap_area",
+    "expand_rolls",
+]
+
+
+@dataclass
+class GenerationStats:
+    """What candidate generation did, for reports and benchmarks.
+
+    faces : mesh faces. facets : planar facets large enough to hold a pad.
+    facet_pairs : antiparallel facet pairs within the opening. overlapping_pairs : those
+    whose projected overlap is large enough. facet_sites, antipodal_samples,
+    antipodal_pairs (valid, before deduplication), antipodal_sites : counts.
+    antipodal_spacing : m, sampling spacing used. sites : facet + antipodal sites.
+    rolls_per_site : roll angles per site. before_collision, after_collision : candidates.
+    collision_checked : whether a collider was given. seconds : wall time per stage
+    (``facets``, ``antipodal``, ``frames``, ``collision``, ``total``).
+    """
+
+    faces: int = 0
+    facets: int = 0
+    facet_pairs: int = 0
+    overlapping_pairs: int = 0
+    facet_sites: int = 0
+    antipodal_samples: int = 0
+    antipodal_pairs: int = 0
+    antipodal_sites: int = 0
+    antipodal_spacing: float = 0.0
+    sites: int = 0
+    rolls_per_site: int = 0
+    before_collision: int = 0
+    after_collision: int = 0
+    collision_checked: bool = False
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        """Plain dict (JSON-ready)."""
+        return asdict(self)
+
+
+def roll_angles(step_deg: float) -> np.ndarray:
+    """(R,) rad: ``0, step, 2 step, ...`` below 360 degrees. ``step_deg`` in (0, 360]."""
+    if not (np.isfinite(step_deg) and 0 < step_deg <= 360):
+        raise ValueError(f"roll step must be in (0, 360] degrees, got {step_deg}")
+    count = int(np.ceil(360.0 / step_deg - 1e-9))
+    return np.deg2rad(np.arange(count) * float(step_deg))
+
+
+def min_overlap_area(gripper: Gripper) -> float:
+    """m^2: least projected facet overlap for a facet grasp: ``gripper.min_overlap_area``
+    when positive, else a square finger pad fully supported, ``finger_width ** 2``."""
+    if gripper.min_overlap_area > 0:
+        return float(gripper.min_overlap_area)
+    return float(gripper.finger_width) ** 2
+
+
+def expand_rolls(
+    sites: ContactPairs,
+    rolls: np.ndarray,
+    face_part: np.ndarray,
+    part_names: list[str],
+    friction: float,
+    mass_centre: np.ndarray,
+) -> CandidateSet:
+    """One candidate per (site, roll), site-major, every CandidateSet field filled.
+
+    sites : S sites. rolls : (R,) rad. face_part : (F,) part index of each mesh face.
+    friction : mu for quality. mass_centre : (3,) m.
+    """
+    s_count, r_count = len(sites), len(rolls)
+    if s_count == 0 or r_count == 0:
+        return CandidateSet.empty(part_names)
+    site = np.repeat(np.arange(s_count), r_count)
+    roll = np.tile(np.asarray(rolls, dtype=float), s_count)
+    o_site = sites.axis
+    a0 = sites.approach - np.einsum("ij,ij->i", sites.approach, o_site)[:, None] * o_site
+    a0 /= np.linalg.norm(a0, axis=1, keepdims=True)
+    b0 = np.cross(o_site, a0)  # a0 turned +90 degrees about o
+    o = o_site[site]
+    a = np.cos(roll)[:, None] * a0[site] + np.sin(roll)[:, None] * b0[site]
+    n = np.cross(o, a)
+    quality = antipodal_quality(sites.normals, o_site, friction)
+    return CandidateSet(
+        centre=sites.centre[site],
+        n=n,
+        o=o,
+        a=a,
+        width=sites.width[site],
+        contacts=sites.contacts[site],
+        normals=sites.normals[site],
+        faces=sites.faces[site].astype(np.int64),
+        parts=np.asarray(face_part, dtype=np.int64)[sites.faces][site],
+        site=site.astype(np.int64),
+        roll=roll,
+        overlap_area=sites.overlap_area[site].astype(float),
+        source=sites.source[site].astype(np.int8),
+        quality=quality[site],
+        com_distance=com_distance(sites.contacts, mass_centre)[site],
+        part_names=list(part_names),
+    )
+
+
+def generate_with_stats(
+    part_mesh: PartMesh,
+    gripper: Gripper,
+    *,
+    roll_step_deg: float | None = None,
+    collider: ObjectCollider | None = None,
+    seed: int = 0,
+    antipodal_spacing: float | None = None,
+) -> tuple[CandidateSet, GenerationStats]:
+    """Grasp candidates on ``part_mesh`` for ``gripper`` and what it took to find them.
+
+    part_mesh : the object (object frame, m) with face parts and mass centre.
+    gripper : the parallel-jaw gripper (opening, finger width, friction, tolerances).
+    roll_step_deg : degrees between roll angles (default ``gripper.roll_step_deg``).
+    collider : built on ``part_mesh.mesh``; drops colliding candidates (None: keep all).
+    seed : antipodal sampling seed. antipodal_spacing : m between antipodal samples
+        (default half the finger width).
+    Returns ``(candidates, stats)``; see the module docstring for the row order.
+    """
+    start = time.perf_counter()
+    mesh = part_mesh.mesh
+    step = gripper.roll_step_deg if roll_step_deg is None else float(roll_step_deg)
+    rolls = roll_angles(step)
+    spacing = gripper.finger_width / 2.0 if antipodal_spacing is None else antipodal_spacing
+    tol = np.deg2rad(gripper.parallel_tol_deg)
+    stats = GenerationStats(faces=len(mesh.faces), rolls_per_site=len(rolls))
+
+    t = time.perf_counter()
+    facet = facet_sites(
+        mesh,
+        min_opening=gripper.min_opening,
+        max_opening=gripper.max_opening,
+        finger_width=gripper.finger_width,
+        min_area=min_overlap_area(gripper),
+        friction=gripper.friction,
+        parallel_tol_rad=tol,
+    )
+    stats.seconds["facets"] = time.perf_counter() - t
+    stats.facets = len(facet.facets)
+    stats.facet_pairs = facet.candidate_pairs
+    stats.overlapping_pairs = facet.overlapping_pairs
+    stats.facet_sites = len(facet.sites)
+
+    t = time.perf_counter()
+    anti = antipodal_sites(
+        mesh,
+        spacing=float(spacing),
+        min_opening=gripper.min_opening,
+        max_opening=gripper.max_opening,
+        friction=gripper.friction,
+        seed=seed,
+        face_mask=~facet.paired_faces,
+    )
+    stats.seconds["antipodal"] = time.perf_counter() - t
+    stats.antipodal_samples = anti.samples
+    stats.antipodal_pairs = anti.pairs
+    stats.antipodal_sites = len(anti.sites)
+    stats.antipodal_spacing = anti.spacing
+
+    t = time.perf_counter()
+    sites = ContactPairs.concatenate([facet.sites, anti.sites])
+    stats.sites = len(sites)
+    candidates = expand_rolls(
+        sites, rolls, part_mesh.face_part, part_mesh.part_names, gripper.friction,
+        part_mesh.mass_centre,
+    )  # fmt: skip
+    stats.before_collision = len(candidates)
+    stats.seconds["frames"] = time.perf_counter() - t
+
+    if collider is not None and len(candidates):
+        t = time.perf_counter()
+        hits = collider.gripper_collides(gripper, candidates.poses(), candidates.width)
+        candidates = candidates.take(~np.asarray(hits, dtype=bool))
+        _, candidates.site = np.unique(candidates.site, return_inverse=True)
+        stats.seconds["collision"] = time.perf_counter() - t
+        stats.collision_checked = True
+    stats.after_collision = len(candidates)
+    stats.seconds["total"] = time.perf_counter() - start
+    return candidates, stats
+
+
+def generate_candidates(
+    part_mesh: PartMesh,
+    gripper: Gripper,
+    *,
+    roll_step_deg: float | None = None,
+    collider: ObjectCollider | None = None,
+    seed: int = 0,
+    antipodal_spacing: float | None = None,
+) -> CandidateSet:
+    """Grasp candidates on ``part_mesh`` for ``gripper`` (see :func:`generate_with_stats`,
+    which also returns the :class:`GenerationStats`)."""
+    candidates, _ = generate_with_stats(
+        part_mesh,
+        gripper,
+        roll_step_deg=roll_step_deg,
+        collider=collider,
+        seed=seed,
+        antipodal_spacing=antipodal_spacing,
+    )
+    return candidates

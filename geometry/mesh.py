@@ -1,0 +1,451 @@
+"""Meshes in, validated: loading files, primitives, and objects made of named parts.
+
+Every mesh that leaves this module has finite vertices, no degenerate faces, merged
+vertices and consistent winding (outward normals when it is watertight). Bad input raises
+:class:`MeshError` with a sentence saying what is wrong; a mesh that is usable but not
+watertight gives a :class:`MeshWarning`.
+
+A :class:`PartMesh` is one outer surface whose faces are tagged with part names (the KB's
+parts: ``handle``, ``head``, ...). :func:`compose` builds one from primitives, unioning
+overlapping parts so that no interior faces remain; :func:`part_mesh_from_regions` tags the
+faces of a loaded mesh with boxes.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import trimesh
+
+__all__ = [
+    "MeshError",
+    "MeshWarning",
+    "MAX_FACES",
+    "MESH_SUFFIXES",
+    "load_mesh",
+    "validate_mesh",
+    "box",
+    "cylinder",
+    "icosphere",
+    "capsule",
+    "PartMesh",
+    "compose",
+    "part_mesh_from_regions",
+    "mass_centre",
+    "ray_first_hits",
+]
+
+MAX_FACES = 2_000_000
+"""Largest face count accepted (a mesh this big needs decimating before grasp planning)."""
+
+MESH_SUFFIXES = (".stl", ".obj", ".ply", ".glb", ".gltf", ".off")
+"""File types :func:`load_mesh` reads (case-insensitive)."""
+
+DEGENERATE_HEIGHT = 1e-9
+"""m: faces whose smallest height is below this are degenerate (removed)."""
+
+
+class MeshError(ValueError):
+    """A mesh or geometry input that cannot be used (missing, empty, degenerate, too big)."""
+
+
+class MeshWarning(UserWarning):
+    """A mesh that is usable with a caveat (e.g. not watertight: no volume, no inside)."""
+
+
+# ---------------------------------------------------------------- loading and validation
+
+
+def load_mesh(path: str | Path, scale: float = 1.0) -> trimesh.Trimesh:
+    """Load a mesh file (STL, OBJ, PLY, GLB/glTF, OFF) and validate it.
+
+    path : the file. scale : positive factor applied to the vertices (e.g. 0.001 for a
+    file in millimetres). A scene (GLB, multi-object OBJ) is flattened: its meshes are
+    placed by their scene transforms and concatenated.
+
+    Returns a validated ``trimesh.Trimesh`` in metres (see :func:`validate_mesh`).
+    Raises :class:`MeshError` when the file is missing, unreadable, not a mesh, empty, has
+    no area, has non-finite vertices, or more than :data:`MAX_FACES` faces.
+    """
+    import trimesh
+
+    p = Path(path)
+    if not (np.isfinite(scale) and scale > 0):
+        raise MeshError(f"{p}: scale must be a positive number, got {scale}")
+    if not p.exists():
+        raise MeshError(f"{p}: mesh file not found")
+    if not p.is_file():
+        raise MeshError(f"{p}: not a file")
+    suffix = p.suffix.lower()
+    if suffix not in MESH_SUFFIXES:
+        known = ", ".join(s[1:].upper() for s in MESH_SUFFIXES)
+        raise MeshError(f"{p}: unsupported mesh format '{p.suffix}' (use {known})")
+    try:
+        loaded = trimesh.load(str(p), file_type=suffix[1:], process=False)
+    except Exception as e:  # noqa: BLE001 - any reader failure is a bad file to the user
+        raise MeshError(f"{p}: cannot read as {suffix[1:].upper()}: {e}") from None
+
+    if isinstance(loaded, trimesh.Scene):
+        geoms = loaded.dump()
+        meshes = [g for g in geoms if isinstance(g, trimesh.Trimesh) and len(g.faces)]
+        if not meshes:
+            kinds = sorted({type(g).__name__ for g in geoms}) or ["nothing"]
+            raise MeshError(f"{p}: not a mesh (the file holds {', '.join(kinds)})")
+        vertices, faces = _stack([m.vertices for m in meshes], [m.faces for m in meshes])
+    elif isinstance(loaded, trimesh.Trimesh):
+        vertices, faces = np.asarray(loaded.vertices), np.asarray(loaded.faces)
+    else:
+        raise MeshError(f"{p}: not a mesh (the file holds a {type(loaded).__name__})")
+    mesh, _ = validate_mesh(vertices * float(scale), faces, where=str(p))
+    return mesh
+
+
+def _stack(vertices: list[np.ndarray], faces: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    offsets = np.cumsum([0] + [len(v) for v in vertices[:-1]])
+    v = np.concatenate([np.asarray(x, dtype=float) for x in vertices])
+    f = np.concatenate(
+        [np.asarray(x, dtype=np.int64) + o for x, o in zip(faces, offsets, strict=True)]
+    )
+    return v, f
+
+
+def validate_mesh(
+    vertices: np.ndarray, faces: np.ndarray, where: str = "mesh", *, warn: bool = True
+) -> tuple[trimesh.Trimesh, np.ndarray]:
+    """Build a clean mesh from raw arrays, or say precisely why it cannot be one.
+
+    vertices : (V, 3) float, m. faces : (F, 3) int indices into ``vertices``.
+    where : names the input in messages (a file path, "part 'handle'", ...).
+    warn : emit a :class:`MeshWarning` when the result is not watertight.
+
+    Steps: reject empty input, more than :data:`MAX_FACES` faces, bad indices and non-finite
+    vertices; merge duplicate vertices; drop degenerate faces (zero area, or a height below
+    :data:`DEGENERATE_HEIGHT`), rejecting the mesh if none is left; make the winding
+    consistent and, when watertight, outward (positive volume).
+
+    Returns ``(mesh, kept)``: the ``trimesh.Trimesh`` and ``kept`` (F',) int, the index in
+    ``faces`` of each face of the result, in order.
+    """
+    import trimesh
+
+    v = np.asarray(vertices, dtype=float)
+    f = np.asarray(faces)
+    if f.size == 0 or v.size == 0:
+        raise MeshError(f"{where}: the mesh is empty (no triangles)")
+    if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3:
+        raise MeshError(f"{where}: expected (V, 3) vertices and (F, 3) triangles")
+    if len(f) > MAX_FACES:
+        raise MeshError(
+            f"{where}: {len(f):,} faces is more than the limit of {MAX_FACES:,}; "
+            "decimate the mesh first"
+        )
+    if not np.issubdtype(f.dtype, np.integer) or f.min() < 0 or f.max() >= len(v):
+        raise MeshError(f"{where}: face indices out of range of the {len(v)} vertices")
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise MeshError(
+            f"{where}: vertex {i} is not finite ({v[i].tolist()}); "
+            f"{int(bad.sum())} non-finite vertices in all"
+        )
+    mesh = trimesh.Trimesh(vertices=v, faces=f.astype(np.int64), process=True, validate=False)
+    if len(mesh.faces) != len(f):  # processing must keep faces in order, one for one
+        raise MeshError(f"{where}: the mesh could not be processed face for face")
+    keep = mesh.nondegenerate_faces(height=DEGENERATE_HEIGHT) & (mesh.area_faces > 0)
+    if not keep.any():
+        raise MeshError(f"{where}: the mesh has no area (all {len(f)} faces are degenerate)")
+    kept = np.flatnonzero(keep)
+    if not keep.all():
+        mesh.update_faces(keep)
+        mesh.remove_unreferenced_vertices()
+    if not mesh.is_winding_consistent:
+        trimesh.repair.fix_winding(mesh)
+    if mesh.is_watertight and mesh.volume < 0:
+        mesh.invert()
+    if warn and not mesh.is_watertight:
+        warnings.warn(
+            f"{where}: the mesh is not watertight (open or non-manifold edges); grasps are "
+            "still generated, but inside tests and the centre of mass are approximate",
+            MeshWarning,
+            stacklevel=3,
+        )
+    return mesh, kept
+
+
+# ---------------------------------------------------------------- ray casting
+
+
+def ray_first_hits(
+    mesh: trimesh.Trimesh, origins: np.ndarray, directions: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """First face each ray hits, with embreex (a hard dependency: the fallback is ~4000x
+    slower).
+
+    origins : (N, 3) m; directions : (N, 3) unit vectors.
+    Returns ``(face, distance)``: (N,) int face index (-1 for a miss) and (N,) float m
+    along the ray to the face's plane (inf for a miss), computed in float64 from the hit
+    face's plane (embree itself works in float32).
+    """
+    import trimesh
+
+    if not trimesh.ray.has_embree:
+        raise RuntimeError("embreex is not installed; it is required for ray casting")
+    origins = np.asarray(origins, dtype=float)
+    directions = np.asarray(directions, dtype=float)
+    if len(origins) == 0:
+        return np.zeros(0, dtype=np.int64), np.zeros(0)
+    face = np.asarray(mesh.ray.intersects_first(origins, directions), dtype=np.int64)
+    distance = np.full(len(origins), np.inf)
+    hit = face >= 0
+    normal = mesh.face_normals[face[hit]]
+    on_plane = mesh.vertices[mesh.faces[face[hit], 0]]
+    denom = np.einsum("ij,ij->i", directions[hit], normal)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dist = np.einsum("ij,ij->i", on_plane - origins[hit], normal) / denom
+    distance[hit] = np.where(np.abs(denom) > 1e-12, dist, np.inf)
+    return face, distance
+
+
+# ---------------------------------------------------------------- primitives
+
+
+def _placed(mesh: trimesh.Trimesh, transform: np.ndarray | None) -> trimesh.Trimesh:
+    if transform is not None:
+        t = np.asarray(transform, dtype=float)
+        if t.shape != (4, 4) or not np.isfinite(t).all():
+            raise MeshError(f"a primitive's transform must be a finite 4x4 matrix, got {t.shape}")
+        mesh.apply_transform(t)
+    return mesh
+
+
+def _positive(name: str, value: float) -> float:
+    value = float(value)
+    if not (np.isfinite(value) and value > 0):
+        raise MeshError(f"{name} must be a positive number, got {value}")
+    return value
+
+
+def box(extents: np.ndarray, transform: np.ndarray | None = None) -> trimesh.Trimesh:
+    """A box centred at the origin with edge lengths ``extents`` (3,) m, then ``transform``
+    (4, 4) applied. 12 faces."""
+    import trimesh
+
+    ext = [_positive("box extents", e) for e in np.asarray(extents, dtype=float).reshape(3)]
+    return _placed(trimesh.creation.box(extents=ext), transform)
+
+
+def cylinder(
+    radius: float, height: float, sections: int = 32, transform: np.ndarray | None = None
+) -> trimesh.Trimesh:
+    """A cylinder along z, centred at the origin (z in [-height/2, height/2]), m, with
+    ``sections`` sides, then ``transform`` applied."""
+    import trimesh
+
+    r, h = _positive("cylinder radius", radius), _positive("cylinder height", height)
+    if int(sections) < 3:
+        raise MeshError(f"a cylinder needs at least 3 sections, got {sections}")
+    return _placed(trimesh.creation.cylinder(radius=r, height=h, sections=int(sections)), transform)
+
+
+def icosphere(
+    radius: float, subdivisions: int = 2, transform: np.ndarray | None = None
+) -> trimesh.Trimesh:
+    """An icosphere (the seed's convex polyhedral sphere) of ``radius`` m centred at the
+    origin: 20 * 4**subdivisions faces, then ``transform`` applied."""
+    import trimesh
+
+    r = _positive("sphere radius", radius)
+    if not 0 <= int(subdivisions) <= 7:
+        raise MeshError(f"icosphere subdivisions must be in 0..7, got {subdivisions}")
+    return _placed(trimesh.creation.icosphere(subdivisions=int(subdivisions), radius=r), transform)
+
+
+def capsule(
+    radius: float, height: float, transform: np.ndarray | None = None, sections: int = 32
+) -> trimesh.Trimesh:
+    """A capsule along z centred at the origin: a cylinder of ``height`` m (caps excluded)
+    with hemispherical caps of ``radius`` m, then ``transform`` applied."""
+    import trimesh
+
+    r, h = _positive("capsule radius", radius), _positive("capsule height", height)
+    count = max(int(sections), 4)
+    return _placed(trimesh.creation.capsule(height=h, radius=r, count=[count, count]), transform)
+
+
+# ---------------------------------------------------------------- parts
+
+
+def mass_centre(mesh: trimesh.Trimesh) -> np.ndarray:
+    """(3,) m: the volume centroid of a watertight mesh (uniform density), else the
+    area-weighted centroid of its surface."""
+    if mesh.is_watertight and mesh.volume > 0:
+        return np.asarray(mesh.center_mass, dtype=float)
+    area = mesh.area_faces
+    return (mesh.triangles_center * area[:, None]).sum(axis=0) / area.sum()
+
+
+@dataclass
+class PartMesh:
+    """One object surface whose faces are tagged with part names.
+
+    mesh : trimesh.Trimesh, object frame, metres (validated).
+    face_part : (F,) int, index into ``part_names`` of each face.
+    part_names : list[str], the parts, in order of first appearance.
+    mass_centre : (3,) float, m: volume centroid if watertight, else area centroid.
+    """
+
+    mesh: trimesh.Trimesh
+    face_part: np.ndarray
+    part_names: list[str]
+    mass_centre: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.face_part = np.asarray(self.face_part, dtype=np.int64)
+        self.mass_centre = np.asarray(self.mass_centre, dtype=float)
+        if self.face_part.shape != (len(self.mesh.faces),):
+            raise ValueError(
+                f"face_part has shape {self.face_part.shape}, expected ({len(self.mesh.faces)},)"
+            )
+        if len(self.face_part) and (
+            self.face_part.min() < 0 or self.face_part.max() >= len(self.part_names)
+        ):
+            raise ValueError("face_part indices must index part_names")
+
+    @classmethod
+    def single(cls, mesh: trimesh.Trimesh, part: str = "body") -> PartMesh:
+        """The whole mesh as one part named ``part``."""
+        return cls(mesh, np.zeros(len(mesh.faces), dtype=np.int64), [part], mass_centre(mesh))
+
+    def part_faces(self, part: str) -> np.ndarray:
+        """(k,) int: indices of the faces of ``part`` (empty if it has none)."""
+        if part not in self.part_names:
+            return np.zeros(0, dtype=np.int64)
+        return np.flatnonzero(self.face_part == self.part_names.index(part))
+
+    def part_areas(self) -> dict[str, float]:
+        """Surface area (m^2) of each part on the outer surface."""
+        area = np.bincount(self.face_part, self.mesh.area_faces, minlength=len(self.part_names))
+        return {name: float(a) for name, a in zip(self.part_names, area, strict=True)}
+
+
+def _names_in_order(names: list[str]) -> tuple[list[str], np.ndarray]:
+    order: list[str] = []
+    index = np.empty(len(names), dtype=np.int64)
+    for k, name in enumerate(names):
+        if name not in order:
+            order.append(name)
+        index[k] = order.index(name)
+    return order, index
+
+
+def compose(parts: list[tuple[str, trimesh.Trimesh]]) -> PartMesh:
+    """One object from part-named solids (object frame, metres).
+
+    parts : list of ``(part_name, mesh)``; several meshes may share a part name.
+
+    The solids are unioned into one outer surface (manifold3d), so faces inside another
+    part are gone, and each face of the union is tagged with the part of the input solid
+    it came from (manifold3d tracks every output triangle's source mesh exactly, which is
+    the limit of "the part whose surface it lies closest to": the distance is zero). When a
+    solid is not a closed manifold or the union fails, the parts are concatenated instead
+    (a :class:`MeshWarning` says so; interior faces then remain).
+
+    Returns a :class:`PartMesh` whose ``part_names`` are in order of first appearance.
+    """
+    if not parts:
+        raise MeshError("an object needs at least one part")
+    names, index = _names_in_order([name for name, _ in parts])
+    meshes = [m for _, m in parts]
+    if len(meshes) == 1:
+        mesh, _ = validate_mesh(meshes[0].vertices, meshes[0].faces, f"part '{names[0]}'")
+        return PartMesh(mesh, np.zeros(len(mesh.faces), np.int64), names, mass_centre(mesh))
+
+    union = _manifold_union(meshes)
+    if union is not None:
+        vertices, faces, source = union
+    else:
+        warnings.warn(
+            "the parts could not be unioned (a part is not a closed manifold); they are "
+            "concatenated and faces inside other parts remain",
+            MeshWarning,
+            stacklevel=2,
+        )
+        vertices, faces = _stack([m.vertices for m in meshes], [m.faces for m in meshes])
+        source = np.repeat(np.arange(len(meshes)), [len(m.faces) for m in meshes])
+    mesh, kept = validate_mesh(vertices, faces, "composed object")
+    face_part = index[source[kept]]
+    return PartMesh(mesh, face_part, names, mass_centre(mesh))
+
+
+def _manifold_union(
+    meshes: list[trimesh.Trimesh],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Union of closed meshes with manifold3d: ``(vertices, faces, source)`` where
+    ``source`` (F,) is the input index of each output face; None if it cannot be done."""
+    import manifold3d as m3
+
+    solids = []
+    ids: dict[int, int] = {}
+    for k, m in enumerate(meshes):
+        data = m3.Mesh64(
+            vert_properties=np.ascontiguousarray(m.vertices, dtype=np.float64),
+            tri_verts=np.ascontiguousarray(m.faces, dtype=np.uint64),
+        )
+        solid = m3.Manifold(data)
+        if solid.status() != m3.Error.NoError or solid.is_empty():
+            return None
+        solid = solid.as_original()
+        ids[int(solid.original_id())] = k
+        solids.append(solid)
+    result = m3.Manifold.batch_boolean(solids, m3.OpType.Add)
+    if result.status() != m3.Error.NoError or result.is_empty():
+        return None
+    out = result.to_mesh64()
+    faces = np.asarray(out.tri_verts, dtype=np.int64)
+    vertices = np.asarray(out.vert_properties, dtype=float)[:, :3]
+    run_start = np.asarray(out.run_index, dtype=np.int64) // 3
+    run_ids = np.asarray(out.run_original_id, dtype=np.int64)
+    if run_start[-1] != len(faces) or any(int(i) not in ids for i in run_ids):
+        return None
+    run_source = np.array([ids[int(i)] for i in run_ids], dtype=np.int64)
+    source = np.repeat(run_source, np.diff(run_start))
+    return vertices, faces, source
+
+
+def part_mesh_from_regions(
+    mesh: trimesh.Trimesh,
+    default_part: str,
+    regions: list[tuple[str, np.ndarray, np.ndarray]] | None = None,
+) -> PartMesh:
+    """Tag a mesh's faces with parts by axis-aligned boxes.
+
+    mesh : validated mesh, object frame, m. default_part : the part of faces in no region.
+    regions : list of ``(part, center (3,), extents (3,))``, m, object frame; a face whose
+        centroid lies in a box (boundary included) belongs to its part; the first matching
+        region wins.
+
+    Returns a :class:`PartMesh` with ``part_names = [default_part, then region parts in
+    order]`` (duplicates once).
+    """
+    regions = list(regions or [])
+    names, index = _names_in_order([default_part] + [r[0] for r in regions])
+    face_part = np.zeros(len(mesh.faces), dtype=np.int64)
+    unassigned = np.ones(len(mesh.faces), dtype=bool)
+    centres = mesh.triangles_center
+    for k, (part, center, extents) in enumerate(regions):
+        c = np.asarray(center, dtype=float).reshape(3)
+        e = np.asarray(extents, dtype=float).reshape(3)
+        if not (np.isfinite(c).all() and np.isfinite(e).all() and (e > 0).all()):
+            raise MeshError(
+                f"region {k} of part '{part}' needs a finite center and positive extents"
+            )
+        inside = (np.abs(centres - c) <= e / 2.0).all(axis=1) & unassigned
+        face_part[inside] = index[k + 1]
+        unassigned &= ~inside
+    return PartMesh(mesh, face_part, names, mass_centre(mesh))
