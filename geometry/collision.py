@@ -10,10 +10,11 @@ Two engines, each where it is fastest (numbers from ``benchmarks/collision.py``)
   separating-axis test drops the parts that miss the mesh's bounding box, and the parts of a
   pose are tried palm first and stop at the first hit.
 
-BVH-against-primitive tests only see crossing surfaces, so :class:`ObjectCollider` adds a
-containment test where fcl reports no crossing: a part whose centre lies inside the mesh, or
-a part that holds a vertex of the mesh (one per connected body), collides too. With no
-crossing, either test is exact. ``mesh.contains`` needs a watertight mesh to be exact.
+fcl treats an ``fcl.Box`` as a solid and the mesh as a surface: a mesh (or a body of it)
+lying wholly inside a gripper part is a collision, but a part lying wholly inside the mesh is
+not seen (FIELD-NOTES). So where fcl reports nothing, :class:`ObjectCollider` asks whether the
+part's centre is inside the mesh (``mesh.contains``, ray parity with embree); with no surface
+crossing that answer holds for the whole part. It needs a watertight mesh to be exact.
 
 Touching counts as colliding everywhere. Boxes are ``(name, extents (3,), transform (4, 4))``
 as in :mod:`geometry.gripper`: full edge lengths along the columns of the rotation.
@@ -72,20 +73,28 @@ def boxes_overlap(
     # Component-major layout: index [i] or [i, j] first, broadcast (batch) dimensions last,
     # so every numpy operation below runs over whole batch-length vectors (2x faster than
     # 3x3 matmuls over the batch).
-    ca = np.moveaxis(np.asarray(centres_a, dtype=float), -1, 0)
-    cb = np.moveaxis(np.asarray(centres_b, dtype=float), -1, 0)
-    ra = np.moveaxis(np.asarray(rot_a, dtype=float), (-2, -1), (0, 1))
-    rb = np.moveaxis(np.asarray(rot_b, dtype=float), (-2, -1), (0, 1))
-    a = 0.5 * np.moveaxis(np.asarray(ext_a, dtype=float), -1, 0)
-    b = 0.5 * np.moveaxis(np.asarray(ext_b, dtype=float), -1, 0)
+    inputs = [
+        np.asarray(x, dtype=float) for x in (centres_a, rot_a, ext_a, centres_b, rot_b, ext_b)
+    ]
+    tails = (1, 2, 1, 1, 2, 1)  # trailing component dimensions of each input
+    for x, k, name in zip(inputs, tails, ("centres_a", "rot_a", "ext_a", "centres_b", "rot_b",
+                                          "ext_b"), strict=True):  # fmt: skip
+        if x.shape[x.ndim - k :] != (3,) * k:
+            raise ValueError(f"boxes_overlap: {name} must end in {(3,) * k}, got {x.shape}")
+    shape = np.broadcast_shapes(
+        *(x.shape[: x.ndim - k] for x, k in zip(inputs, tails, strict=True))
+    )
+    ca, ra, ea, cb, rb, eb = (
+        np.moveaxis(x.reshape((1,) * (len(shape) + k - x.ndim) + x.shape), range(-k, 0), range(k))
+        for x, k in zip(inputs, tails, strict=True)
+    )
+    a, b = 0.5 * ea, 0.5 * eb
     d = cb - ca
     # rel[i][j] = A_i . B_j; t[i] = centre offset along A_i.
     rel = [[ra[0, i] * rb[0, j] + ra[1, i] * rb[1, j] + ra[2, i] * rb[2, j] for j in _AX]
            for i in _AX]  # fmt: skip
     t = [ra[0, i] * d[0] + ra[1, i] * d[1] + ra[2, i] * d[2] for i in _AX]
     ab = [[np.abs(rel[i][j]) + _SAT_EPS for j in _AX] for i in _AX]
-    shape = np.broadcast_shapes(ca.shape[1:], cb.shape[1:], ra.shape[2:], rb.shape[2:],
-                                a.shape[1:], b.shape[1:])  # fmt: skip
     sep = np.zeros(shape, dtype=bool)
     for i in _AX:  # axes A_i
         sep |= np.abs(t[i]) > a[i] + b[0] * ab[i][0] + b[1] * ab[i][1] + b[2] * ab[i][2]
@@ -156,22 +165,6 @@ def _bvh_object(vertices: np.ndarray, faces: np.ndarray):
     return fcl.CollisionObject(bvh, fcl.Transform())
 
 
-def _representative_vertices(mesh: trimesh.Trimesh) -> np.ndarray:
-    """(B, 3) one vertex of each connected body of ``mesh`` (bodies share no vertex)."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    faces = np.asarray(mesh.faces, dtype=np.int64)
-    count = len(mesh.vertices)
-    rows = np.concatenate([faces[:, 0], faces[:, 1]])
-    cols = np.concatenate([faces[:, 1], faces[:, 2]])
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(count, count))
-    _, labels = connected_components(graph, directed=False)
-    used = np.unique(faces)  # vertices not referenced by any face are not part of a body
-    _, first = np.unique(labels[used], return_index=True)
-    return np.asarray(mesh.vertices, dtype=float)[used[first]]
-
-
 class ObjectCollider:
     """The object mesh, ready for many gripper collision queries (built once per mesh).
 
@@ -193,7 +186,6 @@ class ObjectCollider:
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
         self._aabb = ((lo + hi) / 2.0, np.maximum(hi - lo, 1e-12))
         self._radius = float(np.linalg.norm(vertices - self._aabb[0], axis=1).max())
-        self._reps = _representative_vertices(mesh)
         self._set_transform(transform)
 
     def _set_transform(self, transform: np.ndarray | None) -> None:
@@ -270,22 +262,16 @@ class ObjectCollider:
                         hit[i] = True
                         break
 
-        # No crossing surfaces left: a near part collides if it holds a body of the mesh
-        # (one vertex per body is inside it) or lies inside the mesh (its centre does; only
-        # possible for parts inside the mesh's bounding box).
+        # No crossing surfaces left: a near part collides if it lies inside the mesh (then
+        # its centre does). Only parts inside the mesh's bounding box can.
         rows, cols = np.nonzero(near & ~hit[:, None])
         if len(rows):
-            rot_rc = rot4[rows, cols]
             part_c = centres[rows, cols]
-            half = extents[cols] / 2.0
-            local = np.einsum("mji,mbj->mbi", rot_rc, self._reps[None] - part_c[:, None])
-            holds = (np.abs(local) <= half[:, None]).all(axis=2).any(axis=1)
-            reach = np.einsum("mij,mj->mi", np.abs(rot_rc), half)  # part's own AABB half-size
+            reach = np.einsum("mij,mj->mi", np.abs(rot4[rows, cols]), extents[cols] / 2.0)
             boxed = (np.abs(part_c - box_centre) + reach <= box_ext / 2.0).all(axis=1)
-            inside = np.zeros(len(rows), dtype=bool)
             if boxed.any():
-                inside[boxed] = self.mesh.contains(part_c[boxed])
-            hit[rows[holds | inside]] = True
+                inside = self.mesh.contains(part_c[boxed])
+                hit[rows[boxed][inside]] = True
         return hit
 
 
