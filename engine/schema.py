@@ -63,12 +63,15 @@ FiniteVec3 = tuple[Finite, Finite, Finite]
 
 
 class Source(BaseModel):
-    """Where an item was written: ``file`` relative to the KB root, 1-based ``line``/``col``."""
+    """Where an item was written: ``file`` relative to the KB root, 1-based ``line``/``col``,
+    and ``path``, the keys and list indices leading to the item inside its file (``("rules",
+    3)`` for a culture's fourth rule)."""
 
     model_config = ConfigDict(frozen=True)
     file: str = "<memory>"
     line: int = 0
     col: int = 0
+    path: tuple[str | int, ...] = ()
 
     def __str__(self) -> str:
         return f"{self.file}:{self.line}"

@@ -7,5 +7,6 @@ from __future__ import annotations
 
 from engine.cli import (
     grasps,  # noqa: F401,E402  (grasps)
+    kb,  # noqa: F401,E402  (kb validate, kb list, kb show, kb schema)
     plan,  # noqa: F401,E402  (plan, explain-graph)
 )

@@ -1,0 +1,253 @@
+"""Semantic checks of a loaded knowledge base, reported together with the schema errors.
+
+Each check returns :class:`engine.errors.KBIssue` located at the offending YAML node.
+Errors stop loading (exit code 3); warnings are shown by ``handover kb validate``.
+
+Errors:
+  - duplicate ids across the files of one kind (checked by the loader);
+  - an object's geometry naming a part not declared in ``parts`` (primitive ``part``,
+    region ``part``, ``default_part``); a task's ``present.axis`` that the object does not
+    define; a task's ``receiver_tags`` that no part of the object carries; a ``default_task``
+    that is not one of the object's tasks;
+  - a mesh file that is missing, or whose path is absolute or leaves the KB folder;
+  - a culture extending an unknown culture (also the implicit ``common``), or an ``extends``
+    cycle (a culture extending itself included);
+  - a rule overriding a rule id that none of the extended cultures has, or one already
+    overridden in the same culture; a rule id that repeats a rule in force without
+    ``overrides``; a rule overriding a ``safety`` rule without ``override_safety``;
+  - a rule naming a tag that no object or part carries (``applies.object_tags_any``/``none``,
+    ``forbid_tags``, ``require_tags``). This is an error, not a warning, because a misspelt
+    tag silently disables a rule, safety rules included; add the object before the rule, or
+    use a tag an object already carries;
+  - an ``axis`` rule naming an axis no object defines, a rule's ``applies.tasks`` naming a task
+    no object has;
+  - a receiver's ``hand`` or a robot's ``gripper`` that does not exist; two obstacles with one
+    id in a scene.
+
+Warnings:
+  - a safety rule overridden with ``override_safety`` ("safety rule X overridden by Y: why");
+    ``override_safety`` on a rule that overrides no safety rule;
+  - an object part that no geometry belongs to; an ``axis`` rule that applies to an object
+    lacking that axis; a document whose id differs from its file name (loader); a file
+    outside the KB folders (loader).
+
+Checks that refer across documents are skipped for a kind whose files failed to load, so one
+broken file does not cause a cascade of false errors.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Iterator
+from pathlib import PurePosixPath, PureWindowsPath
+from typing import TYPE_CHECKING
+
+from engine.errors import KBIssue
+from engine.etiquette import _resolve, applies_to_object, object_tags
+from engine.schema import ObjectSpec, Rule
+
+if TYPE_CHECKING:
+    from engine.loader import KB
+
+__all__ = ["lint_kb", "lint_object", "lint_cultures", "lint_references"]
+
+
+def lint_kb(kb: KB, failed_kinds: Iterable[str] = ()) -> list[KBIssue]:
+    """Every semantic problem of ``kb``, sorted, each once.
+
+    failed_kinds : document kinds (folder names) with a file that did not load; checks that
+    need all documents of such a kind are skipped.
+    """
+    failed = set(failed_kinds)
+    issues: list[KBIssue] = []
+    for obj in kb.objects.values():
+        issues.extend(lint_object(kb, obj))
+    issues.extend(lint_cultures(kb, failed))
+    issues.extend(lint_references(kb, failed))
+    return sorted(set(issues))
+
+
+# ---------------------------------------------------------------- objects
+
+
+def lint_object(kb: KB, obj: ObjectSpec) -> Iterator[KBIssue]:
+    """Problems inside one object: parts, tasks, axes, mesh file."""
+    geometry_parts: set[str] = set()
+    declared = ", ".join(obj.parts) or "none"
+
+    def part_ref(part: str, model, *sub) -> Iterator[KBIssue]:
+        geometry_parts.add(part)
+        if part not in obj.parts:
+            yield kb.issue(
+                model,
+                f"part '{part}' is not declared in the object's parts (declared: {declared})",
+                *sub,
+            )
+
+    for prim in obj.geometry.primitives:
+        yield from part_ref(prim.part, prim, "part")
+    mesh = obj.geometry.mesh
+    if mesh is not None:
+        yield from part_ref(mesh.default_part, mesh, "default_part")
+        for region in mesh.regions:
+            yield from part_ref(region.part, region, "part")
+        yield from _lint_mesh_file(kb, obj)
+    for name, part in obj.parts.items():
+        if name not in geometry_parts:
+            yield kb.issue(
+                part,
+                f"part '{name}' has no geometry (no primitive or region names it)",
+                severity="warning",
+            )
+    part_tags = {t for part in obj.parts.values() for t in part.tags}
+    for task_id, task in obj.tasks.items():
+        for present in task.present:
+            if present.axis not in obj.axes:
+                yield kb.issue(
+                    present,
+                    f"task '{task_id}' presents axis '{present.axis}', which object "
+                    f"'{obj.id}' does not define (axes: {', '.join(obj.axes) or 'none'})",
+                    "axis",
+                )
+        for k, tag in enumerate(task.receiver_tags):
+            if tag not in part_tags:
+                yield kb.issue(
+                    task,
+                    f"task '{task_id}' wants the receiver on a part tagged '{tag}', but no "
+                    f"part of '{obj.id}' carries it",
+                    "receiver_tags",
+                    k,
+                )
+    if obj.default_task is not None and obj.default_task not in obj.tasks:
+        yield kb.issue(
+            obj,
+            f"default_task '{obj.default_task}' is not one of the object's tasks "
+            f"({', '.join(obj.tasks) or 'none'})",
+            "default_task",
+        )
+
+
+def _lint_mesh_file(kb: KB, obj: ObjectSpec) -> Iterator[KBIssue]:
+    mesh = obj.geometry.mesh
+    assert mesh is not None
+    name = mesh.file
+    if not name.strip():
+        yield kb.issue(mesh, "mesh file name is empty", "file")
+        return
+    if PurePosixPath(name).is_absolute() or PureWindowsPath(name).is_absolute():
+        yield kb.issue(
+            mesh,
+            f"mesh file '{name}' is an absolute path; give it relative to the object's file, "
+            "inside the KB folder",
+            "file",
+        )
+        return
+    path = kb.mesh_path(obj)
+    assert path is not None
+    root = os.path.normpath(kb.root)
+    if os.path.commonpath([root, str(path)]) != root:
+        yield kb.issue(
+            mesh, f"mesh file '{name}' leaves the KB folder; keep meshes inside it", "file"
+        )
+        return
+    if not path.is_file():
+        rel = os.path.relpath(path, root)
+        yield kb.issue(mesh, f"mesh file '{name}' does not exist (looked for {rel})", "file")
+
+
+# ---------------------------------------------------------------- cultures and rules
+
+
+def _rule_tags(rule: Rule) -> Iterator[tuple[str, tuple[str | int, ...]]]:
+    for field in ("object_tags_any", "object_tags_none"):
+        for k, tag in enumerate(getattr(rule.applies, field)):
+            yield tag, ("applies", field, k)
+    for field in ("forbid_tags", "require_tags"):
+        for k, tag in enumerate(getattr(rule, field)):
+            yield tag, (field, k)
+
+
+def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
+    """extends and overrides (through resolution), rule tags, axes and tasks."""
+    if "etiquette" not in failed:
+        for culture_id in kb.cultures:
+            _, problems = _resolve(kb, culture_id)
+            yield from problems
+    if "objects" in failed:
+        return
+    used_tags = set().union(*(object_tags(o) for o in kb.objects.values()))
+    used_axes = {a for o in kb.objects.values() for a in o.axes}
+    used_tasks = {t for o in kb.objects.values() for t in o.tasks}
+    for culture in kb.cultures.values():
+        for rule in culture.rules:
+            for tag, sub in _rule_tags(rule):
+                if tag not in used_tags:
+                    yield kb.issue(
+                        rule,
+                        f"rule '{rule.id}' names tag '{tag}', which no object or part carries "
+                        "(a misspelt tag silently disables a rule)",
+                        *sub,
+                    )
+            for k, task in enumerate(rule.applies.tasks):
+                if task not in used_tasks:
+                    yield kb.issue(
+                        rule,
+                        f"rule '{rule.id}' applies to task '{task}', which no object has",
+                        "applies",
+                        "tasks",
+                        k,
+                    )
+            if rule.kind == "axis" and rule.axis is not None:
+                if rule.axis not in used_axes:
+                    yield kb.issue(
+                        rule,
+                        f"rule '{rule.id}' is about axis '{rule.axis}', which no object defines",
+                        "axis",
+                    )
+                    continue
+                for obj in kb.objects.values():
+                    if rule.axis not in obj.axes and applies_to_object(rule, obj):
+                        yield kb.issue(
+                            rule,
+                            f"rule '{rule.id}' applies to object '{obj.id}' ({obj.source}), "
+                            f"which defines no axis '{rule.axis}': the rule cannot judge it",
+                            "axis",
+                            severity="warning",
+                        )
+
+
+# ---------------------------------------------------------------- references
+
+
+def lint_references(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
+    """Receivers' hands, robots' grippers, scene obstacle ids."""
+    if "hands" not in failed:
+        for receiver in kb.receivers.values():
+            if receiver.hand not in kb.hands:
+                yield kb.issue(
+                    receiver,
+                    f"receiver '{receiver.id}' has hand '{receiver.hand}', which does not "
+                    f"exist (hands: {', '.join(sorted(kb.hands)) or 'none'})",
+                    "hand",
+                )
+    if "grippers" not in failed:
+        for robot in kb.robots.values():
+            if robot.gripper not in kb.grippers:
+                yield kb.issue(
+                    robot,
+                    f"robot '{robot.id}' has gripper '{robot.gripper}', which does not exist "
+                    f"(grippers: {', '.join(sorted(kb.grippers)) or 'none'})",
+                    "gripper",
+                )
+    for scene in kb.scenes.values():
+        seen: dict[str, object] = {}
+        for k, box in enumerate(scene.obstacles):
+            if box.id in seen:
+                yield kb.issue(
+                    scene,
+                    f"obstacle id '{box.id}' appears twice in scene '{scene.id}'",
+                    "obstacles",
+                    k,
+                    "id",
+                )
+            seen.setdefault(box.id, box)
