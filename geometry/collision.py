@@ -175,12 +175,14 @@ class ObjectCollider:
     """
 
     def __init__(self, mesh: trimesh.Trimesh, transform: np.ndarray | None = None) -> None:
+        from geometry.mesh import MeshError
+
         vertices = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), dtype=float)
         faces = np.asarray(getattr(mesh, "faces", np.zeros((0, 3))))
         if len(vertices) == 0 or len(faces) == 0:
-            raise ValueError("ObjectCollider needs a mesh with vertices and faces")
+            raise MeshError("ObjectCollider needs a mesh with vertices and faces")
         if not np.isfinite(vertices).all():
-            raise ValueError("ObjectCollider: mesh vertices must be finite")
+            raise MeshError("ObjectCollider: mesh vertices must be finite")
         self.mesh = mesh
         self._fcl_object = _bvh_object(vertices, faces)
         lo, hi = vertices.min(axis=0), vertices.max(axis=0)
@@ -226,19 +228,26 @@ class ObjectCollider:
     ) -> np.ndarray:
         """(N,) bool: whether any of the K boxes of each row touches or enters the object.
 
-        centres : (N, K, 3) m, in the object's own frame. rotations : (N, 3, 3) (one per
-        row, shared by its boxes) or (N, K, 3, 3). extents : (K, 3) m. Boxes are tried in
-        column order and a row stops at its first hit, so put the likeliest first.
+        centres : (N, K, 3) m, in the object's own frame (not F: :meth:`gripper_collides`
+        maps poses into it). rotations : (N, 3, 3) (one per row, shared by its boxes) or
+        (N, K, 3, 3). extents : (K, 3) m. Boxes are tried in column order and a row stops at
+        its first hit, so put the likeliest first.
         """
         import fcl
 
         centres = np.asarray(centres, dtype=float)
-        n_rows, n_boxes = centres.shape[:2]
         rotations = np.asarray(rotations, dtype=float)
+        extents = np.asarray(extents, dtype=float)
+        if centres.ndim != 3 or centres.shape[2] != 3:
+            raise ValueError(f"centres must have shape (N, K, 3), got {centres.shape}")
+        n_rows, n_boxes = centres.shape[:2]
+        if extents.shape != (n_boxes, 3) or (extents <= 0).any():
+            raise ValueError(f"extents must be ({n_boxes}, 3) positive lengths")
         if rotations.ndim == 3:
             rotations = rotations[:, None]
+        if rotations.shape not in ((n_rows, 1, 3, 3), (n_rows, n_boxes, 3, 3)):
+            raise ValueError(f"rotations must be ({n_rows}, 3, 3) or ({n_rows}, {n_boxes}, 3, 3)")
         rot4 = np.broadcast_to(rotations, (n_rows, n_boxes, 3, 3))
-        extents = np.asarray(extents, dtype=float)
         # Broad phase: parts that miss the mesh's bounding box or bounding sphere are free.
         box_centre, box_ext = self._aabb
         near = boxes_overlap(centres, rot4, extents, box_centre, np.eye(3), box_ext)

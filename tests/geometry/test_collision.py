@@ -20,6 +20,7 @@ from geometry.collision import (
     grippers_collide,
 )
 from geometry.gripper import Gripper
+from geometry.mesh import MeshError
 
 G = Gripper.default()
 EYE = np.eye(3)
@@ -263,7 +264,7 @@ def test_agrees_with_a_plain_reference_on_random_poses():
 
 
 def test_bad_mesh_is_refused():
-    with pytest.raises(ValueError, match="faces"):
+    with pytest.raises(MeshError, match="faces"):
         ObjectCollider(trimesh.Trimesh())
 
 
