@@ -69,26 +69,38 @@ def culture_parent(culture: Culture) -> str | None:
     return None if culture.id == "common" else "common"
 
 
+def _walk(kb: KB, culture_id: str) -> tuple[list[str], str | None, str | None]:
+    """``(ids, stop, parent)``: the culture and its ancestors, nearest first; ``stop`` is
+    None, ``"cycle"`` or ``"unknown"``, with the ``parent`` id that stopped the walk."""
+    ids = [culture_id]
+    current = kb.cultures[culture_id]
+    while True:
+        parent = culture_parent(current)
+        if parent is None:
+            return ids, None, None
+        if parent in ids:
+            return ids, "cycle", parent
+        if parent not in kb.cultures:
+            return ids, "unknown", parent
+        ids.append(parent)
+        current = kb.cultures[parent]
+
+
 def culture_chain(kb: KB, culture_id: str) -> tuple[list[str], str | None]:
     """The culture and its ancestors, nearest first, and what stopped the walk.
 
     Returns ``(ids, problem)``: ``problem`` is None when the chain ends at a culture that
     extends nothing, else a sentence (unknown culture, or a cycle).
     """
-    ids = [culture_id]
-    current = kb.cultures[culture_id]
-    while True:
-        parent = culture_parent(current)
-        if parent is None:
-            return ids, None
-        if parent in ids:
-            loop = " -> ".join([*ids[ids.index(parent) :], parent])
-            return ids, f"'extends' forms a cycle: {loop}"
-        if parent not in kb.cultures:
-            implicit = "" if current.extends is not None else " (implicitly: no 'extends' given)"
-            return ids, f"culture '{current.id}' extends '{parent}'{implicit}, which does not exist"
-        ids.append(parent)
-        current = kb.cultures[parent]
+    ids, stop, parent = _walk(kb, culture_id)
+    if stop == "cycle":
+        loop = " -> ".join([*ids[ids.index(parent) :], parent])
+        return ids, f"'extends' forms a cycle: {loop}"
+    if stop == "unknown":
+        last = kb.cultures[ids[-1]]
+        implicit = "" if last.extends is not None else " (implicitly: no 'extends' given)"
+        return ids, f"culture '{last.id}' extends '{parent}'{implicit}, which does not exist"
+    return ids, None
 
 
 def resolve_culture(kb: KB, culture_id: str) -> list[ResolvedRule]:
@@ -110,10 +122,13 @@ def _resolve(kb: KB, culture_id: str) -> tuple[list[ResolvedRule], list[KBIssue]
     """Resolution and every problem met on the way (for :mod:`engine.lint`)."""
     problems: list[KBIssue] = []
     ids, stop = culture_chain(kb, culture_id)
-    if stop is not None:
-        culture = kb.cultures[ids[-1]]
+    _, kind, parent = _walk(kb, culture_id)
+    # a cycle is reported by each culture on it, at its own `extends`; an unknown parent by
+    # the culture that names it
+    if kind == "cycle" and parent == culture_id or kind == "unknown":
+        culture = kb.cultures[ids[-1] if kind == "unknown" else culture_id]
         sub = ("extends",) if culture.extends is not None else ("id",)
-        problems.append(kb.issue(culture, stop, *sub))
+        problems.append(kb.issue(culture, stop or "", *sub))
     resolved: list[ResolvedRule] = []
     for cid in reversed(ids):
         resolved = _apply_culture(kb, kb.cultures[cid], resolved, stop is None, problems)

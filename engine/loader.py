@@ -376,7 +376,11 @@ def _pydantic_issues(
         path, is_key = _data_path(data, tuple(e["loc"]))
         kind = e["type"]
         value = e.get("input")
-        if kind == "missing":
+        last = e["loc"][-1] if e["loc"] else None
+        if kind == "missing" and isinstance(last, int):  # a tuple too short
+            where = marks.value(path)
+            msg = f"item [{last}] is missing (a list of more items is needed)"
+        elif kind == "missing":
             where = marks.value(path[:-1])
             msg = f"missing required field '{path[-1]}'" if path else "missing required field"
             path = path[:-1]

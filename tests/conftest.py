@@ -1,0 +1,123 @@
+"""Shared fixtures: the built-in KB, and small KBs written into ``tmp_path`` by tests.
+
+``make_kb(files)`` writes a minimal valid KB (one object, a ``common`` culture, a gripper,
+a hand, a robot, a receiver, a scene) and then the given files over it (relative path ->
+YAML text, or None to delete a file). Tests break one thing and check the error.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+MINIMAL_KB: dict[str, str] = {
+    "objects/stick.yaml": """\
+        id: stick
+        name: Stick
+        mass: 0.1
+        geometry:
+          primitives:
+            - shape: box
+              part: grip
+              extents: [0.1, 0.02, 0.02]
+              position: [-0.05, 0, 0]
+            - shape: box
+              part: point
+              extents: [0.1, 0.01, 0.01]
+              position: [0.05, 0, 0]
+        parts:
+          grip:
+            tags: [handle]
+          point:
+            tags: [sharp]
+        axes:
+          tip: [1, 0, 0]
+        """,
+    "etiquette/common.yaml": """\
+        id: common
+        name: Common
+        rules:
+          - id: no_sharp
+            kind: contact
+            who: receiver
+            forbid_tags: [sharp]
+            safety: true
+            why: Never hand over a blade first.
+          - id: tip_away
+            kind: axis
+            axis: tip
+            toward: toward_receiver
+            min_deg: 100
+            applies: {object_tags_any: [sharp]}
+            why: Points away from people.
+        """,
+    "grippers/jaw.yaml": """\
+        id: jaw
+        name: Jaw
+        max_opening: 0.085
+        finger_length: 0.04
+        finger_width: 0.022
+        finger_thickness: 0.01
+        palm: [0.06, 0.13, 0.08]
+        """,
+    "hands/adult_hand.yaml": """\
+        id: adult_hand
+        name: Hand
+        palm: [0.09, 0.03, 0.1]
+        finger_length: 0.08
+        finger_thickness: 0.02
+        grip_width: 0.09
+        """,
+    "robots/bot.yaml": """\
+        id: bot
+        name: Bot
+        payload_per_hand: 1.5
+        gripper: jaw
+        """,
+    "receivers/adult.yaml": """\
+        id: adult
+        name: Adult
+        """,
+    "scenes/table.yaml": """\
+        id: table
+        name: Table
+        support: {position: [0.5, 0, 0.75], size: [0.6, 1.0]}
+        """,
+}
+
+
+def write_files(root: Path, files: dict[str, str | None]) -> Path:
+    """Write ``files`` (path -> text, dedented; None deletes) under ``root``."""
+    for rel, text in files.items():
+        path = root / rel
+        if text is None:
+            path.unlink(missing_ok=True)
+            continue
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(textwrap.dedent(text), encoding="utf-8")
+    return root
+
+
+@pytest.fixture
+def make_kb(tmp_path: Path) -> Callable[..., Path]:
+    """``make_kb(files=None, minimal=True) -> Path``: a KB folder in ``tmp_path``."""
+
+    def make(files: dict[str, str | None] | None = None, minimal: bool = True) -> Path:
+        root = tmp_path / "kb"
+        root.mkdir(exist_ok=True)
+        if minimal:
+            write_files(root, MINIMAL_KB)
+        return write_files(root, files or {})
+
+    return make
+
+
+@pytest.fixture(scope="session")
+def builtin_kb():
+    """The built-in knowledge base, loaded once (do not modify it)."""
+    from engine.loader import builtin_kb_dir, load_kb
+
+    return load_kb(builtin_kb_dir())
