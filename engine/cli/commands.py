@@ -9,4 +9,5 @@ from engine.cli import (
     grasps,  # noqa: F401,E402  (grasps)
     kb,  # noqa: F401,E402  (kb validate, kb list, kb show, kb schema)
     plan,  # noqa: F401,E402  (plan, explain-graph)
+    review,  # noqa: F401,E402  (review)
 )
