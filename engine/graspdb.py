@@ -42,6 +42,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "GraspDB",
+    "MemoryDB",
     "EntryError",
     "FORMAT",
     "ENV_VAR",
@@ -342,6 +343,32 @@ class GraspDB:
             return None
         self.counts["hit" if found is not None else "miss"] += 1
         return found
+
+
+class MemoryDB(GraspDB):
+    """Entries kept in this process only (nothing on disk): what a batch run with ``--no-db``
+    uses so that the queries of one object share its candidates. Hands out copies."""
+
+    def __init__(self) -> None:
+        super().__init__(Path("<memory>"))
+        self._entries: dict[str, tuple[CandidateSet, dict]] = {}
+
+    def __repr__(self) -> str:
+        return "MemoryDB()"
+
+    def keys(self) -> list[str]:
+        return sorted(self._entries)
+
+    def store(self, key: str, candidates: CandidateSet, stats: dict | None = None) -> Path:
+        self._entries[key] = (candidates.take(np.arange(len(candidates))), plain_stats(stats))
+        self.counts["stored"] += 1
+        return self.path(key)
+
+    def load(self, key: str) -> tuple[CandidateSet, dict] | None:
+        if key not in self._entries:
+            return None
+        candidates, stats = self._entries[key]
+        return candidates.take(np.arange(len(candidates))), json.loads(json.dumps(stats))
 
 
 TIMING_STATS = ("seconds",)

@@ -6,6 +6,7 @@ Add a new command module here (one line) when you add one.
 from __future__ import annotations
 
 from engine.cli import (
+    batch,  # noqa: F401,E402  (batch)
     grasps,  # noqa: F401,E402  (grasps)
     kb,  # noqa: F401,E402  (kb validate, kb list, kb show, kb schema)
     plan,  # noqa: F401,E402  (plan, explain-graph)

@@ -1,0 +1,148 @@
+"""``handover batch``: plan many queries, one Parquet row each, resumable."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from engine.cli.app import app, state
+
+OBJECTS_HELP = (
+    "What to plan: 'kb' (every KB object), KB ids and mesh files as a comma list, a folder "
+    "of mesh files, or a glob pattern (quote it)."
+)
+
+
+def db_root_option(db: Path | None, no_db: bool) -> Path | None:
+    """The grasp database folder for these options (None: no database on disk): ``--no-db``
+    wins, then ``--db``, then the global options if the app has them, then
+    ``$HANDOVER_DB``, then the user cache folder."""
+    from engine.graspdb import open_db
+
+    if no_db or getattr(state, "no_db", False):
+        return None
+    graspdb = open_db(db if db is not None else getattr(state, "db_dir", None))
+    return None if graspdb is None else graspdb.root
+
+
+@app.command()
+def batch(
+    objects: str = typer.Option(..., "--objects", help=OBJECTS_HELP),
+    out: Path = typer.Option(..., "--out", "-o", help="Parquet file of results (resumed).",
+                             dir_okay=False),  # fmt: skip
+    cultures: list[str] = typer.Option([], "--cultures", help="Culture ids, comma list or 'all' "
+                                       "(default: common)."),  # fmt: skip
+    receivers: list[str] = typer.Option([], "--receivers", help="Receiver ids, comma list or "
+                                        "'all' (default: adult)."),  # fmt: skip
+    tasks: list[str] = typer.Option([], "--tasks", help="Task ids, comma list or 'all' "
+                                    "(default: each object's default task)."),  # fmt: skip
+    scene: str | None = typer.Option(None, "--scene", "-s", help="Scene id (default: table)."),
+    mode: str = typer.Option("auto", "--mode", "-m", help="auto or h1g1|h2g2|h2g1."),
+    workers: int | None = typer.Option(None, "--workers", "-j", min=1,
+                                       help="Processes (default: all cores; 1: in this one)."),
+    ray: str | None = typer.Option(None, "--ray", metavar="ADDRESS",
+                                   help="Run as Ray tasks: a cluster address, 'auto', or "
+                                   "'local' to start a local instance (needs the ray extra)."),
+    max_retries: int = typer.Option(2, "--max-retries", min=0,
+                                    help="Retries of a unit whose worker died."),
+    db: Path | None = typer.Option(None, "--db", envvar="HANDOVER_DB", file_okay=False,
+                                   help="Grasp database folder (default: the user cache "
+                                   "folder). Also $HANDOVER_DB."),
+    no_db: bool = typer.Option(False, "--no-db", help="Use no grasp database on disk."),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+) -> None:  # fmt: skip
+    """Plan every (object x culture x receiver x task) query and write one row per query
+    (object, culture, receiver, task, mode, feasible, grasps, score, reason, error) to a
+    Parquet file, sorted by query key. Fills the grasp database on the way.
+
+    A second run with the same --out plans only what is missing, failed, or whose KB or mesh
+    changed. A failing object is reported in its rows and does not stop the batch.
+    """
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from engine.batch import expand, run_batch
+    from engine.loader import load_kb
+
+    console = Console(stderr=True, highlight=False)
+    kb = load_kb(state.kb_dir)
+    units = expand(kb, objects, cultures, receivers, tasks, scene, mode)
+    db_root = db_root_option(db, no_db)
+    bar = Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        auto_refresh=False,
+        disable=not progress,
+        transient=True,
+    )  # fmt: skip  (no refresh thread: the local pool forks)
+    state_ = {"task": None}
+
+    def on_start(n: int, backend: str) -> None:
+        bar.start()
+        state_["task"] = bar.add_task(f"planning ({backend})", total=n)
+        bar.refresh()
+
+    def on_rows(unit, rows, seconds) -> None:
+        bar.update(state_["task"], advance=len(rows), description=unit.obj.name)
+        bar.refresh()
+
+    try:
+        report = run_batch(kb, units, out, db_root=db_root, workers=workers, ray_address=ray,
+                           max_retries=max_retries, on_start=on_start, on_rows=on_rows)  # fmt: skip
+    finally:
+        bar.stop()
+    render_summary(report, Console(highlight=False), db_root)
+
+
+def render_summary(report, console, db_root: Path | None, limit: int = 40) -> None:
+    """A table per object of this run's rows (failures first), and the totals."""
+    from rich.table import Table
+
+    by_obj: dict[str, list[dict]] = {}
+    for row in report.planned:
+        by_obj.setdefault(row["object"], []).append(row)
+    table = Table(title=f"batch: {report.out}", title_justify="left")
+    note_width = max(16, console.width - 62)
+    table.add_column("object", overflow="fold", min_width=8)
+    for name in ("queries", "feasible", "no plan", "failed", "s"):
+        table.add_column(name, justify="right", no_wrap=True)
+    table.add_column("first error / reason", no_wrap=True, overflow="ellipsis",
+                     max_width=note_width)  # fmt: skip
+    entries = []
+    for name, rows in by_obj.items():
+        errors = [r for r in rows if r["error"]]
+        feas = sum(1 for r in rows if r["feasible"])
+        infeas = sum(1 for r in rows if r["feasible"] is False)
+        note = (
+            errors[0]["error"]
+            if errors
+            else next((r["reason"] for r in rows if r["feasible"] is False and r["reason"]), "")
+        )
+        entries.append((not errors, name, len(rows), feas, infeas, len(errors), note))
+    entries.sort()
+    for _, name, n, feas, infeas, nerr, note in entries[:limit]:
+        secs = report.per_object_seconds.get(name)
+        table.add_row(
+            name, str(n), str(feas), str(infeas), f"[red]{nerr}[/]" if nerr else "0",
+            f"{secs:.2f}" if secs is not None else "", (note or "")[:160],
+        )  # fmt: skip
+    if len(entries) > limit:
+        table.add_row(f"... {len(entries) - limit} more objects", "", "", "", "", "", "")
+    if entries:
+        console.print(table)
+    rows = report.planned
+    n_err = sum(1 for r in rows if r["error"])
+    n_feas = sum(1 for r in rows if r["feasible"])
+    rate = report.objects_planned / report.seconds if report.seconds > 0 else 0.0
+    console.print(
+        f"{len(rows)} queries on {report.objects_planned} objects planned in "
+        f"{report.seconds:.2f} s ({rate:.2f} objects/s, {report.backend}, "
+        f"{report.workers} worker{'s' if report.workers != 1 else ''}): "
+        f"{n_feas} feasible, {len(rows) - n_feas - n_err} infeasible, {n_err} failed; "
+        f"{report.skipped} already done. {len(report.rows)} rows in {report.out}."
+    )
+    console.print(f"grasp database: {db_root if db_root is not None else 'off (--no-db)'}")
