@@ -81,7 +81,7 @@ def sample_surface(
     total = float(area.sum())
     if total <= 0:
         return np.zeros((0, 3)), np.zeros(0, dtype=np.int64), float(spacing)
-    count = int(np.ceil(total / spacing**2))
+    count = int(np.ceil(total / spacing**2 - 1e-9))
     if count > max_samples:
         count = int(max_samples)
         spacing = float(np.sqrt(total / count))

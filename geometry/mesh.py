@@ -39,6 +39,7 @@ __all__ = [
     "part_mesh_from_regions",
     "mass_centre",
     "ray_first_hits",
+    "distance_to_faces",
 ]
 
 MAX_FACES = 2_000_000
@@ -212,16 +213,44 @@ def ray_first_hits(
     return face, distance
 
 
+def distance_to_faces(mesh: trimesh.Trimesh, points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(N,) float, m: exact distance from each point to the triangle ``faces[i]`` it is
+    paired with (to the plane when the projection falls inside the triangle, else to the
+    nearest edge). points : (N, 3) m; faces : (N,) int."""
+    import trimesh
+
+    points = np.asarray(points, dtype=float)
+    tri = mesh.triangles[faces]
+    normal = mesh.face_normals[faces]
+    height = np.einsum("ij,ij->i", points - tri[:, 0], normal)
+    bary = trimesh.triangles.points_to_barycentric(tri, points - height[:, None] * normal)
+    inside = (bary >= -1e-12).all(axis=1)
+    edge = np.full(len(points), np.inf)
+    for a, b in ((0, 1), (1, 2), (2, 0)):
+        d = tri[:, b] - tri[:, a]
+        t = np.clip(np.einsum("ij,ij->i", points - tri[:, a], d) / (d * d).sum(axis=1), 0, 1)
+        edge = np.minimum(edge, np.linalg.norm(tri[:, a] + t[:, None] * d - points, axis=1))
+    return np.where(inside, np.abs(height), edge)
+
+
 # ---------------------------------------------------------------- primitives
 
 
 def _placed(mesh: trimesh.Trimesh, transform: np.ndarray | None) -> trimesh.Trimesh:
-    if transform is not None:
-        t = np.asarray(transform, dtype=float)
-        if t.shape != (4, 4) or not np.isfinite(t).all():
-            raise MeshError(f"a primitive's transform must be a finite 4x4 matrix, got {t.shape}")
-        mesh.apply_transform(t)
-    return mesh
+    """The primitive moved by ``transform``, applied exactly (trimesh's ``apply_transform``
+    skips matrices within ~1e-7 of the identity)."""
+    import trimesh
+
+    if transform is None:
+        return mesh
+    t = np.asarray(transform, dtype=float)
+    if t.shape != (4, 4) or not np.isfinite(t).all():
+        raise MeshError(f"a primitive's transform must be a finite 4x4 matrix, got {t.shape}")
+    vertices = np.asarray(mesh.vertices) @ t[:3, :3].T + t[:3, 3]
+    faces = np.asarray(mesh.faces)
+    if np.linalg.det(t[:3, :3]) < 0:  # a reflection turns the winding inside out
+        faces = faces[:, ::-1]
+    return trimesh.Trimesh(vertices=vertices, faces=faces, process=False)
 
 
 def _positive(name: str, value: float) -> float:

@@ -1,0 +1,180 @@
+"""The candidate pipeline (geometry.generate): sites x rolls, frames, collision, order."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+
+from geometry import mesh as gm
+from geometry.candidates import SOURCE_ANTIPODAL, SOURCE_FACET, CandidateSet
+from geometry.collision import ObjectCollider
+from geometry.frames import (
+    rotation_about_axis,
+    transform_from,
+    transform_points,
+    transform_vectors,
+)
+from geometry.generate import (
+    generate_candidates,
+    generate_with_stats,
+    min_overlap_area,
+    roll_angles,
+)
+from geometry.gripper import Gripper
+
+GRIPPER = Gripper.default()
+
+
+def assert_valid_candidates(c: CandidateSet, pm: gm.PartMesh, gripper: Gripper) -> None:
+    """What every candidate must satisfy, from the meaning of its fields."""
+    mesh = pm.mesh
+    assert len(c) > 0
+    for k in (0, 1):  # both contacts on the surface, on the faces they name
+        assert gm.distance_to_faces(mesh, c.contacts[:, k], c.faces[:, k]).max() < 5e-4
+    assert_allclose(c.normals, mesh.face_normals[c.faces])
+    o = c.contacts[:, 1] - c.contacts[:, 0]
+    assert_allclose(c.width, np.linalg.norm(o, axis=1), atol=1e-12)
+    assert (c.width <= gripper.max_opening).all() and (c.width >= gripper.min_opening).all()
+    assert_allclose(c.o, o / c.width[:, None], atol=1e-9)
+    assert_allclose(c.centre, c.contacts.mean(axis=1), atol=1e-12)
+    # normals within the friction cone of the contact line
+    limit = np.cos(np.arctan(gripper.friction)) - 1e-9
+    assert (np.einsum("ij,ij->i", -c.normals[:, 0], c.o) >= limit).all()
+    assert (np.einsum("ij,ij->i", c.normals[:, 1], c.o) >= limit).all()
+    # frames: orthonormal, right-handed, n = o x a
+    rot = c.poses()[:, :3, :3]
+    assert_allclose(np.einsum("nki,nkj->nij", rot, rot), np.broadcast_to(np.eye(3), rot.shape),
+                    atol=1e-9)  # fmt: skip
+    assert_allclose(np.linalg.det(rot), 1.0, atol=1e-9)
+    assert_allclose(c.n, np.cross(c.o, c.a), atol=1e-12)
+    assert_allclose(c.parts, pm.face_part[c.faces])
+    assert ((c.quality >= 0) & (c.quality <= 1)).all()
+    assert (c.com_distance >= 0).all()
+
+
+def _hammer() -> gm.PartMesh:
+    """Handle: cylinder r = 12 mm along x, 0.25 m; head: box across its end."""
+    turn = rotation_about_axis([0, 1, 0], np.pi / 2)
+    handle = gm.cylinder(0.012, 0.25, 24, transform_from(turn, [0.125, 0, 0]))
+    head = gm.box((0.03, 0.1, 0.025), transform_from(None, [0.25, 0.0, 0.0]))
+    return gm.compose([("handle", handle), ("head", head)])
+
+
+def test_roll_angles():
+    assert_allclose(np.rad2deg(roll_angles(15)), np.arange(0, 360, 15))
+    assert_allclose(np.rad2deg(roll_angles(25)), np.arange(0, 360, 25))  # 0 .. 350
+    assert_allclose(roll_angles(360), [0.0])
+    with pytest.raises(ValueError):
+        roll_angles(0)
+
+
+def test_min_overlap_area_is_a_pad_unless_the_gripper_says():
+    assert min_overlap_area(GRIPPER) == pytest.approx(0.022**2)
+    g = Gripper(**{**GRIPPER.__dict__, "min_overlap_area": 1e-4})
+    assert min_overlap_area(g) == 1e-4
+
+
+def test_box_rows_are_sites_by_rolls_in_order():
+    pm = gm.PartMesh.single(gm.box((0.1, 0.06, 0.03)))
+    c, stats = generate_with_stats(pm, GRIPPER)
+    assert stats.sites == 6 and stats.rolls_per_site == 24
+    assert len(c) == stats.before_collision == stats.after_collision == 6 * 24
+    assert stats.antipodal_sites == 0 and (c.source == SOURCE_FACET).all()
+    assert_allclose(c.site, np.repeat(np.arange(6), 24))
+    assert_allclose(c.roll, np.tile(np.deg2rad(np.arange(0, 360, 15)), 6))
+    assert_valid_candidates(c, pm, GRIPPER)
+    # within a site: a is the roll-0 approach turned about o by the roll
+    a0 = c.a[c.site == 0][0]
+    for row in np.flatnonzero(c.site == 0):
+        turned = rotation_about_axis(c.o[row], c.roll[row]) @ a0
+        assert_allclose(c.a[row], turned, atol=1e-12)
+    # rolls 180 degrees apart approach from opposite sides
+    assert_allclose(c.a[0], -c.a[12], atol=1e-12)
+    # every contact on the box faces, overlap areas from the projected faces
+    assert set(np.round(c.overlap_area, 12)) == {round(0.1 * 0.03, 12), round(0.1 * 0.06, 12)}
+
+
+def test_deterministic():
+    pm = _hammer()
+    a = generate_candidates(pm, GRIPPER, seed=7)
+    b = generate_candidates(_hammer(), GRIPPER, seed=7)
+    for name in CandidateSet.ARRAY_FIELDS:
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+def test_icosphere_candidates_are_valid_and_all_around():
+    pm = gm.PartMesh.single(gm.icosphere(0.02, 3))
+    c, stats = generate_with_stats(pm, GRIPPER, collider=ObjectCollider(pm.mesh))
+    assert stats.facets == 0 and (c.source == SOURCE_ANTIPODAL).all()
+    assert_valid_candidates(c, pm, GRIPPER)
+    octant = (c.contacts.reshape(-1, 3) > 0) @ [1, 2, 4]
+    assert set(octant.tolist()) == set(range(8))
+
+
+def test_hammer_candidates_are_valid_and_touch_both_parts():
+    pm = _hammer()
+    c = generate_candidates(pm, GRIPPER, collider=ObjectCollider(pm.mesh))
+    assert_valid_candidates(c, pm, GRIPPER)
+    names = {pm.part_names[p] for p in np.unique(c.parts)}
+    assert names == {"handle", "head"}
+    # the mass centre lies between the head and the handle's middle: handle grasps far
+    # from the head have the longer lever arm
+    handle = (c.parts == pm.part_names.index("handle")).all(axis=1)
+    far = handle & (c.centre[:, 0] < 0.05)
+    assert (c.com_distance[far] > 0.05).all()
+
+
+def test_collision_filter_drops_exactly_the_colliding_rows():
+    pm = _hammer()
+    collider = ObjectCollider(pm.mesh)
+    everything, s_all = generate_with_stats(pm, GRIPPER)
+    kept, s_kept = generate_with_stats(pm, GRIPPER, collider=collider)
+    hits = collider.gripper_collides(GRIPPER, everything.poses(), everything.width)
+    assert 0 < s_kept.after_collision == int((~hits).sum()) < s_all.before_collision
+    assert s_kept.collision_checked and not s_all.collision_checked
+    assert_allclose(kept.poses(), everything.poses()[~hits])
+    assert not collider.gripper_collides(GRIPPER, kept.poses(), kept.width).any()
+    # sites renumbered densely in order
+    assert_allclose(np.unique(kept.site), np.arange(kept.site.max() + 1))
+    assert (np.diff(kept.site) >= 0).all()
+
+
+def test_big_sphere_collides_everywhere():
+    # an 80 mm ball fits between the fingers but reaches 40 mm behind the contacts, where
+    # the palm is (the pads are centred 20 mm in front of it)
+    pm = gm.PartMesh.single(gm.icosphere(0.04, 3))
+    c, stats = generate_with_stats(pm, GRIPPER, collider=ObjectCollider(pm.mesh))
+    assert stats.before_collision > 0 and len(c) == 0
+
+
+unit_floats = st.floats(-1, 1, allow_nan=False)
+
+
+@settings(max_examples=12, deadline=None)
+@given(
+    st.tuples(unit_floats, unit_floats, unit_floats).filter(lambda v: np.linalg.norm(v) > 0.1),
+    st.floats(-np.pi, np.pi),
+    st.tuples(unit_floats, unit_floats, unit_floats),
+)
+def test_a_moved_cube_has_the_same_grasps_moved(axis, angle, shift):
+    t = transform_from(rotation_about_axis(np.array(axis), angle), 0.1 * np.array(shift))
+    here = generate_candidates(gm.PartMesh.single(gm.box((0.05, 0.05, 0.05))), GRIPPER)
+    there = generate_candidates(gm.PartMesh.single(gm.box((0.05, 0.05, 0.05), t)), GRIPPER)
+    assert len(here) == len(there) == 3 * 24
+    centre = transform_points(t, here.centre)
+    a = transform_vectors(t, here.a)
+    o = transform_vectors(t, here.o)
+    # match rows by centre, approach and closing axis; o may be flipped (alike fingers)
+    flip = np.minimum(
+        np.linalg.norm(o[:, None] - there.o[None], axis=2),
+        np.linalg.norm(o[:, None] + there.o[None], axis=2),
+    )
+    dist = (np.linalg.norm(centre[:, None] - there.centre[None], axis=2)
+            + np.linalg.norm(a[:, None] - there.a[None], axis=2) + flip)  # fmt: skip
+    match = dist.argmin(axis=1)
+    assert dist[np.arange(len(here)), match].max() < 1e-9
+    assert len(set(match.tolist())) == len(here)
+    assert_allclose(there.width[match], here.width)
