@@ -265,7 +265,13 @@ def _parse(path: Path, name: str, text: str | None) -> tuple[Any, Marks] | list[
         line, col = (mark.line + 1, mark.column + 1) if mark else (0, 0)
         what = " ".join(str(x) for x in (e.context, e.problem) if x) or "invalid YAML"
         return [KBIssue(name, line, col, f"YAML syntax: {what}")]
-    except yaml.YAMLError as e:  # reader errors: control characters and the like
+    except yaml.reader.ReaderError as e:  # control characters and the like
+        pos = min(int(e.position), len(text))
+        line = text.count("\n", 0, pos) + 1
+        col = pos - (text.rfind("\n", 0, pos) + 1) + 1
+        char = e.character if isinstance(e.character, int) else ord(str(e.character)[:1] or " ")
+        return [KBIssue(name, line, col, f"character #x{char:04x} is not allowed in YAML")]
+    except yaml.YAMLError as e:
         return [KBIssue(name, 0, 0, f"YAML: {e}")]
     except RecursionError:
         return [KBIssue(name, 0, 0, "YAML nesting too deep")]

@@ -264,6 +264,12 @@ def test_non_utf8_file(make_kb):
     assert "UTF-8" in issue.message
 
 
+def test_control_characters_are_located(make_kb):
+    issue = only_error(make_kb({"receivers/adult.yaml": "id: adult\nname: A\x07dult\n"}))
+    assert (issue.line, issue.col) == (2, 8)
+    assert issue.message == "character #x0007 is not allowed in YAML"
+
+
 def test_every_error_of_every_file_at_once(make_kb):
     root = make_kb(
         {
