@@ -62,7 +62,7 @@ def _plural(n: int, noun: str) -> str:
 def validate(
     json_out: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
-    """Check every KB file (schema and cross-references); list all problems at once.
+    """Check every KB file (schema and cross-references), listing all problems at once.
 
     Exit code 0 when valid (warnings are printed), 3 with every error as file:line:col.
     """
@@ -360,8 +360,13 @@ def show(
         None, "--kind", help=f"Which kind of item, when an id is ambiguous: {', '.join(_KINDS)}."
     ),
 ) -> None:
-    """Show one item. For an object: its parts with tags, axes, tasks, and every rule of the
-    culture that can apply to it, resolved through extends/overrides, each with its source."""
+    """Show an object (parts, axes, tasks, the culture's rules that can apply) or any item.
+
+    For an object: its parts with tags, axes, tasks, and every rule of the culture (default
+    common) that can apply to it, resolved through extends/overrides, each with its source
+    file:line and the rules it overrides. Also shows a culture (its resolved rules), a
+    receiver, scene, gripper, hand or robot.
+    """
     from engine.errors import UsageError
 
     kb = _load()
