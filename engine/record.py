@@ -600,14 +600,33 @@ def _log_entries(result: PlanResult, stages: list[int]) -> list[tuple[int, str, 
 # ---------------------------------------------------------------- writing
 
 
-def blueprint():
-    """The default layout: the 3D world on the left; the stage summary above the rule trace
-    on the right; the time panel collapsed to the ``stage`` timeline, paused."""
+def camera(initial: np.ndarray, handover: np.ndarray, size: float) -> tuple[np.ndarray, ...]:
+    """Where the default 3D view looks from and at (world, m): at the middle of the object's
+    pick-up and handover positions, from the robot's right side, a little behind and above,
+    far enough to see both and the candidates on the object.
+
+    initial, handover : (3,) the object's centre at pick-up and at the handover.
+    size : m, the object's largest extent. Returns (eye (3,), target (3,)).
+    """
+    target = (np.asarray(initial, dtype=float) + np.asarray(handover, dtype=float)) / 2.0
+    span = float(np.linalg.norm(np.asarray(handover) - np.asarray(initial)))
+    distance = max(0.6, 1.6 * span, 4.0 * size)
+    direction = np.array([-0.3, -1.0, 0.5])
+    return target + distance * direction / np.linalg.norm(direction), target
+
+
+def blueprint(eye: np.ndarray | None = None, target: np.ndarray | None = None):
+    """The default layout: the 3D world on the left (looking from ``eye`` at ``target``,
+    world, m, when given); the stage summary above the rule trace on the right; the time
+    panel collapsed to the ``stage`` timeline, paused."""
     import rerun.blueprint as rrb
 
+    eye_controls = None
+    if eye is not None and target is not None:
+        eye_controls = rrb.EyeControls3D(position=eye, look_target=target, eye_up=(0, 0, 1))
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="world", name="handover"),
+            rrb.Spatial3DView(origin="world", name="handover", eye_controls=eye_controls),
             rrb.Vertical(
                 rrb.TextDocumentView(origin=ENTITY_SUMMARY, name="stage summary"),
                 rrb.TextLogView(origin=ENTITY_LOG, name="rule trace"),
@@ -615,7 +634,7 @@ def blueprint():
             ),
             column_shares=[3, 2],
         ),
-        rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="paused"),
+        rrb.TimePanel(state="collapsed", timeline=TIMELINE, play_state="following"),
         rrb.SelectionPanel(state="collapsed"),
         rrb.BlueprintPanel(state="collapsed"),
     )
@@ -691,7 +710,13 @@ def _write(result: PlanResult, ctx: PlanContext, decision: Decision | None, tmp:
 
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=uuid.uuid4(), send_properties=False)
     rec.set_log_time_enabled(False)
-    rec.save(tmp, default_blueprint=blueprint())
+    initial = np.asarray(
+        result.initial_pose if result.initial_pose is not None else ctx.initial, dtype=float
+    )
+    middle = (vertices.min(axis=0) + vertices.max(axis=0)) / 2.0 if len(vertices) else np.zeros(3)
+    eye, target = camera(initial[:3, :3] @ middle + initial[:3, 3],
+                         handover_pose[:3, :3] @ middle + handover_pose[:3, 3], size)  # fmt: skip
+    rec.save(tmp, default_blueprint=blueprint(eye, target))
     rec.send_recording_name(f"{result.object} ({result.mode or 'infeasible'})")
 
     # -- static: frame, scene, people, object at both poses, axes, receiver hands, legend
@@ -714,8 +739,6 @@ def _write(result: PlanResult, ctx: PlanContext, decision: Decision | None, tmp:
     positions, triangles, normals, vcol = _mesh_arrays(ctx)
     mesh = rr.Mesh3D(vertex_positions=positions, triangle_indices=triangles,
                      vertex_normals=normals, vertex_colors=vcol)  # fmt: skip
-    initial = np.asarray(result.initial_pose if result.initial_pose is not None
-                         else ctx.initial, dtype=float)  # fmt: skip
     for name, pose in (("initial", initial), ("handover", handover_pose)):
         rec.log(f"world/{name}", rr.Transform3D(translation=pose[:3, 3], mat3x3=pose[:3, :3]),
                 static=True)  # fmt: skip
@@ -824,7 +847,9 @@ def _log_grippers(rec, ctx: PlanContext, entity: str, grasps: list[dict], colour
         return
     centres, half, quats = _gripper_boxes(ctx, grasps)
     parts = len(centres) // len(grasps)
-    labels = [f"{g.get('hand')} gripper, grasp {g.get('id')}" for g in grasps for _ in range(parts)]
+    # One label per gripper, on its palm (the first box); the fingers carry none.
+    labels = [f"{g.get('hand')} gripper, grasp {g.get('id')}" if p == 0 else ""
+              for g in grasps for p in range(parts)]  # fmt: skip
     cols = [tuple(col) for col in colours for _ in range(parts)]
     rec.log(entity, rr.Boxes3D(centers=centres, half_sizes=half, quaternions=quats, colors=cols,
                                labels=labels, fill_mode="solid"))  # fmt: skip
