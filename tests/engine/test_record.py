@@ -368,6 +368,24 @@ def test_infeasible_plan_records_up_to_the_last_stage_with_candidates(tmp_path):
     assert "world/handover/grippers" not in {e["path"] for e in summary["entities"]}
 
 
+def test_plan_without_any_candidate_records_stage_0_and_the_reason(tmp_path):
+    result, ctx, attempt = synthetic_plan(feasible=False)
+    ctx.candidates = CandidateSet.empty(["handle", "blade"])
+    empty = np.zeros(0, dtype=np.int64)
+    attempt.decision = Decision(
+        gi=empty, pk=empty, hard=attempt.decision.hard, soft=attempt.decision.soft,
+        fails=np.zeros((0, 3), dtype=bool), checked=np.zeros((0, 3), dtype=bool),
+        kept=np.zeros(0, dtype=bool), score=np.zeros(0), first_fail=empty,
+        soft_scores=np.zeros((0, 1)),
+    )  # fmt: skip
+    result.reason = "H1G1: the object has no geometric grasp for this gripper"
+    path = tmp_path / "empty.rrd"
+    write_recording(result, ctx, path)
+    summary = read_recording(path)
+    assert [(s["stage"], s["candidates"]) for s in summary["stages"]] == [(0, 0)]
+    assert result.reason in summary["documents"][-1]["text"]
+
+
 def test_h2g2_plan_adds_pick_midair_and_handover(tmp_path):
     result, ctx, _ = synthetic_plan(feasible=True, h2g2=True)
     path = tmp_path / "h2g2.rrd"
