@@ -17,7 +17,12 @@ normal; the overlap's centre is a grasp site. Here:
 4. Sites: a grid at finger-width spacing, aligned with the overlap's long axis and anchored
    at its centroid, over the overlap shrunk by an inset (half a finger width, so the pad
    fits, but at most a quarter of the overlap's short side, so a strip narrower than a
-   finger still gets a line of sites). An overlap with no grid point inside gets one site
+   finger still gets a line of sites). Where the shrunk overlap is at least half a finger
+   wide, also rim sites on its outer boundary: on each edge at least a finger long, the
+   midpoint and points every finger width from it, approached from outside along the
+   edge's inward normal (grid points within half a finger width of a rim site give way to
+   it). On a wide flat object (a book, a tray's wall) only sites near an edge leave the palm
+   clear, and the centre grid alone can miss them. An overlap with no point gets one site
    at its representative point. A small overlap therefore has exactly one site, at its
    centroid (the seed's ``P_ic``) when the centroid lies inside it.
 5. Contacts: the line through a site along the common normal meets each facet's plane; the
@@ -26,7 +31,8 @@ normal; the overlap's centre is a grasp site. Here:
    fingers is solid (no hole or cavity in between), and the rays name the contact faces.
 
 The closing direction ``o`` is the common normal, from facet ``i`` to facet ``j`` (``i < j``).
-The reference approach (roll 0) is the overlap's long axis, perpendicular to ``o``.
+The reference approach (roll 0), perpendicular to ``o``, is the overlap's long axis for grid
+sites and the boundary's inward normal for rim sites.
 """
 
 from __future__ import annotations
@@ -235,51 +241,43 @@ def project_overlaps(facets: Facets, i: np.ndarray, j: np.ndarray, u: np.ndarray
     return shapely.intersection(poly_i, poly_j), centre, frame
 
 
-def overlap_site_points(
-    overlap: np.ndarray, spacing: float
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Grasp-site points on overlap polygons (see the module docstring, step 4).
-
-    overlap : (P,) shapely polygons (2D). spacing : m, grid spacing (the finger width).
-    Returns ``(owner, xy, long_axis)``: (M,) int index of the overlap of each point, (M, 2)
-    points, and (P, 2) unit long axis of each overlap's minimum rotated rectangle. Points
-    of one overlap are in grid order (along the long axis, then across).
-    """
+def _envelope_axes(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per geometry: corners (P, 4, 2) of its minimum rotated rectangle, the unit long axis
+    (P, 2) and the short side length (P,)."""
     import shapely
 
-    p_count = len(overlap)
-    env = shapely.oriented_envelope(overlap)
-    coords, owner = shapely.get_coordinates(env, return_index=True)
-    counts = np.bincount(owner, minlength=p_count)
-    if p_count and np.all(counts == 5):
-        rect = coords.reshape(p_count, 5, 2)
+    p_count = len(geoms)
+    coords, owner = shapely.get_coordinates(shapely.oriented_envelope(geoms), return_index=True)
+    if p_count and np.all(np.bincount(owner, minlength=p_count) == 5):
+        rect = coords.reshape(p_count, 5, 2)[:, :4]
     else:  # a degenerate envelope: fall back to the bounding boxes
-        b = shapely.bounds(overlap)
-        rect = np.stack([b[:, [0, 1]], b[:, [2, 1]], b[:, [2, 3]], b[:, [0, 3]], b[:, [0, 1]]], 1)
+        b = shapely.bounds(geoms)
+        rect = np.stack([b[:, [0, 1]], b[:, [2, 1]], b[:, [2, 3]], b[:, [0, 3]]], axis=1)
     side1 = rect[:, 1] - rect[:, 0]
     side2 = rect[:, 2] - rect[:, 1]
     len1 = np.linalg.norm(side1, axis=1)
     len2 = np.linalg.norm(side2, axis=1)
-    first_long = len1 >= len2
-    long_vec = np.where(first_long[:, None], side1, side2)
+    long_vec = np.where((len1 >= len2)[:, None], side1, side2)
     long_axis = long_vec / np.maximum(np.linalg.norm(long_vec, axis=1, keepdims=True), 1e-300)
-    across = np.stack([-long_axis[:, 1], long_axis[:, 0]], axis=1)
-    short = np.minimum(len1, len2)
+    return rect, long_axis, np.minimum(len1, len2)
 
-    inset = np.minimum(spacing / 2.0, short / 4.0)
-    shrunk = shapely.buffer(overlap, -inset, join_style="mitre")
+
+def _grid_points(overlap, shrunk, rect, long_axis, spacing):
+    """Grid points (owner, xy) inside ``shrunk``, anchored at each overlap's centroid."""
+    import shapely
+
+    across = np.stack([-long_axis[:, 1], long_axis[:, 0]], axis=1)
     anchor = shapely.get_coordinates(shapely.centroid(overlap))
-    rel = rect[:, :4] - anchor[:, None]
+    rel = rect - anchor[:, None]
     along = np.einsum("pck,pk->pc", rel, long_axis)
     side = np.einsum("pck,pk->pc", rel, across)
     k1_lo = np.ceil(along.min(axis=1) / spacing - 1e-9).astype(np.int64)
     k1_hi = np.floor(along.max(axis=1) / spacing + 1e-9).astype(np.int64)
     k2_lo = np.ceil(side.min(axis=1) / spacing - 1e-9).astype(np.int64)
     k2_hi = np.floor(side.max(axis=1) / spacing + 1e-9).astype(np.int64)
-    n1 = np.maximum(k1_hi - k1_lo + 1, 0)
     n2 = np.maximum(k2_hi - k2_lo + 1, 0)
-    per = n1 * n2
-    owner = np.repeat(np.arange(p_count), per)
+    per = np.maximum(k1_hi - k1_lo + 1, 0) * n2
+    owner = np.repeat(np.arange(len(overlap)), per)
     local = np.arange(per.sum()) - np.repeat(np.cumsum(per) - per, per)
     k1 = k1_lo[owner] + local // np.maximum(n2[owner], 1)
     k2 = k2_lo[owner] + local % np.maximum(n2[owner], 1)
@@ -289,17 +287,90 @@ def overlap_site_points(
         + (k2 * spacing)[:, None] * across[owner]
     )
     inside = shapely.intersects_xy(shrunk[owner], xy[:, 0], xy[:, 1])
-    owner, xy = owner[inside], xy[inside]
+    return owner[inside], xy[inside]
+
+
+def _rim_points(shrunk, wide, spacing):
+    """Points (owner, xy, inward (M, 2)) on the outer boundary of the shrunk overlaps marked
+    ``wide``: on every boundary edge at least ``spacing`` long (after simplifying the ring
+    with tolerance ``spacing / 4``, so a finely tessellated curve has such edges), at the
+    edge's midpoint and every ``spacing`` from it while ``spacing / 2`` from the edge's
+    ends; each with the edge's unit inward normal."""
+    import shapely
+
+    parts, owner = shapely.get_parts(shrunk[wide], return_index=True)
+    owner = np.flatnonzero(wide)[owner]
+    is_polygon = shapely.get_type_id(parts) == 3
+    parts, owner = parts[is_polygon], owner[is_polygon]
+    rings = shapely.simplify(shapely.get_exterior_ring(parts), spacing / 4.0)
+    coords, ring = shapely.get_coordinates(rings, return_index=True)
+    same = ring[:-1] == ring[1:]  # consecutive vertices of one ring form an edge
+    start, end, ring = coords[:-1][same], coords[1:][same], ring[:-1][same]
+    edge = end - start
+    length = np.linalg.norm(edge, axis=1)
+    long_enough = length >= spacing
+    start, edge, length, ring = (x[long_enough] for x in (start, edge, length, ring))
+    tangent = edge / length[:, None]
+    half = np.floor((length - spacing) / (2.0 * spacing) + 1e-9).astype(np.int64)
+    count = 2 * half + 1
+    edge_of = np.repeat(np.arange(len(edge)), count)
+    k = np.arange(count.sum()) - np.repeat(np.cumsum(count) - count, count) - half[edge_of]
+    xy = start[edge_of] + (0.5 * length[edge_of] + k * spacing)[:, None] * tangent[edge_of]
+    left = np.stack([-tangent[:, 1], tangent[:, 0]], axis=1)
+    ccw = shapely.is_ccw(rings)[ring]
+    inward = np.where(ccw[:, None], left, -left)
+    return owner[ring][edge_of], xy, inward[edge_of]
+
+
+def overlap_site_points(
+    overlap: np.ndarray, spacing: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Grasp-site points on overlap polygons (see the module docstring, step 4).
+
+    overlap : (P,) shapely polygons (2D). spacing : m (the finger width).
+    Returns ``(owner, xy, approach)``: (M,) int index of the overlap of each point, (M, 2)
+    points and (M, 2) unit reference approach directions (in the polygons' plane).
+
+    Per overlap, in this order: grid points (along the long axis, then across) with the
+    long axis as approach; then, where the shrunk overlap is at least ``spacing / 2`` across,
+    rim points on its outer boundary edges approached from outside (the edge's inward
+    normal), the sites a gripper reaches on a wide flat object such as a book (interior
+    grid points within ``spacing / 2`` of a rim point are dropped). An overlap with no
+    point gets one at its representative point. Every point is placed from the polygon's
+    shape alone (centroid, axes, edges), so a moved object gets the same points moved.
+    """
+    import shapely
+    from scipy.spatial import cKDTree
+
+    p_count = len(overlap)
+    rect, long_axis, short = _envelope_axes(overlap)
+    inset = np.minimum(spacing / 2.0, short / 4.0)
+    shrunk = shapely.buffer(overlap, -inset, join_style="mitre")
+    owner, xy = _grid_points(overlap, shrunk, rect, long_axis, spacing)
+    approach = long_axis[owner]
+
+    wide = (short - 2.0 * inset >= spacing / 2.0) & ~shapely.is_empty(shrunk)
+    rim_owner, rim_xy, rim_in = _rim_points(shrunk, wide, spacing)
+    if len(rim_owner) and len(owner):
+        # keep overlaps apart in one tree: shift each by its index along x
+        shift = 10.0 * (np.abs(np.concatenate([xy, rim_xy])).max() + spacing)
+        tree = cKDTree(rim_xy + np.c_[rim_owner * shift, np.zeros(len(rim_owner))])
+        dist, _ = tree.query(xy + np.c_[owner * shift, np.zeros(len(owner))],
+                             distance_upper_bound=spacing / 2.0)  # fmt: skip
+        far = ~np.isfinite(dist)
+        owner, xy, approach = owner[far], xy[far], approach[far]
+    owner = np.concatenate([owner, rim_owner])
+    xy = np.concatenate([xy, rim_xy])
+    approach = np.concatenate([approach, rim_in])
 
     missing = np.setdiff1d(np.arange(p_count), owner)
     if len(missing):
         base = np.where(shapely.is_empty(shrunk[missing]), overlap[missing], shrunk[missing])
-        extra = shapely.get_coordinates(shapely.point_on_surface(base))
         owner = np.concatenate([owner, missing])
-        xy = np.concatenate([xy, extra])
-        order = np.argsort(owner, kind="stable")
-        owner, xy = owner[order], xy[order]
-    return owner, xy, long_axis
+        xy = np.concatenate([xy, shapely.get_coordinates(shapely.point_on_surface(base))])
+        approach = np.concatenate([approach, long_axis[missing]])
+    order = np.argsort(owner, kind="stable")
+    return owner[order], xy[order], approach[order]
 
 
 def facet_sites(
@@ -319,7 +390,7 @@ def facet_sites(
     projected overlap. friction : mu for the friction-cone test. parallel_tol_rad : how far
     from antiparallel two facet normals may be.
 
-    Sites come out ordered by facet pair ``(i, j)``, then grid order.
+    Sites come out ordered by facet pair ``(i, j)``, then grid order, then rim order.
     """
     import shapely
 
@@ -339,7 +410,7 @@ def facet_sites(
     i, j, u, overlap, centre, frame, area = (
         x[big] for x in (i, j, u, overlap, centre, frame, area)
     )
-    owner, xy, long_axis = overlap_site_points(overlap, finger_width)
+    owner, xy, approach2d = overlap_site_points(overlap, finger_width)
 
     # the line through each site point along u meets both facet planes
     q = centre[owner] + np.einsum("mk,mkj->mj", xy, frame[owner])
@@ -353,7 +424,9 @@ def facet_sites(
     t0, t1 = plane_t(fi), plane_t(fj)
     width = t1 - t0
     ok = (width >= min_opening) & (width <= max_opening) & (width > 0)
-    owner, q, uu, fi, fj, t0, width = (x[ok] for x in (owner, q, uu, fi, fj, t0, width))
+    owner, q, uu, fi, fj, t0, width, approach2d = (
+        x[ok] for x in (owner, q, uu, fi, fj, t0, width, approach2d)
+    )
     c0 = q + t0[:, None] * uu
     c1 = c0 + width[:, None] * uu
 
@@ -364,16 +437,16 @@ def facet_sites(
     face0, d0 = ray_first_hits(mesh, c1 - step * uu, -uu)
     ok = (np.abs(d1 - (width - step)) <= tol) & (np.abs(d0 - (width - step)) <= tol)
     ok &= (face0 >= 0) & (face1 >= 0)
-    owner, uu, fi, fj, c0, c1, face0, face1 = (
-        x[ok] for x in (owner, uu, fi, fj, c0, c1, face0, face1)
+    owner, uu, fi, fj, c0, c1, face0, face1, approach2d = (
+        x[ok] for x in (owner, uu, fi, fj, c0, c1, face0, face1, approach2d)
     )
     normals = np.stack([mesh.face_normals[face0], mesh.face_normals[face1]], axis=1)
     ok = in_friction_cone(normals, uu, friction)
-    owner, fi, fj, c0, c1, face0, face1, normals = (
-        x[ok] for x in (owner, fi, fj, c0, c1, face0, face1, normals)
+    owner, fi, fj, c0, c1, face0, face1, normals, approach2d = (
+        x[ok] for x in (owner, fi, fj, c0, c1, face0, face1, normals, approach2d)
     )
 
-    approach = np.einsum("mk,mkj->mj", long_axis[owner], frame[owner])
+    approach = np.einsum("mk,mkj->mj", approach2d, frame[owner])
     sites = ContactPairs(
         contacts=np.stack([c0, c1], axis=1),
         normals=normals,

@@ -43,19 +43,35 @@ def test_box_gives_exactly_the_face_pairs_within_the_opening():
     # projected overlaps: the 0.1 x 0.03 side and the 0.1 x 0.06 top
     assert_allclose(s.overlap_area[across_y], 0.1 * 0.03)
     assert_allclose(s.overlap_area[across_z], 0.1 * 0.06)
-    # sites: a 22 mm grid from the centroid along the long axis (x) over the overlap
-    # shrunk by 11 mm: |x| <= 0.039 -> x in {-0.022, 0, 0.022}; across, |y| or |z| <= 0.019
-    # (or 0.004) -> only 0
-    expected = [[-0.022, 0, 0], [0, 0, 0], [0.022, 0, 0]]
-    assert_allclose(_sorted_rows(s.centre[across_y]), expected, atol=1e-12)
-    assert_allclose(_sorted_rows(s.centre[across_z]), expected, atol=1e-12)
+    # grid sites: 22 mm apart from the centroid along the long axis (x) over the overlap
+    # shrunk by min(11 mm, short side / 4); across, only 0. Where the shrunk overlap is at
+    # least 11 mm across, rim sites too: on each edge at least 22 mm long, its middle and
+    # every 22 mm from it while 11 mm from its ends; grid points within 11 mm give way.
+    # Across y: the 0.1 x 0.03 side shrunk by 7.5 mm is 0.085 x 0.015: rim rows at
+    # z = +-7.5 mm replace the centre row.
+    row = (-0.022, 0.0, 0.022)
+    assert_allclose(_sorted_rows(s.centre[across_y]),
+                    _sorted_rows([[x, 0, z] for x in row for z in (-0.0075, 0.0075)]),
+                    atol=1e-12)  # fmt: skip
+    # Across z: the 0.1 x 0.06 top shrunk by 11 mm is 0.078 x 0.038: the centre row (19 mm
+    # from the long edges, 17 mm from the ends) plus the rim
+    grid = [[x, 0, 0] for x in row]
+    rim = [[-0.039, 0, 0], [0.039, 0, 0]] + [[x, y, 0] for x in row for y in (-0.019, 0.019)]
+    assert_allclose(_sorted_rows(s.centre[across_z]), _sorted_rows(grid + rim), atol=1e-12)
+    # the grid approaches along the long axis; the rim from outside, along the edge normal
+    assert_allclose(s.approach[across_y], [[0, 0, -np.sign(z)] for z in s.centre[across_y, 2]])
+    end_rim = across_z & (np.abs(s.centre[:, 0]) > 0.03)  # (+-0.039, 0, 0)
+    side_rim = across_z & (np.abs(s.centre[:, 1]) > 0.018)  # (x, +-0.019, 0)
+    centre_row = across_z & ~(end_rim | side_rim)
+    assert_allclose(np.abs(s.approach[centre_row, 0]), 1.0)
+    assert_allclose(s.approach[end_rim], [[-np.sign(x), 0, 0] for x in s.centre[end_rim, 0]])
+    assert_allclose(s.approach[side_rim], [[0, -np.sign(y), 0] for y in s.centre[side_rim, 1]])
     # contacts on the faces, normals exactly along the closing line
     assert_allclose(np.abs(s.contacts[across_y][:, :, 1]), 0.03)
     assert_allclose(np.abs(s.contacts[across_z][:, :, 2]), 0.015)
     assert_allclose(np.einsum("ij,ij->i", s.normals[:, 0], s.axis), -1.0)
     assert_allclose(np.einsum("ij,ij->i", s.normals[:, 1], s.axis), 1.0)
-    # reference approach: the overlap's long axis (x), perpendicular to o
-    assert_allclose(np.abs(s.approach[:, 0]), 1.0)
+    assert_allclose(np.einsum("ij,ij->i", s.approach, s.axis), 0.0, atol=1e-12)
     # the contact faces are faces of the two facets
     box = gm.box((0.1, 0.06, 0.03))
     assert_allclose(np.einsum("ij,ij->i", box.face_normals[s.faces[:, 0]], s.normals[:, 0]), 1.0)
@@ -64,11 +80,13 @@ def test_box_gives_exactly_the_face_pairs_within_the_opening():
 
 def test_all_three_pairs_of_a_small_cube():
     found = facet_sites(gm.box((0.05, 0.05, 0.05)), **PARAMS)
-    # the 0.05 square shrunk by 0.011 has half-width 0.014 < 0.022: one site, the centre
-    assert len(found.sites) == 3
-    assert_allclose(found.sites.centre, 0.0, atol=1e-12)
+    # the 0.05 square shrunk by 0.011 is 0.028 across: its centre (the one grid point) and
+    # the middles of its four edges, 14 mm out
+    assert len(found.sites) == 3 * 5
     assert_allclose(found.sites.width, 0.05)
-    assert_allclose(np.abs(found.sites.axis).sum(axis=0), [1, 1, 1])
+    assert_allclose(np.abs(found.sites.axis).sum(axis=0), [5, 5, 5])
+    radius = np.sort(np.linalg.norm(found.sites.centre, axis=1))
+    assert_allclose(radius, [0] * 3 + [0.014] * 12, atol=1e-12)
     assert found.paired_faces.all()
 
 

@@ -80,11 +80,12 @@ def test_min_overlap_area_is_a_pad_unless_the_gripper_says():
 def test_box_rows_are_sites_by_rolls_in_order():
     pm = gm.PartMesh.single(gm.box((0.1, 0.06, 0.03)))
     c, stats = generate_with_stats(pm, GRIPPER)
-    assert stats.sites == 6 and stats.rolls_per_site == 24
-    assert len(c) == stats.before_collision == stats.after_collision == 6 * 24
+    # 6 rim sites across y; 3 grid + 8 rim sites across z (see test_facets)
+    assert stats.sites == 17 and stats.rolls_per_site == 24
+    assert len(c) == stats.before_collision == stats.after_collision == 17 * 24
     assert stats.antipodal_sites == 0 and (c.source == SOURCE_FACET).all()
-    assert_allclose(c.site, np.repeat(np.arange(6), 24))
-    assert_allclose(c.roll, np.tile(np.deg2rad(np.arange(0, 360, 15)), 6))
+    assert_allclose(c.site, np.repeat(np.arange(17), 24))
+    assert_allclose(c.roll, np.tile(np.deg2rad(np.arange(0, 360, 15)), 17))
     assert_valid_candidates(c, pm, GRIPPER)
     # within a site: a is the roll-0 approach turned about o by the roll
     a0 = c.a[c.site == 0][0]
@@ -142,6 +143,19 @@ def test_collision_filter_drops_exactly_the_colliding_rows():
     assert (np.diff(kept.site) >= 0).all()
 
 
+def test_a_book_is_grasped_near_its_edges():
+    # 200 x 150 x 30 mm: the palm sits finger_depth (20 mm) behind the contacts, so only
+    # contacts within 20 mm of an edge, approached from that edge, leave it clear
+    pm = gm.PartMesh.single(gm.box((0.2, 0.15, 0.03)))
+    c = generate_candidates(pm, GRIPPER, collider=ObjectCollider(pm.mesh))
+    assert len(c) > 0
+    assert_allclose(np.abs(c.o[:, 2]), 1.0)  # across the thickness
+    depth = np.minimum(0.1 - np.abs(c.centre[:, 0]), 0.075 - np.abs(c.centre[:, 1]))
+    assert (depth < GRIPPER.finger_depth).all()
+    # the approach points into the book from the nearer edge
+    assert (np.einsum("ij,ij->i", c.a[:, :2], c.centre[:, :2]) < 0).all()
+
+
 def test_big_sphere_collides_everywhere():
     # an 80 mm ball fits between the fingers but reaches 40 mm behind the contacts, where
     # the palm is (the pads are centred 20 mm in front of it)
@@ -163,7 +177,7 @@ def test_a_moved_cube_has_the_same_grasps_moved(axis, angle, shift):
     t = transform_from(rotation_about_axis(np.array(axis), angle), 0.1 * np.array(shift))
     here = generate_candidates(gm.PartMesh.single(gm.box((0.05, 0.05, 0.05))), GRIPPER)
     there = generate_candidates(gm.PartMesh.single(gm.box((0.05, 0.05, 0.05), t)), GRIPPER)
-    assert len(here) == len(there) == 3 * 24
+    assert len(here) == len(there) == 3 * 5 * 24  # per face pair: centre + 4 edge middles
     centre = transform_points(t, here.centre)
     a = transform_vectors(t, here.a)
     o = transform_vectors(t, here.o)

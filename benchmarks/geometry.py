@@ -1,0 +1,156 @@
+"""Candidate generation speed: facet pairs, antipodal sites, candidates, collision filter.
+
+Run: ``.venv/bin/python benchmarks/geometry.py [--repeat 3] [--no-kb]``
+
+For icospheres of 80 to 81,920 faces (radius 20 mm, so that some grasps clear the palm), a
+box, a composite hammer (handle cylinder + head box, unioned) and the built-in KB objects it
+prints:
+
+- faces, large planar facets, antiparallel facet pairs within the opening, sites (facet +
+  antipodal), candidates before and after the collision filter;
+- ``gen ms``: ``generate_with_stats`` without a collider on a freshly built mesh (cold
+  caches: trimesh's facets and adjacency, the embree scene), best of ``--repeat``;
+- ``coll/s``: collision checks per second of ``ObjectCollider.gripper_collides`` on those
+  candidates (best of ``--repeat``; the collider's BVH is built once, not timed);
+- ``fcl/s``: a bare python-fcl loop over the same poses
+  (``geometry.collision.bare_fcl_loop_seconds``: one gripper BVH, one Transform and one
+  collide per pose, no containment test: the floor) and ``ratio`` = our time / floor time
+  (below 1: faster than the floor, thanks to the broad phase and the palm-first early exit).
+
+Targets (2 cores, one process): 5,120-face icosphere under 0.1 s, 81,920 faces under 3 s
+(testing all face pairs there takes ~70 s, FIELD-NOTES.md); collision within 1.5x the floor.
+Numbers vary +-30-50 % from run to run on a shared machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+# This script is named like the package it measures: run as a file, its own folder comes
+# first on sys.path and ``import geometry`` would import this script. Drop that folder.
+_HERE = Path(__file__).resolve().parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+
+import numpy as np  # noqa: E402
+
+from geometry import mesh as gm  # noqa: E402
+from geometry.collision import ObjectCollider, bare_fcl_loop_seconds  # noqa: E402
+from geometry.frames import rotation_about_axis, transform_from  # noqa: E402
+from geometry.generate import generate_with_stats  # noqa: E402
+from geometry.gripper import Gripper  # noqa: E402
+
+
+def hammer() -> gm.PartMesh:
+    """A hammer: handle cylinder (r 12 mm, 0.28 m along x, 32 sides) through a head box."""
+    turn = rotation_about_axis([0, 1, 0], np.pi / 2)
+    handle = gm.cylinder(0.012, 0.28, 32, transform_from(turn, [0.14, 0, 0]))
+    head = gm.box((0.03, 0.11, 0.025), transform_from(None, [0.27, 0.0, 0.0]))
+    return gm.compose([("handle", handle), ("head", head)])
+
+
+def builtin_objects() -> list[tuple[str, Callable[[], gm.PartMesh]]]:
+    """The built-in KB's objects, or nothing (with a note) if the KB does not load."""
+    try:
+        from engine.assets import object_part_mesh
+        from engine.loader import load_kb
+
+        kb = load_kb(None)
+    except Exception as e:  # noqa: BLE001 - a benchmark reports and goes on
+        print(f"(built-in KB not loaded: {type(e).__name__}: {str(e).splitlines()[0]})")
+        return []
+    return [
+        (f"kb:{oid}", lambda obj=obj: object_part_mesh(kb, obj))
+        for oid, obj in sorted(kb.objects.items())
+    ]
+
+
+def kb_gripper() -> Gripper:
+    try:
+        from engine.assets import gripper_from_spec
+        from engine.loader import load_kb
+
+        kb = load_kb(None)
+        if "parallel_jaw" in kb.grippers:
+            return gripper_from_spec(kb.grippers["parallel_jaw"])
+    except Exception:  # noqa: BLE001
+        pass
+    return Gripper.default()
+
+
+def measure(name: str, make: Callable[[], gm.PartMesh], gripper: Gripper, repeat: int) -> dict:
+    best_gen = np.inf
+    for _ in range(repeat):
+        part_mesh = make()  # fresh mesh: no cached facets, adjacency or ray scene
+        start = time.perf_counter()
+        candidates, stats = generate_with_stats(part_mesh, gripper)
+        best_gen = min(best_gen, time.perf_counter() - start)
+    collider = ObjectCollider(part_mesh.mesh)
+    poses, widths = candidates.poses(), candidates.width
+    n = len(candidates)
+    ours = floor = np.nan
+    kept = 0
+    if n:
+        ours = np.inf
+        for _ in range(repeat):
+            start = time.perf_counter()
+            hits = collider.gripper_collides(gripper, poses, widths)
+            ours = min(ours, time.perf_counter() - start)
+        kept = int((~hits).sum())
+        floor = min(bare_fcl_loop_seconds(part_mesh.mesh, gripper, poses, widths)
+                    for _ in range(repeat))  # fmt: skip
+    return {
+        "name": name,
+        "faces": stats.faces,
+        "facets": stats.facets,
+        "pairs": stats.facet_pairs,
+        "sites": f"{stats.facet_sites}+{stats.antipodal_sites}",
+        "cands": n,
+        "kept": kept,
+        "gen_ms": 1000 * best_gen,
+        "coll_s": n / ours if n else np.nan,
+        "fcl_s": n / floor if n else np.nan,
+        "ratio": ours / floor if n else np.nan,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeat", type=int, default=3, help="best of N runs")
+    parser.add_argument("--no-kb", action="store_true", help="skip the built-in KB objects")
+    args = parser.parse_args()
+    warnings.simplefilter("ignore", gm.MeshWarning)
+
+    gripper = kb_gripper()
+    cases: list[tuple[str, Callable[[], gm.PartMesh]]] = [
+        (f"icosphere/{s}", lambda s=s: gm.PartMesh.single(gm.icosphere(0.02, s)))
+        for s in range(1, 7)
+    ]
+    cases.append(("box 100x60x30", lambda: gm.PartMesh.single(gm.box((0.1, 0.06, 0.03)))))
+    cases.append(("hammer", hammer))
+    if not args.no_kb:
+        cases += builtin_objects()
+
+    header = (
+        f"{'object':<16} {'faces':>6} {'facets':>6} {'pairs':>5} {'sites':>9} {'cands':>6} "
+        f"{'kept':>5} {'gen ms':>8} {'coll/s':>9} {'fcl/s':>9} {'ratio':>6}"
+    )
+    print(f"gripper: opening {gripper.max_opening * 1000:.0f} mm, roll step "
+          f"{gripper.roll_step_deg:g} deg; best of {args.repeat}")  # fmt: skip
+    print(header)
+    print("-" * len(header))
+    for name, make in cases:
+        r = measure(name, make, gripper, args.repeat)
+        print(
+            f"{r['name']:<16} {r['faces']:>6} {r['facets']:>6} {r['pairs']:>5} {r['sites']:>9} "
+            f"{r['cands']:>6} {r['kept']:>5} {r['gen_ms']:>8.1f} {r['coll_s']:>9.0f} "
+            f"{r['fcl_s']:>9.0f} {r['ratio']:>6.2f}"
+        )
+
+
+if __name__ == "__main__":
+    main()
