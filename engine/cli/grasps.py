@@ -89,9 +89,9 @@ def grasps(
     """List the grasp candidates on an object (KB id) or a mesh file (no KB entry needed).
 
     Candidates are listed best quality first (ties by id); ``id`` is the candidate's row.
+    JSON numbers are rounded to 6 decimals (micrometres), like ``handover plan --json``.
     Exit codes: 0 done, 2 unknown id or bad option, 3 invalid KB, 5 bad mesh.
     """
-    import json
     import warnings
 
     import numpy as np
@@ -99,6 +99,7 @@ def grasps(
     from engine import assets
     from engine.errors import UsageError
     from engine.loader import load_kb
+    from engine.result import dumps
     from geometry.collision import ObjectCollider
     from geometry.generate import generate_with_stats
     from geometry.mesh import MeshWarning
@@ -155,7 +156,7 @@ def grasps(
             "stats": stats_info,
             "notes": notes,
         }
-        typer.echo(json.dumps(data, indent=1))
+        typer.echo(dumps(data), nl=False)
         return
     _render(candidates, shown, mesh_info, gripper_info, stats, notes)
 
