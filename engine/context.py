@@ -57,8 +57,9 @@ class PlanContext:
 
     rotations : (K, 3, 3) object -> world at the handover; poses : (K, 4, 4).
     initial : (4, 4) object -> world at pick-up.
-    s_range : (K, 2) m. Extent of the object along robot->receiver in each presentation
-        (object frame projection), for the giver-side rule.
+    s_range : (K, 2) m. Extent of the giver's graspable region (parts the robot may hold)
+        along robot->receiver in each presentation (object frame projection), for the
+        giver-side rule.
     part_tags : tags of each part index of ``part_mesh``.
     """
 
@@ -152,11 +153,15 @@ def build_context(
     hand: HumanHand,
     receiver_tags: set[str],
     receiver_forbid: set[str],
+    giver_forbid: set[str] = frozenset(),
 ) -> PlanContext:
     """Compute presentations, receiver sites, initial pose and scene for one query.
 
     receiver_tags : the receiver should hold a part with one of these tags (from the task or
         the culture's receiver contact rules); receiver_forbid : never one with these.
+    giver_forbid : the robot never holds a part with these; the rest is the giver's
+        graspable region, whose robot-side half the ``giver_side`` rule measures (seed 3.1:
+        "the half of the graspable region near the robot").
     """
     from geometry.collision import BoxWorld
 
@@ -165,12 +170,16 @@ def build_context(
     rotations = presentation_rotations(situation.toward)
     poses = handover_poses(vertices, rotations, situation.handover_point)
     d_obj = np.einsum("kji,j->ki", rotations, situation.toward)
-    proj = vertices @ d_obj.T  # (V, K)
+    centroids = np.asarray(mesh.triangles_center)
+    face_part = np.asarray(part_mesh.face_part)
+    graspable = np.array([not (t & giver_forbid) for t in part_tags] or [True], dtype=bool)
+    giver_faces = graspable[face_part] if graspable.any() else np.ones(len(face_part), bool)
+    proj = centroids[giver_faces] @ d_obj.T  # (F', K)
     s_range = np.stack([proj.min(axis=0), proj.max(axis=0)], axis=1)
 
     region = receiver_region(
-        np.asarray(mesh.triangles_center),
-        np.asarray(part_mesh.face_part),
+        centroids,
+        face_part,
         part_tags,
         receiver_tags,
         receiver_forbid,

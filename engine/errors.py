@@ -76,8 +76,9 @@ class KBError(HandoverError):
 
     exit_code = EXIT_INVALID_KB
 
-    def __init__(self, issues: list[KBIssue]):
+    def __init__(self, issues: list[KBIssue], warnings: list[KBIssue] | None = None):
         self.issues = sorted(issues)
+        self.warnings = sorted(warnings or [])
         super().__init__("\n".join(str(i) for i in self.issues))
 
 

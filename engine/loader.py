@@ -698,9 +698,7 @@ def load_kb(root: Path | str | None = None) -> KB:
         (errors if issue.severity == "error" else kb.warnings).append(issue)
     kb.warnings.sort()
     if errors:
-        err = KBError(errors)
-        err.warnings = list(kb.warnings)  # type: ignore[attr-defined]
-        raise err
+        raise KBError(errors, warnings=list(kb.warnings))
     return kb
 
 

@@ -75,21 +75,27 @@ def mesh_file_spec(path: Path) -> ObjectSpec:
     )
 
 
-def _receiver_tags(kb: KB, situation: Situation) -> tuple[set[str], set[str]]:
+def _tag_roles(kb: KB, situation: Situation) -> tuple[set[str], set[str], set[str]]:
     """Tags of the part the receiver should hold (the task's, else those required by the
-    culture's receiver contact rules) and tags they must never hold."""
+    culture's receiver contact rules), tags the receiver must never hold, and tags the giver
+    must never hold (hard contact rules)."""
     from engine.etiquette import resolve_culture
 
     want: set[str] = set(situation.task.receiver_tags) if situation.task else set()
-    forbid: set[str] = set()
+    receiver_forbid: set[str] = set()
+    giver_forbid: set[str] = set()
     for rr in resolve_culture(kb, situation.query.culture):
         rule = rr.rule
-        if rule.kind == "contact" and rule.who == "receiver":
+        if rule.kind != "contact":
+            continue
+        if rule.who == "receiver":
             if rule.hard:
-                forbid.update(rule.forbid_tags)
-            if not want:
+                receiver_forbid.update(rule.forbid_tags)
+            if not situation.task or not situation.task.receiver_tags:
                 want.update(rule.require_tags)
-    return want, forbid
+        elif rule.hard:
+            giver_forbid.update(rule.forbid_tags)
+    return want, receiver_forbid, giver_forbid
 
 
 def prepare(kb: KB, query: Query) -> PlanContext:
@@ -128,9 +134,9 @@ def prepare(kb: KB, query: Query) -> PlanContext:
         finger_thickness=spec.finger_thickness,
         grip_width=spec.grip_width,
     )
-    want, forbid = _receiver_tags(kb, situation)
+    want, receiver_forbid, giver_forbid = _tag_roles(kb, situation)
     ctx = build_context(situation, part_mesh, part_tags, candidates, stats, gripper, hand,
-                        want, forbid)
+                        want, receiver_forbid, giver_forbid)
     ctx.cache["collider"] = collider
     return ctx
 

@@ -67,7 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     debug = "--debug" in args or os.environ.get("HANDOVER_DEBUG") == "1"
     err = Console(stderr=True, highlight=False, soft_wrap=True)
     try:
-        app(args=args, prog_name="handover", standalone_mode=False)
+        # With standalone_mode=False, click returns the code of a typer.Exit(code).
+        rc = app(args=args, prog_name="handover", standalone_mode=False)
     except SystemExit as e:  # typer/click exit paths
         return int(e.code or 0)
     except KBError as e:
@@ -102,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
             "This is a bug in handover-grasp. Run again with --debug for the traceback.",
         )
         return EXIT_INTERNAL
-    return 0
+    return rc if isinstance(rc, int) else 0
 
 
 def _click_exceptions() -> tuple[type[BaseException], ...]:
