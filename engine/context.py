@@ -191,6 +191,7 @@ def build_context(
         situation.toward,
         grip_width=situation.hand.grip_width,
         where=task.receiver_site if task is not None else "middle",
+        finger_thickness=situation.hand.finger_thickness,
     )
     boxes = scene_boxes(situation)
     extents = _obb_extents(vertices)

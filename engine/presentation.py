@@ -19,6 +19,9 @@ from itertools import permutations, product
 
 import numpy as np
 
+# A compact object's receiver hand stops this far (m) short of the object's middle.
+COMPACT_GAP = 0.005
+
 __all__ = [
     "presentation_rotations",
     "handover_poses",
@@ -146,6 +149,7 @@ def predict_receiver_sites(
     toward: np.ndarray,
     grip_width: float,
     where: str = "middle",
+    finger_thickness: float = 0.02,
 ) -> ReceiverSites:
     """The seed's C for every presentation.
 
@@ -153,7 +157,9 @@ def predict_receiver_sites(
     each rotation), the region spans [s_min, s_max]. ``middle``: C is centred at the middle of
     the receiver's half, s* = (3 s_max + s_min) / 4; ``far_end``: at s* = s_max - grip_width/2
     (clamped into the region). C is the mean of the region samples within ``grip_width / 2``
-    of s*, which for a handle is a point on its axis.
+    of s*, which for a handle is a point on its axis. A region shorter than the hand is
+    wide (a ball): the hand pinches its receiver cap, from the receiver's face to
+    ``COMPACT_GAP`` short of the middle, so the robot can hold it across the middle.
 
     rotations : (K, 3, 3) object -> world. grip_width : m, the hand's width along the part.
     """
@@ -182,6 +188,20 @@ def predict_receiver_sites(
     for col in range(k):  # K = 24: a per-presentation tally, not per candidate
         np.add.at(votes[col], region.parts[band[:, col]], 1.0)
     part = votes.argmax(axis=1)
+    length = float(np.ptp(region.points @ region.axis))
+    if length < grip_width:
+        # A compact region (a ball, a short box): no handle to close around, so the hand
+        # cups the receiver's half. Site at s*, hand wrapping the horizontal lateral
+        # direction, its thickness the depth of that half along robot->receiver.
+        # The fingers reach from the receiver's face to COMPACT_GAP short of the middle:
+        # hand.boxes puts them over [s_c - t/2 - finger_thickness, s_c + t/2].
+        up = np.array([0.0, 0.0, 1.0])
+        l_obj = np.einsum("kji,j->ki", rotations, np.cross(up, toward))
+        half = 0.5 * (s_max - s_min)
+        thickness = np.maximum(half - COMPACT_GAP - finger_thickness, 0.005)
+        centre_s = s_max - thickness / 2.0
+        site = site + (centre_s - np.einsum("ki,ki->k", site, d_obj))[:, None] * d_obj
+        return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj)
     # Section thickness: spread of the band samples across the region axis.
     across = region.points - np.outer(region.points @ region.axis, region.axis)
     for col in range(k):

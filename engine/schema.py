@@ -450,7 +450,10 @@ class GripperSpec(KBModel):
 
 
 class HumanHandSpec(KBModel):
-    """A simple human hand: a palm box and a finger box wrapped around the grasped part."""
+    """A simple human hand: a palm box and a finger box wrapped around the grasped part.
+
+    palm : (breadth along the held part, length from wrist to knuckles, thickness), m.
+    """
 
     id: Id
     name: str

@@ -1,9 +1,12 @@
-"""Grasp candidates as a struct of arrays: one row per (grasp site, roll angle).
+"""Grasp candidates as a struct of arrays: one row per (grasp site, roll angle, depth).
 
-A candidate is the seed's F_gsite: origin ``centre`` midway between the two contacts,
-``o`` the closing direction (from contact 0 to contact 1), ``a`` the approach direction
-(palm to fingertips), ``n = o x a``. Its pose is the 4x4 matrix ``[n o a centre]``.
-Everything is in the object frame, metres.
+A candidate is the seed's F_gsite: ``centre`` midway between the two contacts, ``o`` the
+closing direction (from contact 0 to contact 1), ``a`` the approach direction (palm to
+fingertips), ``n = o x a``. Its pose, the gripper's F_grasp placed on it, is the 4x4 matrix
+``[n o a p]`` with ``p = centre - offset * a``: with ``offset`` 0 the finger pads are
+centred on the contacts; a positive ``offset`` pulls the gripper back so the contacts sit
+nearer the fingertips (how a thin object is picked off a table). Everything is in the
+object frame, metres.
 """
 
 from __future__ import annotations
@@ -33,6 +36,8 @@ class CandidateSet:
     roll : (N,) float, rad. Rotation of ``a`` about ``o`` from the site's reference approach.
     overlap_area : (N,) float, m^2. Projected facet overlap (0 for antipodal candidates).
     source : (N,) int8. SOURCE_FACET or SOURCE_ANTIPODAL.
+    offset : (N,) float, m. How far the gripper is pulled back along ``-a`` from the
+        pad-centred pose (0: the contacts are at the pads' centres).
     quality : (N,) float in [0, 1]. Grasp quality (see geometry.quality), 1 is best.
     com_distance : (N,) float, m. Distance from the grasp axis (line through the contacts)
         to the object's centre of mass.
@@ -52,13 +57,14 @@ class CandidateSet:
     roll: np.ndarray
     overlap_area: np.ndarray
     source: np.ndarray
+    offset: np.ndarray
     quality: np.ndarray
     com_distance: np.ndarray
     part_names: list[str]
 
     ARRAY_FIELDS = (
         "centre", "n", "o", "a", "width", "contacts", "normals", "faces", "parts",
-        "site", "roll", "overlap_area", "source", "quality", "com_distance",
+        "site", "roll", "overlap_area", "source", "offset", "quality", "com_distance",
     )  # fmt: skip
 
     def __len__(self) -> int:
@@ -72,12 +78,13 @@ class CandidateSet:
                 raise ValueError(f"CandidateSet.{name} has {arr.shape[0]} rows, expected {count}")
 
     def poses(self) -> np.ndarray:
-        """(N, 4, 4) float: grasp poses ``[n o a centre]`` in the object frame."""
+        """(N, 4, 4) float: gripper poses ``[n o a p]`` in the object frame,
+        ``p = centre - offset * a``."""
         out = np.zeros((len(self), 4, 4))
         out[:, :3, 0] = self.n
         out[:, :3, 1] = self.o
         out[:, :3, 2] = self.a
-        out[:, :3, 3] = self.centre
+        out[:, :3, 3] = self.centre - self.offset[:, None] * self.a
         out[:, 3, 3] = 1.0
         return out
 
@@ -95,7 +102,8 @@ class CandidateSet:
             contacts=np.zeros((0, 2, 3)), normals=np.zeros((0, 2, 3)),
             faces=np.zeros((0, 2), dtype=np.int64), parts=np.zeros((0, 2), dtype=np.int64),
             site=np.zeros(0, dtype=np.int64), roll=np.zeros(0), overlap_area=np.zeros(0),
-            source=np.zeros(0, dtype=np.int8), quality=np.zeros(0), com_distance=np.zeros(0),
+            source=np.zeros(0, dtype=np.int8), offset=np.zeros(0), quality=np.zeros(0),
+            com_distance=np.zeros(0),
             part_names=list(part_names or []),
         )  # fmt: skip
 

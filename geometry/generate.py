@@ -6,13 +6,15 @@
 3. Each site gets every roll angle ``k * roll_step`` (``k = 0, 1, ...`` while below 360
    degrees): the approach ``a`` is the site's reference approach rotated by the roll about
    the closing direction ``o``; ``n = o x a``. Rolls 180 degrees apart approach from
-   opposite sides and are distinct candidates.
+   opposite sides and are distinct candidates. Each roll is tried at two depths
+   (:func:`contact_offsets`): contacts at the pads' centres, and near the fingertips.
 4. With a collider, candidates whose gripper (open at ``width + 2 * clearance``) touches
    or penetrates the object are dropped (the seed: "storing the angles without
    collisions"). This step is separate: ``collider=None`` skips it.
 
 Row order (deterministic): facet sites first, by facet pair then grid order; then antipodal
-sites in sample order; within a site, rolls ascending from 0. Site indices are renumbered
+sites in sample order; within a site, rolls ascending from 0, and within a roll the
+depths in :func:`contact_offsets` order. Site indices are renumbered
 0, 1, 2, ... in that order after the collision filter (a site whose rolls all collide
 disappears).
 """
@@ -42,7 +44,12 @@ __all__ = [
     "roll_angles",
     "min_overlap_area",
     "expand_rolls",
+    "contact_offsets",
+    "TIP_MARGIN",
 ]
+
+# Contacts this far (m) from the fingertips at the pulled-back depth (contact_offsets).
+TIP_MARGIN = 0.006
 
 
 @dataclass
@@ -96,6 +103,15 @@ def min_overlap_area(gripper: Gripper) -> float:
     return float(gripper.finger_width) ** 2
 
 
+def contact_offsets(gripper: Gripper) -> np.ndarray:
+    """(D,) m: how far the gripper is pulled back from the pad-centred pose for each depth
+    tried: 0 (contacts at the pads' centres) and ``finger_depth - TIP_MARGIN`` (contacts
+    ``TIP_MARGIN`` from the fingertips, with the palm ``finger_length - TIP_MARGIN`` behind
+    them: how a thin object is pinched off a table, or a large one reached around)."""
+    tip = gripper.finger_depth - min(TIP_MARGIN, gripper.finger_depth / 2.0)
+    return np.array([0.0, tip]) if tip > 1e-6 else np.array([0.0])
+
+
 def expand_rolls(
     sites: ContactPairs,
     rolls: np.ndarray,
@@ -103,17 +119,20 @@ def expand_rolls(
     part_names: list[str],
     friction: float,
     mass_centre: np.ndarray,
+    offsets: np.ndarray | None = None,
 ) -> CandidateSet:
-    """One candidate per (site, roll), site-major, every CandidateSet field filled.
+    """One candidate per (site, roll, offset), site-major then roll, every field filled.
 
     sites : S sites. rolls : (R,) rad. face_part : (F,) part index of each mesh face.
-    friction : mu for quality. mass_centre : (3,) m.
+    friction : mu for quality. mass_centre : (3,) m. offsets : (D,) m (default [0]).
     """
-    s_count, r_count = len(sites), len(rolls)
+    offsets = np.zeros(1) if offsets is None else np.asarray(offsets, dtype=float)
+    s_count, r_count, d_count = len(sites), len(rolls), len(offsets)
     if s_count == 0 or r_count == 0:
         return CandidateSet.empty(part_names)
-    site = np.repeat(np.arange(s_count), r_count)
-    roll = np.tile(np.asarray(rolls, dtype=float), s_count)
+    site = np.repeat(np.arange(s_count), r_count * d_count)
+    roll = np.tile(np.repeat(np.asarray(rolls, dtype=float), d_count), s_count)
+    offset = np.tile(offsets, s_count * r_count)
     o_site = sites.axis
     a0 = sites.approach - np.einsum("ij,ij->i", sites.approach, o_site)[:, None] * o_site
     a0 /= np.linalg.norm(a0, axis=1, keepdims=True)
@@ -136,6 +155,7 @@ def expand_rolls(
         roll=roll,
         overlap_area=sites.overlap_area[site].astype(float),
         source=sites.source[site].astype(np.int8),
+        offset=offset,
         quality=quality[site],
         com_distance=com_distance(sites.contacts, mass_centre)[site],
         part_names=list(part_names),
@@ -206,7 +226,7 @@ def generate_with_stats(
     stats.sites = len(sites)
     candidates = expand_rolls(
         sites, rolls, part_mesh.face_part, part_mesh.part_names, gripper.friction,
-        part_mesh.mass_centre,
+        part_mesh.mass_centre, contact_offsets(gripper),
     )  # fmt: skip
     stats.before_collision = len(candidates)
     stats.seconds["frames"] = time.perf_counter() - t
