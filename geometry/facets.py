@@ -226,9 +226,13 @@ def _into_pair_frame(facets: Facets, k: np.ndarray, centre: np.ndarray, frame: n
     return shapely.transform(geoms, affine)
 
 
-def project_overlaps(facets: Facets, i: np.ndarray, j: np.ndarray, u: np.ndarray):
+def project_overlaps(facets: Facets, i: np.ndarray, j: np.ndarray, u: np.ndarray, grid_size: float):
     """Intersections of facet pairs projected along their common normals.
 
+    grid_size : m, the precision of the overlay (coordinates snap to it). Two facets of a
+    box project onto the same square up to rounding (~1e-17 m), and GEOS's floating overlay
+    can then return only their shared corners; snap-rounding to a fixed grid (1e-10 of the
+    object's size is plenty) is robust.
     Returns ``(overlap, centre, frame)``: (P,) shapely geometries in each pair's 2D frame,
     whose point ``(x, y)`` is ``centre + x E1 + y E2`` (+ any multiple of ``u``);
     ``centre`` (P, 3) m; ``frame`` (P, 2, 3) the unit axes ``E1, E2``.
@@ -238,7 +242,7 @@ def project_overlaps(facets: Facets, i: np.ndarray, j: np.ndarray, u: np.ndarray
     centre, frame = _pair_frame(facets, i, j, u)
     poly_i = _into_pair_frame(facets, i, centre, frame)
     poly_j = _into_pair_frame(facets, j, centre, frame)
-    return shapely.intersection(poly_i, poly_j), centre, frame
+    return shapely.intersection(poly_i, poly_j, grid_size=grid_size), centre, frame
 
 
 def _envelope_axes(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -290,6 +294,46 @@ def _grid_points(overlap, shrunk, rect, long_axis, spacing):
     return owner[inside], xy[inside]
 
 
+def _corner_rings(rings: np.ndarray, tol: float = 1e-5) -> np.ndarray:
+    """The rings with every vertex dropped that does not turn the boundary (turning less
+    than ``tol`` rad, or repeating the previous vertex).
+
+    Overlays leave such vertices on straight edges (where two nearly identical outlines
+    cross); a simplifier keeps a ring's first vertex whatever it is, so they are removed
+    here first, to leave only true corners. Rings keeping fewer than 3 vertices come back
+    as they were.
+    """
+    import shapely
+
+    coords, ring = shapely.get_coordinates(rings, return_index=True)
+    if len(coords) == 0:
+        return rings
+    closing = np.r_[ring[1:] != ring[:-1], True]  # each ring repeats its first vertex last
+    coords, ring = coords[~closing], ring[~closing]
+    n = len(coords)
+    start = np.r_[0, np.flatnonzero(ring[1:] != ring[:-1]) + 1]
+    size = np.diff(np.r_[start, n])
+    first = np.repeat(start, size)
+    k = np.arange(n)
+    size_k = np.repeat(size, size)
+    d_in = coords - coords[first + (k - first - 1) % size_k]
+    d_out = coords[first + (k - first + 1) % size_k] - coords
+    len_in = np.linalg.norm(d_in, axis=1)
+    len_out = np.linalg.norm(d_out, axis=1)
+    cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
+    straight = (np.abs(cross) <= tol * len_in * len_out) & (np.einsum("ij,ij->i", d_in, d_out) > 0)
+    keep = ~straight & (len_in > 0)
+    enough = np.bincount(ring[keep], minlength=len(rings)) >= 3
+    keep &= enough[ring]
+    out = np.array(rings, dtype=object)
+    if enough.any():
+        ids = np.flatnonzero(enough)
+        remap = np.full(len(rings), -1)
+        remap[ids] = np.arange(len(ids))
+        out[ids] = shapely.linearrings(coords[keep], indices=remap[ring[keep]])
+    return out
+
+
 def _rim_points(shrunk, wide, spacing):
     """Points (owner, xy, inward (M, 2)) on the outer boundary of the shrunk overlaps marked
     ``wide``: on every boundary edge at least ``spacing`` long (after simplifying the ring
@@ -302,7 +346,7 @@ def _rim_points(shrunk, wide, spacing):
     owner = np.flatnonzero(wide)[owner]
     is_polygon = shapely.get_type_id(parts) == 3
     parts, owner = parts[is_polygon], owner[is_polygon]
-    rings = shapely.simplify(shapely.get_exterior_ring(parts), spacing / 4.0)
+    rings = shapely.simplify(_corner_rings(shapely.get_exterior_ring(parts)), spacing / 4.0)
     coords, ring = shapely.get_coordinates(rings, return_index=True)
     same = ring[:-1] == ring[1:]  # consecutive vertices of one ring form an edge
     start, end, ring = coords[:-1][same], coords[1:][same], ring[:-1][same]
@@ -402,7 +446,7 @@ def facet_sites(
     empty = FacetSites(ContactPairs.empty(), np.zeros((0, 2), np.int64), facets, paired, len(i), 0)
     if len(i) == 0:
         return empty
-    overlap, centre, frame = project_overlaps(facets, i, j, u)
+    overlap, centre, frame = project_overlaps(facets, i, j, u, 1e-10 * float(mesh.scale))
     area = shapely.area(overlap)
     big = area >= min_area * (1.0 - 1e-9)
     if not big.any():

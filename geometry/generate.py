@@ -61,7 +61,8 @@ class GenerationStats:
     whose projected overlap is large enough. facet_sites, antipodal_samples,
     antipodal_pairs (valid, before deduplication), antipodal_sites : counts.
     antipodal_spacing : m, sampling spacing used. sites : facet + antipodal sites.
-    rolls_per_site : roll angles per site. before_collision, after_collision : candidates.
+    rolls_per_site : roll angles per site. depths_per_roll : gripper depths per roll
+    (:func:`contact_offsets`). before_collision, after_collision : candidates.
     collision_checked : whether a collider was given. seconds : wall time per stage
     (``facets``, ``antipodal``, ``frames``, ``collision``, ``total``).
     """
@@ -77,6 +78,7 @@ class GenerationStats:
     antipodal_spacing: float = 0.0
     sites: int = 0
     rolls_per_site: int = 0
+    depths_per_roll: int = 0
     before_collision: int = 0
     after_collision: int = 0
     collision_checked: bool = False
@@ -224,9 +226,11 @@ def generate_with_stats(
     t = time.perf_counter()
     sites = ContactPairs.concatenate([facet.sites, anti.sites])
     stats.sites = len(sites)
+    offsets = contact_offsets(gripper)
+    stats.depths_per_roll = len(offsets)
     candidates = expand_rolls(
         sites, rolls, part_mesh.face_part, part_mesh.part_names, gripper.friction,
-        part_mesh.mass_centre, contact_offsets(gripper),
+        part_mesh.mass_centre, offsets,
     )  # fmt: skip
     stats.before_collision = len(candidates)
     stats.seconds["frames"] = time.perf_counter() - t

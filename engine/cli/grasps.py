@@ -63,6 +63,7 @@ def _grasp_rows(c: CandidateSet, order: Any) -> list[dict]:
             "quality": float(c.quality[k]),
             "com_distance": float(c.com_distance[k]),
             "roll_deg": round(float(np.rad2deg(c.roll[k])), 9),
+            "offset": float(c.offset[k]),
             "source": "facet" if int(c.source[k]) == SOURCE_FACET else "antipodal",
             "overlap_area": float(c.overlap_area[k]),
         }
@@ -88,7 +89,9 @@ def grasps(
 ) -> None:
     """List the grasp candidates on an object (KB id) or a mesh file (no KB entry needed).
 
-    Candidates are listed best quality first (ties by id); ``id`` is the candidate's row.
+    Candidates are listed best quality first (ties by id); ``id`` is the candidate's row;
+    ``pose`` is the gripper's, pulled back by ``offset`` (m) along ``-a`` from the contacts'
+    midpoint (0: pads centred on the contacts).
     JSON numbers are rounded to 6 decimals (micrometres), like ``handover plan --json``.
     Exit codes: 0 done, 2 unknown id or bad option, 3 invalid KB, 5 bad mesh.
     """
@@ -163,6 +166,7 @@ def grasps(
 
 def _render(candidates, shown, mesh_info, gripper_info, stats, notes) -> None:
     import numpy as np
+    from rich import box
     from rich.console import Console
     from rich.table import Table
 
@@ -187,30 +191,41 @@ def _render(candidates, shown, mesh_info, gripper_info, stats, notes) -> None:
         f"facets {stats.facets}, facet pairs {stats.facet_pairs} "
         f"({stats.overlapping_pairs} overlapping) -> {stats.facet_sites} facet sites; "
         f"{stats.antipodal_samples} surface samples -> {stats.antipodal_sites} antipodal sites; "
-        f"{stats.sites} sites x {stats.rolls_per_site} rolls = {stats.before_collision}, "
+        f"{stats.sites} sites x {stats.rolls_per_site} rolls x {stats.depths_per_roll} depths "
+        f"= {stats.before_collision}, "
         f"{stats.after_collision} without collision "
         f"({1000 * stats.seconds.get('total', 0.0):.0f} ms)"
     )
     if len(candidates) == 0:
         console.print("[bold red]no grasp candidates[/] for this gripper")
         return
-    table = Table(title=f"best {len(shown)} of {len(candidates)} candidates")
-    for col in ("id", "site", "source", "parts", "width mm", "quality", "com mm", "roll"):
-        table.add_column(col, justify="left" if col in ("source", "parts") else "right")
-    table.add_column("centre mm", justify="right")
-
+    table = Table(
+        title=f"best {len(shown)} of {len(candidates)} candidates",
+        box=box.SIMPLE,
+        pad_edge=False,
+    )
+    cols = ("id", "site", "source", "parts", "width", "quality", "com", "roll", "back", "centre")
+    for col in cols:
+        table.add_column(
+            col, justify="left" if col in ("source", "parts") else "right", no_wrap=True
+        )
     for k in shown:
         parts = [candidates.part_names[int(p)] for p in candidates.parts[k]]
-        centre = " ".join(f"{1000 * x:.0f}" for x in candidates.centre[k])
+        centre = ",".join(f"{1000 * x:.0f}" for x in candidates.centre[k])
         table.add_row(
             str(int(k)),
             str(int(candidates.site[k])),
-            "facet" if int(candidates.source[k]) == SOURCE_FACET else "antipodal",
+            "facet" if int(candidates.source[k]) == SOURCE_FACET else "anti",
             parts[0] if parts[0] == parts[1] else f"{parts[0]}/{parts[1]}",
             f"{1000 * candidates.width[k]:.1f}",
             f"{candidates.quality[k]:.2f}",
             f"{1000 * candidates.com_distance[k]:.1f}",
             f"{np.rad2deg(candidates.roll[k]):.0f}",
+            f"{1000 * candidates.offset[k]:.0f}",
             centre,
         )
     console.print(table)
+    console.print(
+        "width, com (lever arm of the weight), back (gripper pulled back from the "
+        "contacts) and centre in mm; roll in degrees"
+    )

@@ -80,7 +80,8 @@ def test_json_for_a_mesh_file(capsys, kb, block):
         c0, c1 = np.array(g["contacts"])
         # numbers are rounded to 6 decimals
         assert_allclose(pose[:3, :3].T @ pose[:3, :3], np.eye(3), atol=1e-5)
-        assert_allclose(pose[:3, 3], (c0 + c1) / 2, atol=1e-6)
+        # the gripper at the contacts' midpoint, pulled back along -a by its offset
+        assert_allclose(pose[:3, 3], (c0 + c1) / 2 - g["offset"] * pose[:3, 2], atol=2e-6)
         assert_allclose(pose[:3, 1], (c1 - c0) / np.linalg.norm(c1 - c0), atol=1e-5)
         assert g["width"] == pytest.approx(np.linalg.norm(c1 - c0), abs=2e-6)
         assert g["width"] <= data["gripper"]["max_width"]
