@@ -77,7 +77,8 @@ class ObjectRef:
     """One object of a batch.
 
     name : what the ``object`` column says: the KB id, or the mesh file's path as listed.
-    query_object : what ``Query.object`` gets (KB id or mesh path).
+    query_object : what ``Query.object`` gets (KB id, or the mesh file's absolute path: a
+        worker may run in another folder).
     mesh : the mesh file whose bytes enter the content hash (None: built from primitives).
     """
 
@@ -142,7 +143,7 @@ def resolve_objects(spec: str, kb: KB) -> list[ObjectRef]:
         oid = by_mesh.get(os.path.realpath(path))
         if oid is not None:
             return kb_ref(oid)
-        return ObjectRef(path, path, "mesh", path)
+        return ObjectRef(path, os.path.abspath(path), "mesh", os.path.abspath(path))
 
     def kb_ref(oid: str) -> ObjectRef:
         mp = kb.mesh_path(kb.objects[oid])
@@ -254,8 +255,17 @@ def expand(
     recv = _choose("receiver", receivers, kb.receivers, DEFAULTS["receiver"])
     asked_tasks = [n.strip() for a in (tasks or []) for n in a.split(",") if n.strip()] or None
     base = kb_digest(kb.root)
+    refs = resolve_objects(objects, kb)
+    if asked_tasks and asked_tasks != ["all"]:
+        known = {t for r in refs if r.kind == "kb" for t in kb.objects[r.name].tasks}
+        unknown = [t for t in asked_tasks if t not in known]
+        if unknown:
+            raise UsageError(
+                f"no object of this batch has task {', '.join(unknown)} "
+                f"(their tasks: {', '.join(sorted(known)) or 'none'})"
+            )
     units = []
-    for ref in resolve_objects(objects, kb):
+    for ref in refs:
         if ref.kind == "kb":
             spec = kb.objects[ref.name]
             task_list = _tasks(spec.tasks, spec.default_task, asked_tasks)
@@ -276,16 +286,19 @@ def expand(
 
 # ---------------------------------------------------------------- the work of one object
 
-_KB_CACHE: dict[str, KB] = {}
+_KB_CACHE: dict[str, tuple[str, KB]] = {}
 
 
 def _worker_kb(kb_dir: str) -> KB:
-    kb = _KB_CACHE.get(kb_dir)
-    if kb is None:
+    """The KB of ``kb_dir``, loaded once per process and again when its files change (a
+    Ray worker lives on between batches)."""
+    digest = kb_digest(kb_dir)
+    cached = _KB_CACHE.get(kb_dir)
+    if cached is None or cached[0] != digest:
         from engine.loader import load_kb
 
-        kb = _KB_CACHE[kb_dir] = load_kb(kb_dir)
-    return kb
+        cached = _KB_CACHE[kb_dir] = (digest, load_kb(kb_dir))
+    return cached[1]
 
 
 def _plan(kb: KB, query: Any, db: GraspDB | None) -> Any:
@@ -406,52 +419,68 @@ def _pool_context():
     return mp.get_context("spawn")
 
 
-def _child(conn: Any, unit: Unit, kb_dir: str, db_root: str | None) -> None:
-    """Body of a pool process: one unit, its rows sent back through ``conn``."""
-    try:
+def _worker_loop(conn: Any, kb_dir: str, db_root: str | None) -> None:
+    """Body of a pool process: run the units the parent sends until it sends None."""
+    while True:
+        try:
+            unit = conn.recv()
+        except EOFError:
+            return
+        if unit is None:
+            return
         conn.send(_timed_unit(unit, kb_dir, db_root))
-    finally:
-        conn.close()
 
 
 def _run_pool(
     units: list[Unit], workers: int, kb_dir: str, db_root: str | None, on_rows: OnRows,
     max_retries: int,
 ) -> None:  # fmt: skip
-    """A local pool: up to ``workers`` processes at a time, one per unit (so a crash is
-    blamed on its own unit, and memory never accumulates). A unit whose process dies
-    without an answer is run again, at most ``max_retries`` more times, then reported
-    with a ``WorkerCrashed`` error."""
+    """A local pool of ``workers`` processes, each fed one unit at a time through its own
+    pipe, so the parent knows which unit a process was running when it died: that unit is
+    run again in a fresh process, at most ``max_retries`` more times, then reported with a
+    ``WorkerCrashed`` error. The others are not disturbed."""
+    import gc
     from collections import deque
     from multiprocessing.connection import wait
 
     _preload()
+    gc.collect()
+    gc.freeze()  # forked children then leave the parent's objects (and their pages) alone
     ctx = _pool_context()
     queue = deque(range(len(units)))
     attempts = dict.fromkeys(range(len(units)), 0)
-    running: dict[Any, tuple[Any, int]] = {}
+    idle: list[tuple[Any, Any]] = []
+    busy: dict[Any, tuple[Any, int]] = {}  # conn -> (process, unit index)
+
+    def start() -> tuple[Any, Any]:
+        mine, theirs = ctx.Pipe(duplex=True)
+        proc = ctx.Process(target=_worker_loop, args=(theirs, kb_dir, db_root), daemon=True,
+                           name="handover-batch")  # fmt: skip
+        proc.start()
+        theirs.close()
+        return proc, mine
+
     try:
-        while queue or running:
-            while queue and len(running) < workers:
+        for _ in range(min(workers, len(units))):
+            idle.append(start())
+        while queue or busy:
+            while queue and idle:
+                proc, conn = idle.pop()
                 i = queue.popleft()
-                reader, writer = ctx.Pipe(duplex=False)
-                proc = ctx.Process(target=_child, args=(writer, units[i], kb_dir, db_root),
-                                   daemon=True, name=f"handover-batch-{i}")  # fmt: skip
-                proc.start()
-                writer.close()
-                running[reader] = (proc, i)
-            for reader in wait(list(running)):
-                proc, i = running.pop(reader)
+                conn.send(units[i])
+                busy[conn] = (proc, i)
+            for conn in wait(list(busy)):
+                proc, i = busy.pop(conn)
                 try:
-                    rows, seconds = reader.recv()
+                    rows, seconds = conn.recv()
                 except (EOFError, OSError):
                     rows, seconds = None, 0.0
-                finally:
-                    reader.close()
-                proc.join()
                 if rows is not None:
+                    idle.append((proc, conn))
                     on_rows(units[i], rows, seconds)
                     continue
+                conn.close()
+                proc.join()
                 attempts[i] += 1
                 if attempts[i] <= max_retries:
                     queue.append(i)
@@ -461,11 +490,20 @@ def _run_pool(
                         f"in {attempts[i]} attempt{'s' if attempts[i] > 1 else ''}"
                     )
                     on_rows(units[i], error_rows(units[i], text), 0.0)
+                if queue:
+                    idle.append(start())
+        for _, conn in idle:
+            conn.send(None)
     finally:
-        for proc, _ in running.values():
+        for proc, _ in busy.values():  # only after an error or an interrupt
             proc.terminate()
-        for proc, _ in running.values():
-            proc.join()
+        for proc, conn in idle + [(p, c) for c, (p, _) in busy.items()]:
+            conn.close()
+            proc.join(timeout=10)
+            if proc.is_alive():
+                proc.kill()
+                proc.join()
+        gc.unfreeze()
 
 
 def _run_ray(
@@ -621,7 +659,7 @@ def run_batch(
     workers = max(1, int(workers or os.cpu_count() or 1))
     kb_dir = str(kb.root)
     db = None if db_root is None else str(db_root)
-    _KB_CACHE.setdefault(kb_dir, kb)
+    _KB_CACHE[kb_dir] = (kb_digest(kb_dir), kb)
     state = {"last": time.perf_counter()}
     start = time.perf_counter()
 

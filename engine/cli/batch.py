@@ -57,7 +57,8 @@ def batch(
     Parquet file, sorted by query key. Fills the grasp database on the way.
 
     A second run with the same --out plans only what is missing, failed, or whose KB or mesh
-    changed. A failing object is reported in its rows and does not stop the batch.
+    changed. A failing object is reported in its rows and does not stop the batch (exit
+    code 0; 2 for a usage error such as an unknown culture).
     """
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn

@@ -96,6 +96,12 @@ def test_queries_are_the_product_of_the_lists(kb):
     ]
     with pytest.raises(UsageError, match="unknown culture"):
         batch.expand(kb, obj, ["martian"])
+    with pytest.raises(UsageError, match="unknown receiver"):
+        batch.expand(kb, obj, receivers=["robot"])
+    with pytest.raises(UsageError, match="no object of this batch has task fly"):
+        batch.expand(kb, obj, tasks=[f"{tasks[0]},fly"])
+    (only,) = batch.expand(kb, obj, tasks=[tasks[0]])
+    assert [q.task for q in only.queries] == [tasks[0]]
 
 
 def test_content_hash_follows_the_mesh_bytes(kb, meshes):

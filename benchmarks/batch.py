@@ -1,0 +1,163 @@
+"""Batch throughput (objects per second): 1 and 2 local workers, and a local Ray instance.
+
+    .venv/bin/python benchmarks/batch.py [--meshes 20] [--runs 3] [--cultures all]
+        [--no-ray] [--profile]
+
+The objects are the built-in KB objects and ``--meshes`` generated mesh files (boxes,
+cylinders, small icospheres of assorted sizes, seeded); each is planned for every culture
+given. Each run starts from an empty output and an empty grasp database ("cold"), then runs
+again with the database filled ("warm"). Times are medians of ``--runs`` and count the batch
+only (Ray's start-up is shown apart). Target: 2 workers at least 1.7x the throughput of 1.
+``--profile`` prints cProfile's view of the 1-worker batch (where the time goes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import io
+import os
+import pstats
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from engine import batch  # noqa: E402
+from engine.loader import load_kb  # noqa: E402
+
+
+def make_meshes(folder: Path, count: int, seed: int = 0) -> None:
+    """``count`` graspable shapes (5 to 12 cm long, 2 to 4 cm thick) as STL files."""
+    import trimesh
+
+    rng = np.random.default_rng(seed)
+    folder.mkdir(parents=True, exist_ok=True)
+    for i in range(count):
+        kind = ("box", "cylinder", "sphere")[i % 3]
+        if kind == "box":
+            mesh = trimesh.creation.box(extents=(rng.uniform(0.05, 0.12),
+                                                 *rng.uniform(0.02, 0.04, 2)))  # fmt: skip
+        elif kind == "cylinder":
+            radius, height = rng.uniform(0.01, 0.02), rng.uniform(0.05, 0.12)
+            mesh = trimesh.creation.cylinder(radius=radius, height=height, sections=32)
+        else:
+            mesh = trimesh.creation.icosphere(subdivisions=3, radius=rng.uniform(0.01, 0.015))
+        mesh.export(folder / f"{i:03d}_{kind}.stl")
+
+
+def _spin(n: int) -> int:
+    total = 0
+    for i in range(n):
+        total += i
+    return total
+
+
+def calibrate(n: int = 4_000_000) -> float:
+    """How much faster two processes of pure Python run than one, right now: 2.0 on an idle
+    2-core machine, less when something else is using a core (read the ratios with it)."""
+    import multiprocessing as mp
+
+    t = time.perf_counter()
+    _spin(n)
+    _spin(n)
+    one = time.perf_counter() - t
+    ctx = mp.get_context("fork") if sys.platform == "linux" else mp.get_context()
+    with ctx.Pool(2) as pool:
+        pool.map(_spin, [1000, 1000])  # start-up out of the timing
+        t = time.perf_counter()
+        pool.map(_spin, [n, n])
+        two = time.perf_counter() - t
+    return one / two
+
+
+def run_once(kb, units, tmp: Path, workers: int, ray: str | None, db: Path) -> tuple[float, int]:
+    out = tmp / f"out{time.perf_counter_ns()}.parquet"
+    t = time.perf_counter()
+    report = batch.run_batch(kb, units, out, db_root=db, workers=workers, ray_address=ray)
+    seconds = time.perf_counter() - t
+    errors = sum(1 for r in report.rows if r["error"])
+    return seconds, errors
+
+
+def measure(kb, units, tmp: Path, workers: int, ray: str | None, runs: int) -> dict:
+    cold, warm, errors = [], [], 0
+    for k in range(runs):
+        db = tmp / f"db_{workers}_{ray}_{k}"
+        s, e = run_once(kb, units, tmp, workers, ray, db)
+        cold.append(s)
+        s, e2 = run_once(kb, units, tmp, workers, ray, db)
+        warm.append(s)
+        errors = max(errors, e, e2)
+    n = len(units)
+    return {"cold": n / statistics.median(cold), "warm": n / statistics.median(warm),
+            "errors": errors}  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--meshes", type=int, default=20)
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--cultures", default="all")
+    ap.add_argument("--no-ray", action="store_true")
+    ap.add_argument("--profile", action="store_true")
+    args = ap.parse_args()
+    kb = load_kb()
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
+        make_meshes(tmp / "meshes", args.meshes)
+        names = ",".join(sorted(kb.objects))
+        units = batch.expand(kb, names, [args.cultures]) + batch.expand(
+            kb, str(tmp / "meshes"), [args.cultures])  # fmt: skip
+        queries = sum(len(u.queries) for u in units)
+        print(f"## batch throughput: {len(units)} objects ({len(kb.objects)} KB + "
+              f"{args.meshes} meshes), {queries} queries, {os.cpu_count()} cores, "
+              f"median of {args.runs} (objects/s)")  # fmt: skip
+        batch._preload()  # imports are not the batch's work
+        print(f"machine: load average {os.getloadavg()[0]:.2f}; two processes of pure Python "
+              f"run {calibrate():.2f}x one (2.00 = both cores free)")  # fmt: skip
+        results = {}
+        for label, workers in (("1 worker (in process)", 1), ("2 workers (local pool)", 2)):
+            results[label] = measure(kb, units, tmp, workers, None, args.runs)
+        if not args.no_ray:
+            try:
+                import ray
+            except ImportError:
+                print("ray is not installed: pip install 'handover-grasp[ray]'")
+            else:
+                t = time.perf_counter()
+                ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+                print(f"ray.init (local, 2 CPUs): {time.perf_counter() - t:.2f} s")
+                try:
+                    results["Ray, local instance (2 CPUs)"] = measure(kb, units, tmp, 2, "auto",
+                                                                      args.runs)  # fmt: skip
+                finally:
+                    ray.shutdown()
+        print(f"{'backend':<30} {'cold':>8} {'warm':>8} {'failed rows':>12}")
+        print(f"(machine, after: load average {os.getloadavg()[0]:.2f}, "
+              f"parallel {calibrate():.2f}x)")  # fmt: skip
+        for label, r in results.items():
+            print(f"{label:<30} {r['cold']:8.2f} {r['warm']:8.2f} {r['errors']:>12}")
+        one, two = results["1 worker (in process)"], results["2 workers (local pool)"]
+        for kind in ("cold", "warm"):
+            ratio = two[kind] / one[kind]
+            verdict = "met" if ratio >= 1.7 else "MISSED"
+            print(f"2 workers / 1 worker ({kind}): {ratio:.2f}x (target >= 1.7x: {verdict})")
+        if args.profile:
+            prof = cProfile.Profile()
+            prof.enable()
+            run_once(kb, units, tmp, 1, None, tmp / "db_profile")
+            prof.disable()
+            buf = io.StringIO()
+            pstats.Stats(prof, stream=buf).sort_stats("cumulative").print_stats(30)
+            print("\n## cProfile of the 1-worker batch (cold), by cumulative time")
+            print(buf.getvalue())
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,99 @@
+"""Start-up cost of the command line, as whole processes, against the bare imports it needs.
+
+    .venv/bin/python benchmarks/startup.py [--runs 7] [--importtime] [--profile]
+
+Times (median of ``--runs``): ``python -c pass``; ``python -c "import numpy, trimesh, fcl,
+networkx, pydantic, yaml"`` (the libraries a plan cannot do without); ``handover --help``;
+``handover plan knife --json``. Target: the plan within 2x the bare imports (lazy imports, no
+work at start-up). ``--importtime`` lists the slowest top-level imports of each command
+(``python -X importtime``); ``--profile`` shows cProfile's view of the plan process.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+PY = sys.executable
+HANDOVER = str(Path(PY).parent / "handover")
+BARE = "import numpy, trimesh, fcl, networkx, pydantic, yaml"
+CLI = "import sys; from engine.cli import main; sys.argv = ['handover', *sys.argv[1:]]; main()"
+
+
+def run(cmd: list[str], runs: int, env: dict) -> tuple[float, int]:
+    """Median wall time in s of ``cmd`` (after one untimed run), and its exit code."""
+    code = subprocess.run(cmd, capture_output=True, env=env).returncode
+    times = []
+    for _ in range(runs):
+        t = time.perf_counter()
+        subprocess.run(cmd, capture_output=True, env=env)
+        times.append(time.perf_counter() - t)
+    return statistics.median(times), code
+
+
+def importtime(args: list[str], env: dict, top: int = 12) -> None:
+    """The slowest imports of ``handover ARGS`` (cumulative, top-level packages)."""
+    proc = subprocess.run([PY, "-X", "importtime", "-c", CLI, *args], capture_output=True,
+                          text=True, env=env)  # fmt: skip
+    rows = []
+    for line in proc.stderr.splitlines():
+        m = re.match(r"import time:\s+(\d+) \|\s+(\d+) \|( *)(\S+)", line)
+        if m and len(m.group(3)) <= 1:  # top-level imports only
+            rows.append((int(m.group(2)), m.group(4)))
+    total = sum(us for us, _ in rows)
+    print(f"\n## slowest top-level imports of `handover {' '.join(args)}` "
+          f"(total {total / 1e6:.3f} s)")  # fmt: skip
+    for us, name in sorted(rows, reverse=True)[:top]:
+        print(f"{us / 1e6:8.3f} s  {name}")
+
+
+def profile(args: list[str], env: dict, top: int = 30) -> None:
+    proc = subprocess.run([PY, "-m", "cProfile", "-s", "cumtime", HANDOVER, *args],
+                          capture_output=True, text=True, env=env)  # fmt: skip
+    lines = proc.stdout.splitlines()
+    start = next((i for i, line in enumerate(lines) if "ncalls" in line), 0)
+    print(f"\n## cProfile of `handover {' '.join(args)}` (cumulative)")
+    print("\n".join(lines[max(0, start - 2) : start + top]))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", type=int, default=7)
+    ap.add_argument("--importtime", action="store_true")
+    ap.add_argument("--profile", action="store_true")
+    args = ap.parse_args()
+    env = dict(os.environ)
+    cases = [
+        ("python -c pass", [PY, "-c", "pass"]),
+        ("bare imports", [PY, "-c", BARE]),
+        ("handover --help", [HANDOVER, "--help"]),
+        ("handover plan knife --json", [HANDOVER, "plan", "knife", "--json"]),
+    ]
+    print(f"## whole-process times, median of {args.runs} (s)")
+    results = {}
+    for label, cmd in cases:
+        t, code = run(cmd, args.runs, env)
+        results[label] = t
+        print(f"{label:<28} {t:7.3f}   exit {code}")
+    bare = results["bare imports"]
+    plan = results["handover plan knife --json"]
+    verdict = "met" if plan <= 2 * bare else "MISSED"
+    print(
+        f"plan / bare imports = {plan / bare:.2f} (target <= 2: {verdict}); "
+        f"--help / bare imports = {results['handover --help'] / bare:.2f}"
+    )
+    if args.importtime:
+        importtime(["--help"], env)
+        importtime(["plan", "knife", "--json"], env)
+    if args.profile:
+        profile(["plan", "knife", "--json"], env)
+
+
+if __name__ == "__main__":
+    main()
