@@ -10,7 +10,7 @@ Example::
 
     >>> rules = resolve_culture(kb, "japanese")
     >>> [(r.rule.id, r.culture) for r in rules][:2]
-    [('receiver_avoids_sharp', 'common'), ('giver_prefers_off_sharp', 'common')]
+    [('receiver_avoids_sharp', 'common'), ('giver_avoids_sharp', 'common')]
 """
 
 from __future__ import annotations

@@ -6,9 +6,10 @@ The receiver's hands are predicted first: two hands for a large object, one for 
 etiquette case (which it is is read from the KB: two hands when the mode rule that asked for
 H2G1 is about mass or size). Their hand models are obstacles for both robot grippers.
 
-Every rule of the culture applies to each robot grasp. The left hand's candidates lie in the
-outer ``SIDE_BAND`` of the object's extent on the robot's left, the right hand's on its right,
-both in the same presentation. Pairs are kept when the two grippers do not collide and each
+Every rule of the culture applies to each robot grasp. The left hand's gripper has its palm
+in the outer ``SIDE_BAND`` of the object's extent on the robot's left, or beyond it (it
+holds the left end, or comes from the left), the right hand's on its right, both in the
+same presentation. Pairs are kept when the two grippers do not collide and each
 hand's share of the weight is within its payload, and scored for balance: the mean of the two
 grasps' rule scores, and how close the line between the grasps passes to the centre of mass.
 """
@@ -54,6 +55,16 @@ def receiver_hand_count(cg: ConstraintGraph) -> tuple[int, str]:
     return 1, "no rule asks for two hands; the receiver takes it in one hand"
 
 
+def _palm_centres(ctx: PlanContext) -> np.ndarray:
+    """(N, 3) m, object frame: the centre of each candidate gripper's palm. A hand is on the
+    object's left when its palm is: at the left end of a tray, or coming from the left onto
+    a mug."""
+    g = ctx.gripper
+    back = g.finger_length / 2.0 + g.palm[2] / 2.0
+    poses = _poses(ctx)
+    return poses[:, :3, 3] - back * poses[:, :3, 2]
+
+
 def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a two-handed handover; see the module docstring."""
     from engine.planners import Attempt, _reason
@@ -84,7 +95,7 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     t_all = verts @ l_obj.T  # (V, K)
     t_min, t_max = t_all.min(axis=0), t_all.max(axis=0)
     gi, pk = decision.gi[ranking], decision.pk[ranking]
-    t = np.einsum("ri,ri->r", ctx.candidates.centre[gi], l_obj[pk])
+    t = np.einsum("ri,ri->r", _palm_centres(ctx)[gi], l_obj[pk])
     span = np.maximum(t_max - t_min, 1e-9)[pk]
     left = t >= t_max[pk] - SIDE_BAND * span
     right = t <= t_min[pk] + SIDE_BAND * span

@@ -57,10 +57,10 @@ class CandidateSet:
     roll: np.ndarray
     overlap_area: np.ndarray
     source: np.ndarray
-    offset: np.ndarray
     quality: np.ndarray
     com_distance: np.ndarray
     part_names: list[str]
+    offset: np.ndarray | None = None  # None: zeros (pads centred on the contacts)
 
     ARRAY_FIELDS = (
         "centre", "n", "o", "a", "width", "contacts", "normals", "faces", "parts",
@@ -72,6 +72,8 @@ class CandidateSet:
 
     def __post_init__(self) -> None:
         count = self.width.shape[0]
+        if self.offset is None:
+            self.offset = np.zeros(count)
         for name in self.ARRAY_FIELDS:
             arr = getattr(self, name)
             if arr.shape[0] != count:

@@ -218,8 +218,8 @@ def test_describe_rule_says_what_it_asks(builtin_kb):
     assert describe_rule(rules["receiver_avoids_sharp"]) == (
         "receiver never holds a part tagged sharp"
     )
-    assert describe_rule(rules["giver_prefers_off_sharp"]) == (
-        "giver avoids holding a part tagged sharp"
+    assert describe_rule(rules["giver_avoids_sharp"]) == (
+        "giver never holds a part tagged sharp"
     )
     assert describe_rule(rules["sharp_tip_away"]) == (
         "axis 'tip' at least 100 deg from toward_receiver"
