@@ -206,17 +206,27 @@ def _apply_culture(
     return kept + appended
 
 
+def _safety_in(old: ResolvedRule) -> ResolvedRule | None:
+    """The safety rule ``old`` is or stands in for (a rule that replaced a safety rule keeps
+    its safety: overriding it in turn needs ``override_safety`` too), else None."""
+    return next((r for r in [old, *old.chain()] if r.rule.safety), None)
+
+
 def _check_safety(
     kb: KB, rule: Rule, replaced: tuple[ResolvedRule, ...], problems: list[KBIssue]
 ) -> None:
     for old in replaced:
-        if not old.rule.safety:
+        safe = _safety_in(old)
+        if safe is None:
             continue
+        what = f"the safety rule '{safe.rule.id}' ({safe.rule.source})"
+        if safe is not old:
+            what = f"'{old.rule.id}' ({old.rule.source}), which stands in for " + what
         if rule.override_safety:
             problems.append(
                 kb.issue(
                     rule,
-                    f"safety rule '{old.rule.id}' ({old.rule.source}) overridden by "
+                    f"safety rule '{safe.rule.id}' ({safe.rule.source}) overridden by "
                     f"'{rule.id}': {rule.override_safety}",
                     "override_safety",
                     severity="warning",
@@ -226,12 +236,11 @@ def _check_safety(
             problems.append(
                 kb.issue(
                     rule,
-                    f"rule '{rule.id}' overrides the safety rule '{old.rule.id}' "
-                    f"({old.rule.source}) without 'override_safety: <reason>'",
+                    f"rule '{rule.id}' overrides {what} without 'override_safety: <reason>'",
                     "overrides",
                 )
             )
-    if rule.override_safety and not any(o.rule.safety for o in replaced):
+    if rule.override_safety and not any(_safety_in(o) for o in replaced):
         problems.append(
             kb.issue(
                 rule,
