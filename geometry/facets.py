@@ -294,14 +294,14 @@ def _grid_points(overlap, shrunk, rect, long_axis, spacing):
     return owner[inside], xy[inside]
 
 
-def _corner_rings(rings: np.ndarray, tol: float = 1e-5) -> np.ndarray:
-    """The rings with every vertex dropped that does not turn the boundary (turning less
-    than ``tol`` rad, or repeating the previous vertex).
+def _clean_rings(rings: np.ndarray, tol: float) -> np.ndarray:
+    """Rings simplified (Douglas-Peucker, tolerance ``tol`` m) from a true corner.
 
-    Overlays leave such vertices on straight edges (where two nearly identical outlines
-    cross); a simplifier keeps a ring's first vertex whatever it is, so they are removed
-    here first, to leave only true corners. Rings keeping fewer than 3 vertices come back
-    as they were.
+    Overlays of nearly identical outlines leave extra vertices on straight edges; a
+    simplifier keeps a ring's first vertex whatever it is, and a negative buffer may keep
+    such a vertex and drop the corner beside it. So each ring first starts again at its
+    vertex farthest from its centroid (a corner of its hull, never a vertex on an edge),
+    then is simplified. Rings with fewer than 3 distinct vertices come back as they were.
     """
     import shapely
 
@@ -310,27 +310,56 @@ def _corner_rings(rings: np.ndarray, tol: float = 1e-5) -> np.ndarray:
         return rings
     closing = np.r_[ring[1:] != ring[:-1], True]  # each ring repeats its first vertex last
     coords, ring = coords[~closing], ring[~closing]
-    n = len(coords)
-    start = np.r_[0, np.flatnonzero(ring[1:] != ring[:-1]) + 1]
-    size = np.diff(np.r_[start, n])
-    first = np.repeat(start, size)
-    k = np.arange(n)
-    size_k = np.repeat(size, size)
-    d_in = coords - coords[first + (k - first - 1) % size_k]
-    d_out = coords[first + (k - first + 1) % size_k] - coords
-    len_in = np.linalg.norm(d_in, axis=1)
-    len_out = np.linalg.norm(d_out, axis=1)
-    cross = d_in[:, 0] * d_out[:, 1] - d_in[:, 1] * d_out[:, 0]
-    straight = (np.abs(cross) <= tol * len_in * len_out) & (np.einsum("ij,ij->i", d_in, d_out) > 0)
-    keep = ~straight & (len_in > 0)
-    enough = np.bincount(ring[keep], minlength=len(rings)) >= 3
-    keep &= enough[ring]
+    size = np.bincount(ring, minlength=len(rings))
+    centre = np.stack([np.bincount(ring, coords[:, k], len(rings)) for k in (0, 1)], axis=1)
+    centre /= np.maximum(size, 1)[:, None]
+    far = ((coords - centre[ring]) ** 2).sum(axis=1)
+    first = np.r_[0, np.cumsum(size)[:-1]]
+    present = size > 0
+    farthest = np.lexsort((-far, ring))[first[present]]  # the ring's farthest vertex
+    start = np.zeros(len(rings), dtype=np.int64)
+    start[present] = farthest - first[present]
+    k = np.arange(len(coords)) - first[ring]
+    order = first[ring] + (k + start[ring]) % size[ring]
     out = np.array(rings, dtype=object)
-    if enough.any():
-        ids = np.flatnonzero(enough)
+    ok = size >= 3
+    if ok.any():
+        keep = ok[ring]
+        ids = np.flatnonzero(ok)
         remap = np.full(len(rings), -1)
         remap[ids] = np.arange(len(ids))
-        out[ids] = shapely.linearrings(coords[keep], indices=remap[ring[keep]])
+        rebuilt = shapely.linearrings(coords[order][keep], indices=remap[ring[keep]])
+        out[ids] = shapely.simplify(rebuilt, tol)
+    return out
+
+
+def _clean_polygons(geoms: np.ndarray, tol: float) -> np.ndarray:
+    """Polygonal geometries with every ring cleaned by :func:`_clean_rings`; other parts
+    (points, lines an overlay may add) dropped; empty where nothing polygonal is left."""
+    import shapely
+
+    parts, owner = shapely.get_parts(geoms, return_index=True)
+    polygonal = shapely.get_type_id(parts) == 3
+    parts, owner = parts[polygonal], owner[polygonal]
+    rings, part_of = shapely.get_rings(parts, return_index=True)
+    rings = _clean_rings(rings, tol)
+    valid = shapely.is_valid(rings) & ~shapely.is_empty(rings)
+    shell_ok = np.zeros(len(parts), dtype=bool)
+    first_ring = np.r_[True, part_of[1:] != part_of[:-1]]
+    shell_ok[part_of[first_ring & valid]] = True
+    use = valid & shell_ok[part_of]
+    kept_parts = np.flatnonzero(shell_ok)
+    remap = np.full(len(parts), -1)
+    remap[kept_parts] = np.arange(len(kept_parts))
+    polys = shapely.polygons(rings[use], indices=remap[part_of[use]])
+    out = np.empty(len(geoms), dtype=object)
+    out[:] = shapely.Polygon()
+    if len(polys):
+        owners = owner[kept_parts]  # non-decreasing: parts come in geometry order
+        single = np.bincount(owners, minlength=len(geoms))[owners] == 1
+        out[owners[single]] = polys[single]
+        if not single.all():
+            out = shapely.multipolygons(polys[~single], indices=owners[~single], out=out)
     return out
 
 
@@ -346,7 +375,7 @@ def _rim_points(shrunk, wide, spacing):
     owner = np.flatnonzero(wide)[owner]
     is_polygon = shapely.get_type_id(parts) == 3
     parts, owner = parts[is_polygon], owner[is_polygon]
-    rings = shapely.simplify(_corner_rings(shapely.get_exterior_ring(parts)), spacing / 4.0)
+    rings = _clean_rings(shapely.get_exterior_ring(parts), spacing / 4.0)
     coords, ring = shapely.get_coordinates(rings, return_index=True)
     same = ring[:-1] == ring[1:]  # consecutive vertices of one ring form an edge
     start, end, ring = coords[:-1][same], coords[1:][same], ring[:-1][same]
@@ -387,6 +416,7 @@ def overlap_site_points(
     from scipy.spatial import cKDTree
 
     p_count = len(overlap)
+    overlap = _clean_polygons(overlap, 1e-4 * spacing)
     rect, long_axis, short = _envelope_axes(overlap)
     inset = np.minimum(spacing / 2.0, short / 4.0)
     shrunk = shapely.buffer(overlap, -inset, join_style="mitre")
