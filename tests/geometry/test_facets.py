@@ -185,3 +185,19 @@ def test_no_grasp_across_a_gap_between_two_plates():
     found = facet_sites(pm.mesh, **PARAMS)
     widths = np.unique(np.round(found.sites.width, 9))
     assert_allclose(widths, [0.01, 0.05])
+
+
+def test_extra_vertices_on_edges_do_not_move_sites():
+    # what an overlay of two nearly identical squares returns: the ring starting mid-edge
+    # and a vertex 40 um from a corner on a straight edge; the sites must be the square's
+    square = shapely.Polygon([(0, 0), (0.05, 0), (0.05, 0.05), (0, 0.05)])
+    noisy = shapely.Polygon(
+        [(0, 0.02), (0, 0), (0.05, 0), (0.05, 0.05), (0.00004, 0.05), (0, 0.05)]
+    )
+    clean_owner, clean_xy, clean_a = overlap_site_points(np.array([square]), PAD)
+    owner, xy, a = overlap_site_points(np.array([noisy]), PAD)
+    assert len(xy) == len(clean_xy) == 5
+    order, clean_order = np.lexsort(xy.T), np.lexsort(clean_xy.T)
+    assert_allclose(xy[order], clean_xy[clean_order], atol=1e-12)
+    rim = np.linalg.norm(xy[order] - 0.025, axis=1) > 0.01  # the four edge middles
+    assert_allclose(a[order][rim], clean_a[clean_order][rim], atol=1e-12)
