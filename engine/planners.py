@@ -211,11 +211,15 @@ def human_record(ctx: PlanContext, k: int, hand: str, sites=None) -> dict | None
     if not sites.valid[k]:
         return None
     site = sites.site[k]
+    from engine.rules import hand_model
+
     return {
         "hand": hand,
         "position": site,
         "position_world": ctx.poses[k, :3, :3] @ site + ctx.poses[k, :3, 3],
         "part": ctx.part_mesh.part_names[int(sites.part[k])],
+        "model": [{"name": name, "extents": ext, "pose": pose}
+                  for name, ext, pose in hand_model(ctx, sites, k)],
     }
 
 
@@ -344,8 +348,14 @@ def build_result(
             {"rules": list(ids), "candidates": n} for ids, n in d.blocking_sets()
         ]
     alternatives = []
-    if d is not None:
-        for r in d.ranking()[1:6]:
+    if d is not None:  # the next best distinct grasps, each in its best presentation
+        chosen_ids = {i for _, i, _ in attempt.chosen}
+        for r in d.ranking():
+            if len(alternatives) == 5:
+                break
+            if int(d.gi[r]) in chosen_ids:
+                continue
+            chosen_ids.add(int(d.gi[r]))
             alternatives.append({"grasp": int(d.gi[r]), "presentation": int(d.pk[r]),
                                  "score": float(d.score[r])})
     g = ctx.gripper

@@ -257,17 +257,20 @@ def receiver_hand_boxes(ctx: PlanContext, k: int) -> list:
     cache = ctx.cache.setdefault("hand_boxes", {})
     key = (ctx.cache.get("hands_variant", "one"), k)
     if key not in cache:
-        boxes = []
-        rot, pose = ctx.rotations[k], ctx.poses[k]
-        for sites in ctx.receiver_sites():
-            if not sites.valid[k]:
-                continue
-            site = pose[:3, :3] @ sites.site[k] + pose[:3, 3]
-            axis = rot @ (sites.axis[k] if sites.axis is not None else ctx.region.axis)
-            approach = _hand_approach(axis, ctx.situation.toward)
-            boxes.extend(ctx.hand.boxes(site, axis, approach, float(sites.thickness[k])))
-        cache[key] = boxes
+        cache[key] = [b for sites in ctx.receiver_sites() for b in hand_model(ctx, sites, k)]
     return cache[key]
+
+
+def hand_model(ctx: PlanContext, sites, k: int) -> list:
+    """One receiver hand (palm and fingers boxes, world) at ``sites`` in presentation ``k``;
+    empty where that hand has no site."""
+    if not sites.valid[k]:
+        return []
+    rot, pose = ctx.rotations[k], ctx.poses[k]
+    site = pose[:3, :3] @ sites.site[k] + pose[:3, 3]
+    axis = rot @ (sites.axis[k] if sites.axis is not None else ctx.region.axis)
+    approach = _hand_approach(axis, ctx.situation.toward)
+    return ctx.hand.boxes(site, axis, approach, float(sites.thickness[k]))
 
 
 def _hand_approach(axis: np.ndarray, toward: np.ndarray) -> np.ndarray:

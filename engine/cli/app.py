@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
     from engine.errors import EXIT_BAD_MESH, EXIT_INTERNAL, HandoverError, KBError
     from geometry.mesh import MeshError
 
-    args = list(sys.argv[1:] if argv is None else argv)
+    args = _globals_first(list(sys.argv[1:] if argv is None else argv))
     debug = "--debug" in args or os.environ.get("HANDOVER_DEBUG") == "1"
     err = Console(stderr=True, highlight=False, soft_wrap=True)
     try:
@@ -104,6 +104,28 @@ def main(argv: list[str] | None = None) -> int:
         )
         return EXIT_INTERNAL
     return rc if isinstance(rc, int) else 0
+
+
+def _globals_first(args: list[str]) -> list[str]:
+    """Move the global options (``--kb DIR``, ``--kb=DIR``, ``--debug``) to the front, so
+    ``handover plan knife --kb DIR`` works as ``handover --kb DIR plan knife``."""
+    front: list[str] = []
+    rest: list[str] = []
+    i = 0
+    while i < len(args):
+        arg = args[i]
+        if arg == "--":
+            rest.extend(args[i:])
+            break
+        if arg == "--debug" or arg.startswith("--kb="):
+            front.append(arg)
+        elif arg == "--kb" and i + 1 < len(args):
+            front.extend(args[i : i + 2])
+            i += 1
+        else:
+            rest.append(arg)
+        i += 1
+    return front + rest
 
 
 def _click_exceptions() -> tuple[type[BaseException], ...]:

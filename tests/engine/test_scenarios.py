@@ -1,0 +1,243 @@
+"""Etiquette scenarios through the CLI's JSON, each asserting what the rule means.
+
+Every test runs ``handover plan ... --json`` through the real entry point and reads the
+result the way a user of the JSON contract would: world-frame axes of the presented
+object, the receiver's grasp, the parts the robot touches.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from engine.cli.app import main
+from engine.loader import builtin_kb_dir, load_kb
+
+HANDOVER = Path(sys.executable).parent / "handover"
+KB = load_kb()
+
+
+def plan(capsys, *args: str, code: int = 0) -> dict:
+    rc = main(["plan", *args, "--json"])
+    out, err = capsys.readouterr()
+    assert rc == code, err
+    return json.loads(out)
+
+
+def angle_deg(u, v) -> float:
+    u, v = np.asarray(u, float), np.asarray(v, float)
+    c = np.dot(u, v) / np.linalg.norm(u) / np.linalg.norm(v)
+    return float(np.degrees(np.arccos(np.clip(c, -1, 1))))
+
+
+def toward_receiver(result: dict) -> np.ndarray:
+    """Horizontal unit vector from the robot (origin) to the receiver."""
+    p = np.array(result["receiver"]["position"], float) * [1, 1, 0]
+    return p / np.linalg.norm(p)
+
+
+def receiver_right(result: dict) -> np.ndarray:
+    facing = np.array(result["receiver"]["facing"], float)
+    right = np.cross(facing, [0, 0, 1])
+    return right / np.linalg.norm(right)
+
+
+def part_tags(obj_id: str) -> dict[str, set[str]]:
+    return {name: set(p.tags) for name, p in KB.object(obj_id).parts.items()}
+
+
+def test_knife_is_handed_over_handle_first_tip_away(capsys):
+    r = plan(capsys, "knife")
+    assert r["feasible"] and r["mode"] == "H1G1"
+    tags = part_tags("knife")
+    (human,) = r["human_grasps"]
+    assert "handle" in tags[human["part"]]
+    for g in r["robot_grasps"]:
+        assert not any("sharp" in tags[p] for p in g["parts"]), g["parts"]
+    assert "sharp" not in tags[human["part"]]
+    # The tip, in the world, points more than 90 degrees away from the receiver.
+    tip = r["presentation"]["axes_world"]["tip"]
+    assert angle_deg(tip, toward_receiver(r)) > 90
+    # The receiver's hand is nearer the receiver than the robot's grasp (seed: A and C).
+    robot_centre = np.array([row[3] for row in r["robot_grasps"][0]["pose_world"][:3]])
+    d = toward_receiver(r)
+    assert np.dot(human["position_world"], d) > np.dot(robot_centre, d)
+
+
+def test_json_trace_entries_carry_rule_status_measured_threshold_why(capsys):
+    r = plan(capsys, "knife")
+    assert r["trace"]
+    for e in r["trace"]:
+        for key in ("rule", "status", "measured", "threshold", "why", "source"):
+            assert key in e, key
+        assert e["status"] in ("pass", "fail", "scored", "not_applicable")
+        assert e["why"]
+    statuses = {e["rule"]: e["status"] for e in r["trace"]}
+    assert statuses["receiver_avoids_sharp"] == "pass"
+    assert statuses["sharp_tip_away"] == "pass"
+    assert statuses["book_upright"] == "not_applicable"
+    source = next(e["source"] for e in r["trace"] if e["rule"] == "sharp_tip_away")
+    assert source.startswith("etiquette/common.yaml:")
+
+
+def test_scissors_are_offered_loops_first(capsys):
+    r = plan(capsys, "scissors")
+    assert r["feasible"]
+    tags = part_tags("scissors")
+    assert "finger_loops" in tags[r["human_grasps"][0]["part"]]
+    handle = r["presentation"]["axes_world"]["handle"]
+    assert angle_deg(handle, toward_receiver(r)) < 60
+    assert angle_deg(r["presentation"]["axes_world"]["tip"], toward_receiver(r)) > 90
+
+
+def test_book_is_upright_and_readable(capsys):
+    r = plan(capsys, "book")
+    assert r["feasible"]
+    axes = r["presentation"]["axes_world"]
+    assert angle_deg(axes["up"], [0, 0, 1]) <= 20
+    # The readable (front cover) face points at the receiver.
+    assert angle_deg(axes["readable"], toward_receiver(r)) < 45
+
+
+@pytest.mark.parametrize("receiver, side", [("adult", 1.0), ("left_handed", -1.0)])
+def test_mug_handle_goes_to_the_dominant_hand_side(capsys, receiver, side):
+    r = plan(capsys, "mug", "--receiver", receiver)
+    assert r["feasible"]
+    dominant = side * receiver_right(r)  # the receiver's right, or their left
+    handle = r["presentation"]["axes_world"]["handle"]
+    assert angle_deg(handle, dominant) < 60
+    assert angle_deg(r["presentation"]["axes_world"]["up"], [0, 0, 1]) <= 20
+    assert r["human_grasps"][0]["part"] == "handle"
+    assert r["human_grasps"][0]["hand"] == ("right" if side > 0 else "left")
+
+
+def test_hammer_tasks_give_the_orientation_each_task_asks_for(capsys):
+    drive = plan(capsys, "hammer", "--task", "drive_nail")
+    pull = plan(capsys, "hammer", "--task", "pull_nail")
+    obj = KB.object("hammer")
+    for result, task in ((drive, "drive_nail"), (pull, "pull_nail")):
+        assert result["feasible"] and result["query"]["task"] == task
+        axes = result["presentation"]["axes_world"]
+        directions = {"down": [0, 0, -1], "toward_receiver": toward_receiver(result)}
+        for entry in obj.tasks[task].present:
+            assert angle_deg(axes[entry.axis], directions[entry.toward]) <= entry.max_deg
+        assert result["human_grasps"][0]["part"] == "handle"
+    # Driving: striking face down; pulling: the claw down. So the two presentations differ.
+    assert angle_deg(drive["presentation"]["axes_world"]["strike"], [0, 0, -1]) < 45
+    assert angle_deg(pull["presentation"]["axes_world"]["claw"], [0, 0, -1]) < 45
+    # Pulling: the receiver grips near the end of the handle (far_end), further out.
+    d = toward_receiver(drive)
+    assert np.dot(pull["human_grasps"][0]["position_world"], d) > np.dot(
+        drive["human_grasps"][0]["position_world"], d
+    )
+
+
+def test_ball_has_grasps_all_around_and_a_plan(capsys):
+    rc = main(["grasps", "ball", "--json"])
+    out, _ = capsys.readouterr()
+    assert rc == 0
+    grasps = json.loads(out)["grasps"]
+    assert len(grasps) > 100
+    # Closing directions cover the sphere: every octant holds some grasp axis (up to sign).
+    axes = np.array([np.subtract(g["contacts"][1], g["contacts"][0]) for g in grasps])
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    octants = {tuple(np.sign(a + 1e-12) * np.sign(a[0] + 1e-12)) for a in axes}
+    assert len(octants) >= 4  # (+,+,+), (+,+,-), (+,-,+), (+,-,-) up to sign
+    r = plan(capsys, "ball")
+    assert r["feasible"]
+
+
+def test_why_not_explains_a_losing_candidate(capsys):
+    r = plan(capsys, "knife", "--why-not", "0")
+    (w,) = r["why_not"]
+    assert w["grasp"] == 0 and w["verdict"]
+    assert {e["rule"] for e in w["trace"]} >= {"sharp_tip_away", "collision_free"}
+
+
+def test_explain_prints_a_tree_with_sources(capsys):
+    rc = main(["plan", "knife", "--explain"])
+    out, _ = capsys.readouterr()
+    assert rc == 0
+    assert "trace of grasp" in out and "etiquette/common.yaml:" in out
+    assert "sharp_tip_away" in out
+
+
+def test_explain_graph_text_and_dot(capsys):
+    rc = main(["explain-graph", "knife"])
+    out, _ = capsys.readouterr()
+    assert rc == 0 and "evaluation order" in out
+    rc = main(["explain-graph", "knife", "--dot"])
+    out, _ = capsys.readouterr()
+    assert rc == 0 and out.startswith("digraph")
+    assert '"feature:axis_angles" -> "rule:sharp_tip_away"' in out
+
+
+def _copy_kb(tmp_path: Path) -> Path:
+    root = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("__pycache__"))
+    return root
+
+
+def test_a_rule_made_hard_in_a_kb_copy_changes_the_plan_and_the_trace_names_it(
+    capsys, tmp_path
+):
+    """The mug's handle-to-dominant-hand rule is soft: a left-hander's plan with a culture
+    that turns it into a hard rule facing the *right* hand must become infeasible, and the
+    reason and blocking sets name the new rule with its file."""
+    root = _copy_kb(tmp_path)
+    (root / "etiquette" / "strict.yaml").write_text(
+        yaml.safe_dump({
+            "id": "strict",
+            "name": "Strict",
+            "extends": "common",
+            "rules": [{
+                "id": "handle_right_always",
+                "kind": "axis",
+                "axis": "handle",
+                "toward": "receiver_right",
+                "max_deg": 30,
+                "overrides": ["mug_handle_to_dominant_hand"],
+                "applies": {"object_tags_any": ["drinkware"]},
+                "why": "In this house the mug handle always goes to the right.",
+            }],
+        })
+    )
+    base = plan(capsys, "mug", "--receiver", "left_handed", "--kb", str(root))
+    assert base["feasible"]
+    r = plan(capsys, "mug", "--receiver", "left_handed", "--culture", "strict",
+             "--kb", str(root))
+    assert r["feasible"]
+    handle = r["presentation"]["axes_world"]["handle"]
+    assert angle_deg(handle, receiver_right(r)) <= 30  # right, not the left hand's side
+    entry = next(e for e in r["trace"] if e["rule"] == "handle_right_always")
+    assert entry["source"] == "etiquette/strict.yaml:5"
+    assert entry["overrides"] == ["mug_handle_to_dominant_hand"]
+    assert entry["status"] == "pass"
+
+
+def test_plan_through_the_installed_console_script():
+    proc = subprocess.run([str(HANDOVER), "plan", "knife", "--json"], capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["object"] == "knife"
+
+
+def test_a_mesh_file_with_no_kb_entry_plans_with_untagged_rules(capsys, tmp_path):
+    import trimesh
+
+    path = tmp_path / "block.stl"
+    trimesh.creation.box(extents=[0.12, 0.05, 0.04]).export(path)
+    r = plan(capsys, str(path))
+    assert r["feasible"]
+    rules = {e["rule"]: e for e in r["trace"]}
+    # Rules about tags the mesh has none of cannot apply, and say why.
+    assert rules["receiver_avoids_sharp"]["status"] == "not_applicable"
+    assert "no part tagged sharp" in rules["receiver_avoids_sharp"]["note"]
+    assert rules["collision_free"]["status"] == "pass"
