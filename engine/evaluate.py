@@ -155,7 +155,10 @@ def trace_row(cg: ConstraintGraph, ctx: PlanContext, grasp: int, presentation: i
             status = "pass" if passed else "fail"
         else:
             status = "scored"
-        entries.append(_entry(c, status, out, passed))
+        entry = _entry(c, status, out, passed)
+        if out.unit == "part index" and entry["measured"] is not None and entry["measured"] >= 0:
+            entry["measured_part"] = ctx.part_mesh.part_names[int(entry["measured"])]
+        entries.append(entry)
     for c in cg.inactive:
         entries.append(_entry(c, "not_applicable", None, None))
     return entries

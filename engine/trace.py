@@ -40,6 +40,8 @@ def _trace_tree(title: str, entries: list[dict]):
             label = f"{status} [bold]{e['rule']}[/] ({kind}) [dim]{escape(e.get('note') or '')}[/]"
         else:
             measured = _fmt(e["measured"], e.get("unit", ""))
+            if e.get("measured_part"):
+                measured = f"part {e['measured_part']}"
             score = "" if e["hard"] else f", score {_fmt(e['score'])}"
             label = (f"{status} [bold]{e['rule']}[/] ({kind}): measured {escape(measured)} vs "
                      f"{escape(e['threshold'])}{score}")
@@ -60,7 +62,9 @@ def render_plan(result: dict, console, explain: bool = False) -> None:
     from rich.table import Table
 
     q = result["query"]
-    head = (f"[bold]{result['object']}[/] to a {result['receiver']['role']} receiver "
+    role = result["receiver"]["role"]
+    article = "an" if role[0] in "aeiou" else "a"
+    head = (f"[bold]{result['object']}[/] to {article} {role} receiver "
             f"({result['receiver']['dominant_hand']}-handed), culture {q['culture']}, "
             f"scene {q['scene']}, task {q['task'] or '-'}")
     console.print(head)
