@@ -98,11 +98,15 @@ def _tag_roles(kb: KB, situation: Situation) -> tuple[set[str], set[str], set[st
     return want, receiver_forbid, giver_forbid
 
 
-def prepare(kb: KB, query: Query) -> PlanContext:
-    """Resolve the query, build the object's mesh and candidates, and the plan context."""
+def prepare(kb: KB, query: Query, db=None) -> PlanContext:
+    """Resolve the query, build the object's mesh and candidates, and the plan context.
+
+    db : an ``engine.graspdb.GraspDB`` to read candidates from (and store them in), or None
+        to generate them.
+    """
     from engine import assets
+    from engine.graspdb import cached_candidates
     from geometry.collision import ObjectCollider
-    from geometry.generate import generate_candidates
     from geometry.hand import HumanHand
 
     path = Path(query.object)
@@ -125,8 +129,8 @@ def prepare(kb: KB, query: Query) -> PlanContext:
     ]
     gripper = assets.gripper_from_spec(situation.gripper)
     collider = ObjectCollider(part_mesh.mesh)
-    generated = generate_candidates(part_mesh, gripper, collider=collider, seed=0)
-    candidates, stats = _split_generation(generated)
+    candidates, stats = cached_candidates(part_mesh, gripper, {"seed": 0}, db,
+                                          collider=collider)
     spec = situation.hand
     hand = HumanHand(
         palm=tuple(spec.palm),
@@ -139,16 +143,6 @@ def prepare(kb: KB, query: Query) -> PlanContext:
                         want, receiver_forbid, giver_forbid)
     ctx.cache["collider"] = collider
     return ctx
-
-
-def _split_generation(generated) -> tuple:
-    if isinstance(generated, tuple):
-        candidates, stats = generated
-    else:
-        candidates, stats = generated, {}
-    if not isinstance(stats, dict):
-        stats = dict(vars(stats)) if hasattr(stats, "__dict__") else {"stats": str(stats)}
-    return candidates, stats
 
 
 def _reason(decision: Decision, mode: str) -> str:
@@ -420,19 +414,21 @@ def required_mode(kb: KB, ctx: PlanContext) -> tuple[str | None, str, str | None
     return required, req_why, preferred, pref_why
 
 
-def plan(kb: KB, query: Query, why_not: tuple[int, ...] = ()) -> tuple[PlanResult, PlanContext]:
+def plan(
+    kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None
+) -> tuple[PlanResult, PlanContext]:
     """Plan a handover, choosing the mode (``auto``) or using the forced one.
 
     auto: a mode a hard rule requires is the only one tried (the others are reported as
     ruled out by that rule); otherwise H1G1, then H2G2 when H1G1 has no feasible grasp, then
     H2G1; a mode a soft rule prefers goes first. Returns the result (feasible or not) and its
-    context (for recordings).
+    context (for recordings). db : the grasp database (see :func:`prepare`).
     """
     from engine.regrasp import plan_h2g2
     from engine.twohand import plan_h2g1
 
     planners = {"H1G1": plan_h1g1, "H2G2": plan_h2g2, "H2G1": plan_h2g1}
-    ctx = prepare(kb, query)
+    ctx = prepare(kb, query, db)
     asked = query.mode.lower()
     tried: list[Attempt] = []
     if asked != "auto":

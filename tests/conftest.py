@@ -121,3 +121,18 @@ def builtin_kb():
     from engine.loader import builtin_kb_dir, load_kb
 
     return load_kb(builtin_kb_dir())
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _grasp_db_in_a_temporary_folder(tmp_path_factory):
+    """Plans in tests read and write the grasp database in a temporary folder, never in the
+    user's cache (subprocesses inherit it through the environment)."""
+    import os
+
+    old = os.environ.get("HANDOVER_DB")
+    os.environ["HANDOVER_DB"] = str(tmp_path_factory.mktemp("grasp-db"))
+    yield
+    if old is None:
+        os.environ.pop("HANDOVER_DB", None)
+    else:
+        os.environ["HANDOVER_DB"] = old

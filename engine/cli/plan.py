@@ -56,6 +56,10 @@ def plan(
     explain: bool = typer.Option(False, "--explain", "-e", help="Show the full rule trace."),
     why_not: list[int] = typer.Option([], "--why-not", help="Explain why candidate ID lost."),
     rrd: Path | None = typer.Option(None, "--rrd", help="Write a rerun recording here."),
+    db: Path | None = typer.Option(
+        None, "--db", help="Grasp database folder (default: $HANDOVER_DB, else the user cache)."
+    ),
+    no_db: bool = typer.Option(False, "--no-db", help="Generate candidates, use no database."),
 ) -> None:
     """Plan a handover of OBJECT and explain every decision.
 
@@ -65,12 +69,13 @@ def plan(
     from rich.console import Console
 
     from engine.errors import EXIT_INFEASIBLE
+    from engine.graspdb import open_db
     from engine.loader import load_kb
     from engine.planners import plan as run_plan
 
     kb = load_kb(state.kb_dir)
     query = _query(object_, task, receiver, culture, scene, mode, gripper)
-    result, ctx = run_plan(kb, query, why_not=tuple(why_not))
+    result, ctx = run_plan(kb, query, why_not=tuple(why_not), db=open_db(db, disabled=no_db))
     data = result.to_dict()
     if rrd is not None:
         from engine.record import write_recording
