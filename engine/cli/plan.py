@@ -116,6 +116,10 @@ def explain_graph(
     kb = load_kb(state.kb_dir)
     ctx = prepare(kb, _query(object_, task, receiver, culture, scene, "auto", None))
     mode = mode.upper()
+    if mode not in ("H1G1", "H2G2", "H2G1"):
+        from engine.errors import UsageError
+
+        raise UsageError(f"unknown mode '{mode}' for explain-graph: choose H1G1, H2G2 or H2G1")
     ctx.cache["mode"] = mode
     cg = compile(kb, ctx, mode)
     if dot:
