@@ -158,8 +158,12 @@ def planar_facets(mesh: trimesh.Trimesh, min_area: float) -> Facets:
     polygon[n_big:] = triangles[starts[n_big:-1]]
     for k in range(n_big):
         tris = triangles[starts[k] : starts[k + 1]]
-        merged = shapely.coverage_union_all(tris)
-        if not shapely.is_valid(merged) or abs(merged.area - area[k]) > 1e-9 * max(area[k], 1e-12):
+        try:
+            merged = shapely.coverage_union_all(tris)
+        except shapely.errors.GEOSException:  # overlapping triangles (tiny, nearly flat faces)
+            merged = None
+        if (merged is None or not shapely.is_valid(merged)
+                or abs(merged.area - area[k]) > 1e-9 * max(area[k], 1e-12)):
             merged = shapely.union_all(tris)  # the triangles were not an exact coverage
         polygon[k] = merged
     bounds = shapely.bounds(polygon)
