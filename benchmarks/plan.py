@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import cProfile
-import inspect
 import io
 import pstats
 import statistics
@@ -30,31 +29,7 @@ from engine.loader import load_kb  # noqa: E402
 from engine.planners import plan  # noqa: E402
 from engine.query import Query  # noqa: E402
 
-HAS_HOOK = "db" in inspect.signature(plan).parameters
 RADIUS = 0.015  # m: a 3 cm ball; a larger one is too deep for 2 cm of finger past the contacts
-
-
-def _emulate_hook(db_holder: dict) -> None:
-    """Until ``engine.planners.prepare`` takes a ``db``: route its call of
-    ``geometry.generate.generate_candidates`` through :func:`cached_candidates`, which is
-    what the one-line hook does (said in the output)."""
-    import geometry.generate as gen
-
-    def generate_candidates(part_mesh, gripper, *, collider=None, **settings):
-        return cached_candidates(part_mesh, gripper, settings, db_holder["db"],
-                                 collider=collider)[0]  # fmt: skip
-
-    gen.generate_candidates = generate_candidates
-
-
-_DB: dict = {"db": None}
-
-
-def run_plan(kb, query: Query, db: GraspDB | None):
-    if HAS_HOOK:
-        return plan(kb, query, db=db)
-    _DB["db"] = db
-    return plan(kb, query)
 
 
 def timed(fn, runs: int) -> tuple[float, list[float], object]:
@@ -79,13 +54,13 @@ def bench_objects(kb, modes: list[str], runs: int) -> None:
 
                 def cold(tmp=tmp, query=query):
                     db = GraspDB(Path(tmp) / f"db{time.perf_counter_ns()}")
-                    return run_plan(kb, query, db)
+                    return plan(kb, query, db=db)
 
                 try:
                     t_cold, _, _ = timed(cold, runs)
                     warm_db = GraspDB(Path(tmp) / "warm")
-                    run_plan(kb, query, warm_db)
-                    t_warm, _, (result, _) = timed(lambda q=query, d=warm_db: run_plan(kb, q, d),
+                    plan(kb, query, db=warm_db)
+                    t_warm, _, (result, _) = timed(lambda q=query, d=warm_db: plan(kb, q, db=d),
                                                    runs)  # fmt: skip
                 except Exception as e:  # noqa: BLE001 - a benchmark reports and goes on
                     print(f"{oid:<13} {mode:<5} failed: {type(e).__name__}: {e}")
@@ -142,10 +117,10 @@ def bench_scaling(kb, max_subdiv: int, runs: int) -> None:
             n = runs if sub < 5 else max(1, runs // 2) if sub == 5 else 1
             t_col, t_gen, count = _generation_times(path, gripper, n)
             query = Query(object=str(path), mode="h1g1")
-            t_plan, _, _ = timed(lambda q=query: run_plan(kb, q, None), n)
+            t_plan, _, _ = timed(lambda q=query: plan(kb, q, db=None), n)
             warm = GraspDB(Path(tmp) / "db")
-            run_plan(kb, query, warm)
-            t_warm, _, _ = timed(lambda q=query, d=warm: run_plan(kb, q, d), n)
+            plan(kb, query, db=warm)
+            t_warm, _, _ = timed(lambda q=query, d=warm: plan(kb, q, db=d), n)
             print(f"{len(mesh.faces):>7} {t_col:9.3f} {t_gen:9.3f} {count:>6} "
                   f"{t_plan:8.3f} {t_warm:9.3f}")  # fmt: skip
 
@@ -155,10 +130,10 @@ def profile(kb, spec: str, top: int = 25) -> None:
     if not sep:
         oid, mode = spec, "h1g1"
     query = Query(object=oid, mode=mode)
-    run_plan(kb, query, None)
+    plan(kb, query, db=None)
     prof = cProfile.Profile()
     prof.enable()
-    run_plan(kb, query, None)
+    plan(kb, query, db=None)
     prof.disable()
     buf = io.StringIO()
     pstats.Stats(prof, stream=buf).sort_stats("cumulative").print_stats(top)
@@ -175,10 +150,6 @@ def main() -> None:
     ap.add_argument("--skip-objects", action="store_true")
     ap.add_argument("--skip-scaling", action="store_true")
     args = ap.parse_args()
-    if not HAS_HOOK:
-        _emulate_hook(_DB)
-        print("note: engine.planners.plan has no db parameter yet; the database hook is "
-              "emulated by wrapping geometry.generate.generate_candidates")  # fmt: skip
     kb = load_kb()
     if not args.skip_objects:
         bench_objects(kb, [m.strip() for m in args.modes.split(",") if m.strip()], args.runs)

@@ -40,8 +40,10 @@ __all__ = [
     "BatchReport",
     "ObjectRef",
     "Unit",
+    "error_rows",
     "expand",
     "kb_digest",
+    "plan_row",
     "read_rows",
     "resolve_objects",
     "row_key",
@@ -301,16 +303,6 @@ def _worker_kb(kb_dir: str) -> KB:
     return cached[1]
 
 
-def _plan(kb: KB, query: Any, db: GraspDB | None) -> Any:
-    import inspect
-
-    from engine.planners import plan
-
-    if "db" in inspect.signature(plan).parameters:
-        return plan(kb, query, db=db)
-    return plan(kb, query)  # planners without the database hook (candidates generated)
-
-
 def _error_text(e: BaseException) -> str:
     text = str(e).strip().replace("\n", " ")
     return f"{type(e).__name__}: {text}" if text else type(e).__name__
@@ -335,6 +327,7 @@ def error_rows(unit: Unit, error: BaseException | str) -> list[dict]:
 
 def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: GraspDB | None) -> dict:
     """Plan one query; its row. Any failure becomes the row's ``error``."""
+    from engine.planners import plan
     from engine.query import Query
     from engine.result import to_jsonable
 
@@ -343,7 +336,7 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            result, _ = _plan(kb, query, db)
+            result, _ = plan(kb, query, db=db)
         except Exception as e:  # noqa: BLE001 - one failing object must not stop the batch
             messages = sorted({str(w.message) for w in caught})
             return _row(q, content_hash, error=_error_text(e), warnings=json.dumps(messages))
@@ -513,6 +506,8 @@ def _run_ray(
     """Ray tasks, one per unit, retried ``max_retries`` times when a worker or the task
     fails. ``address``: ``local`` starts a local instance (``workers`` CPUs; shut down
     after), ``auto`` or a cluster address connects; an already initialised Ray is used."""
+    import logging
+
     try:
         import ray
     except ImportError:
@@ -522,10 +517,11 @@ def _run_ray(
     started = False
     if not ray.is_initialized():
         if address == "local":
-            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False)
+            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False,
+                     logging_level=logging.ERROR)  # fmt: skip
         else:
             try:
-                ray.init(address=address, log_to_driver=False)
+                ray.init(address=address, log_to_driver=False, logging_level=logging.ERROR)
             except ConnectionError as e:
                 raise UsageError(f"--ray {address}: cannot connect to a Ray cluster ({e})") from e
         started = True

@@ -225,13 +225,8 @@ def test_out_that_is_not_a_batch_output_is_refused(kb, tmp_path):
 
 
 def test_batch_fills_the_grasp_database(kb, meshes, tmp_path):
-    import inspect
-
     from engine.graspdb import GraspDB
-    from engine.planners import plan
 
-    if "db" not in inspect.signature(plan).parameters:
-        pytest.skip("engine.planners.plan has no db parameter yet (hook pending)")
     db = tmp_path / "db"
     units = batch.expand(kb, str(meshes), receivers=["adult,child"])
     first = _run(kb, units, tmp_path / "a.parquet", workers=2, db_root=db)

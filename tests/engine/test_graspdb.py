@@ -37,6 +37,7 @@ def random_set(n: int = 7, seed: int = 1) -> CandidateSet:
         roll=rng.uniform(-np.pi, np.pi, n),
         overlap_area=np.where(np.arange(n) % 2 == 0, 1e-4, 0.0),
         source=np.where(np.arange(n) % 2 == 0, SOURCE_FACET, SOURCE_ANTIPODAL).astype(np.int8),
+        offset=rng.uniform(0, 0.01, n),
         quality=rng.uniform(0, 1, n),
         com_distance=np.full(n, np.pi * 1e-3),
         part_names=["handle", "blade", "tip"],
