@@ -112,15 +112,46 @@ def _local_coords(points: np.ndarray, origin: np.ndarray, basis: np.ndarray) -> 
     return np.einsum("...j,kj->...k", points - origin, basis)
 
 
+FLAT_DEG = 2.0
+"""degrees: a facet group is planar when every face normal is this close to the group's."""
+
+
+def _flat_groups(mesh: trimesh.Trimesh, groups: list[np.ndarray]) -> list[np.ndarray]:
+    """The groups of ``mesh.facets`` that are planar (see :data:`FLAT_DEG`).
+
+    trimesh joins adjacent faces whose dihedral offset is below an absolute distance, so on
+    a finely tessellated curved surface (an icosphere of 300,000 faces) it chains the whole
+    surface into one "facet" whose normals cancel. Such groups are dropped here: their faces
+    count as single faces.
+    """
+    if not groups:
+        return groups
+    flat = np.concatenate(groups)
+    sizes = np.array([len(g) for g in groups])
+    owner = np.repeat(np.arange(len(groups)), sizes)
+    fn = np.asarray(mesh.face_normals)[flat]
+    w = np.asarray(mesh.area_faces)[flat]
+    total = np.stack([np.bincount(owner, w * fn[:, a], len(groups)) for a in range(3)], 1)
+    length = np.linalg.norm(total, axis=1)
+    mean = total / np.where(length > 0, length, 1.0)[:, None]
+    dots = np.einsum("ij,ij->i", fn, mean[owner])
+    starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
+    ok = (length > 1e-12 * np.maximum(np.bincount(owner, w, len(groups)), 1e-300)) & (
+        np.minimum.reduceat(dots, starts) >= np.cos(np.radians(FLAT_DEG))
+    )
+    return [g for g, keep in zip(groups, ok, strict=True) if keep]
+
+
 def planar_facets(mesh: trimesh.Trimesh, min_area: float) -> Facets:
     """The mesh's planar facets of area >= ``min_area`` (m^2), with polygons.
 
-    A facet is a group of trimesh's ``mesh.facets`` or a single face in no group. Facets are
-    ordered: groups in trimesh's order, then single faces by index.
+    A facet is a planar group of trimesh's ``mesh.facets`` (:func:`_flat_groups`) or a
+    single face in no such group. Facets are ordered: groups in trimesh's order, then single
+    faces by index.
     """
     import shapely
 
-    groups = [np.asarray(g, dtype=np.int64) for g in mesh.facets]
+    groups = _flat_groups(mesh, [np.asarray(g, dtype=np.int64) for g in mesh.facets])
     grouped = np.zeros(len(mesh.faces), dtype=bool)
     if groups:
         grouped[np.concatenate(groups)] = True
