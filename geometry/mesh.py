@@ -27,6 +27,7 @@ __all__ = [
     "MeshError",
     "MeshWarning",
     "MAX_FACES",
+    "MAX_COORDINATE",
     "MESH_SUFFIXES",
     "load_mesh",
     "validate_mesh",
@@ -50,6 +51,10 @@ MESH_SUFFIXES = (".stl", ".obj", ".ply", ".glb", ".gltf", ".off")
 
 DEGENERATE_HEIGHT = 1e-9
 """m: faces whose smallest height is below this are degenerate (removed)."""
+
+MAX_COORDINATE = 1e4
+"""m: no vertex (and no primitive size) may lie farther from the origin than this: a mesh
+10 km across is in the wrong units, and float32 ray casting would lose millimetres."""
 
 
 class MeshError(ValueError):
@@ -125,10 +130,11 @@ def validate_mesh(
     where : names the input in messages (a file path, "part 'handle'", ...).
     warn : emit a :class:`MeshWarning` when the result is not watertight.
 
-    Steps: reject empty input, more than :data:`MAX_FACES` faces, bad indices and non-finite
-    vertices; merge duplicate vertices; drop degenerate faces (zero area, or a height below
-    :data:`DEGENERATE_HEIGHT`), rejecting the mesh if none is left; make the winding
-    consistent and, when watertight, outward (positive volume).
+    Steps: reject empty input, more than :data:`MAX_FACES` faces, bad indices, non-finite
+    vertices and vertices beyond :data:`MAX_COORDINATE`; merge duplicate vertices; drop
+    degenerate faces (zero area, or a height below :data:`DEGENERATE_HEIGHT`), rejecting
+    the mesh if none is left; make the winding consistent and, when watertight, outward
+    (positive volume).
 
     Returns ``(mesh, kept)``: the ``trimesh.Trimesh`` and ``kept`` (F',) int, the index in
     ``faces`` of each face of the result, in order.
@@ -155,6 +161,12 @@ def validate_mesh(
             f"{where}: vertex {i} is not finite ({v[i].tolist()}); "
             f"{int(bad.sum())} non-finite vertices in all"
         )
+    reach = float(np.abs(v).max())
+    if reach > MAX_COORDINATE:
+        raise MeshError(
+            f"{where}: a vertex lies {reach:.3g} m from the origin, beyond the limit of "
+            f"{MAX_COORDINATE:g} m (wrong units? give the mesh a scale, or centre it)"
+        )
     mesh = trimesh.Trimesh(vertices=v, faces=f.astype(np.int64), process=True, validate=False)
     if len(mesh.faces) != len(f):  # processing must keep faces in order, one for one
         raise MeshError(f"{where}: the mesh could not be processed face for face")
@@ -167,8 +179,9 @@ def validate_mesh(
         mesh.remove_unreferenced_vertices()
     if not mesh.is_winding_consistent:
         trimesh.repair.fix_winding(mesh)
-    if mesh.is_watertight and mesh.volume < 0:
-        mesh.invert()
+    with np.errstate(invalid="ignore", divide="ignore"):  # zero volume: centre of mass nan
+        if mesh.is_watertight and mesh.volume < 0:
+            mesh.invert()
     if warn and not mesh.is_watertight:
         warnings.warn(
             f"{where}: the mesh is not watertight (open or non-manifold edges); grasps are "
@@ -257,6 +270,8 @@ def _positive(name: str, value: float) -> float:
     value = float(value)
     if not (np.isfinite(value) and value > 0):
         raise MeshError(f"{name} must be a positive number, got {value}")
+    if value > MAX_COORDINATE:
+        raise MeshError(f"{name} of {value:g} m is beyond the limit of {MAX_COORDINATE:g} m")
     return value
 
 
