@@ -558,13 +558,13 @@ def write_rows(path: Path | str, rows: list[dict]) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from engine.graspdb import _atomic_write_bytes
+    from engine.files import write_atomic
 
     rows = sorted(rows, key=row_key)
     table = pa.Table.from_pylist([{c: r.get(c) for c in COLUMNS} for r in rows], schema=_schema())
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink, compression="zstd")
-    _atomic_write_bytes(Path(path), sink.getvalue().to_pybytes())
+    write_atomic(path, sink.getvalue().to_pybytes(), fsync=True)
 
 
 def read_rows(path: Path | str) -> list[dict]:

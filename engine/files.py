@@ -21,7 +21,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["atomic_path", "write_atomic", "new_file_mode"]
+__all__ = ["atomic_path", "write_atomic", "new_file_mode", "write_error"]
 
 
 def new_file_mode() -> int:
@@ -64,3 +64,15 @@ def write_atomic(path: Path | str, data: str | bytes, *, fsync: bool = False) ->
             tmp.write_bytes(data)
         else:
             tmp.write_text(data, encoding="utf-8")
+
+
+def write_error(option: str, path: Path | str, error: OSError):
+    """The :class:`engine.errors.UsageError` for an output that cannot be written: ``option``
+    (``-o``, ``--rrd``) and ``path`` as the user gave them, and why, e.g.
+    ``-o /etc/passwd/x.json: cannot write there (/etc/passwd: File exists)``."""
+    from engine.errors import UsageError
+
+    why = error.strerror or str(error)
+    if error.filename and str(error.filename) != str(path):
+        why = f"{error.filename}: {why}"
+    return UsageError(f"{option} {path}: cannot write there ({why})")

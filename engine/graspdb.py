@@ -25,7 +25,6 @@ import dataclasses
 import hashlib
 import json
 import os
-import tempfile
 import warnings
 from collections import Counter
 from functools import lru_cache
@@ -34,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from engine.files import write_atomic
 from geometry.candidates import CandidateSet
 
 if TYPE_CHECKING:
@@ -184,20 +184,6 @@ def _digest(arrays: dict[str, np.ndarray], part_names: list[str]) -> str:
     return h.hexdigest()
 
 
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
 class GraspDB:
     """A folder of candidate entries, ``<root>/<key>.parquet`` (see the module docstring).
 
@@ -259,7 +245,7 @@ class GraspDB:
         sink = pa.BufferOutputStream()
         pq.write_table(table, sink, compression="zstd")
         path = self.path(key)
-        _atomic_write_bytes(path, sink.getvalue().to_pybytes())
+        write_atomic(path, sink.getvalue().to_pybytes(), fsync=True)
         self.counts["stored"] += 1
         if key in self._unusable:
             self._unusable.discard(key)

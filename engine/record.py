@@ -58,8 +58,6 @@ the same for the same plan; its bytes are not (rerun stamps every row with a tim
 
 from __future__ import annotations
 
-import os
-import tempfile
 import uuid
 from collections import Counter
 from dataclasses import dataclass, field
@@ -69,6 +67,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from engine.errors import UsageError
+from engine.files import atomic_path, write_error
 
 if TYPE_CHECKING:
     from engine.context import PlanContext
@@ -658,27 +657,10 @@ def write_recording(
         attempt = ctx.cache.get("attempt")
     decision = getattr(attempt, "decision", None)
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp",
-                                        dir=path.parent)  # fmt: skip
+        with atomic_path(path) as tmp:
+            _write(result, ctx, decision, tmp)
     except OSError as e:
-        raise UsageError(f"--rrd {path}: cannot write there ({e.strerror})") from None
-    os.close(fd)
-    tmp = Path(tmp_name)
-    try:
-        _write(result, ctx, decision, tmp)
-        os.chmod(tmp, _file_mode())  # mkstemp makes it private; a recording is not
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
-def _file_mode() -> int:
-    """The mode a new file gets here: 0o666 less the process's umask."""
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
+        raise write_error("--rrd", path, e) from None
 
 
 def _write(result: PlanResult, ctx: PlanContext, decision: Decision | None, tmp: Path) -> None:

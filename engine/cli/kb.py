@@ -510,6 +510,7 @@ def schema(
     Each KB file starts with ``# yaml-language-server: $schema=../schema/<kind>.json``;
     regenerate those files with ``handover kb schema -o kb/schema``.
     """
+    from engine.files import write_atomic, write_error
     from engine.loader import document_schema
     from engine.schema import DOCUMENT_KINDS
 
@@ -526,8 +527,10 @@ def schema(
         targets = {output / f"{k}.json": k for k in kinds}
     written = []
     for path, k in targets.items():
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text(k), encoding="utf-8")
+        try:
+            write_atomic(path, text(k))
+        except OSError as e:
+            raise write_error("-o", path, e) from None
         written.append(str(path))
     if json_out:
         _dump({"written": written})

@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from engine.cli.app import app, state
+from engine.files import write_atomic, write_error
 
 MODE_HELP = "auto (default: H1G1 first, then two hands as rules require) or h1g1|h2g2|h2g1."
 
@@ -23,23 +24,6 @@ def _query(object_: str, task, receiver, culture, scene, mode, gripper):
         mode=(mode or "auto").lower(),
         gripper=gripper,
     )
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and a rename: never half-written."""
-    import os
-    import tempfile
-
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 @app.command()
@@ -83,7 +67,10 @@ def plan(
         write_recording(result, ctx, rrd)
     text = result.to_json()
     if output is not None:
-        write_atomic(output, text)
+        try:
+            write_atomic(output, text)
+        except OSError as e:
+            raise write_error("-o", output, e) from None
     if json_out:
         typer.echo(text, nl=False)
     else:
