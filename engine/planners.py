@@ -111,9 +111,7 @@ def prepare(kb: KB, query: Query, db=None) -> PlanContext:
 
     path = Path(query.object)
     obj = None
-    if path.suffix.lower() in MESH_SUFFIXES:
-        if not path.is_file():
-            raise UsageError(f"mesh file '{query.object}' does not exist")
+    if path.suffix.lower() in MESH_SUFFIXES:  # a missing file: MeshError (exit 5) on loading
         obj = mesh_file_spec(path)
     situation = resolve_situation(kb, query, obj)
     if obj is not None:
