@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import sys
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,6 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the CLI; map the project's errors to their exit codes, never show a traceback
     unless ``--debug`` was given."""
     from rich.console import Console
+    from rich.markup import escape
 
     from engine.errors import EXIT_BAD_MESH, EXIT_INTERNAL, HandoverError, KBError
     from geometry.mesh import MeshError
@@ -66,6 +68,11 @@ def main(argv: list[str] | None = None) -> int:
     args = _globals_first(list(sys.argv[1:] if argv is None else argv))
     debug = "--debug" in args or os.environ.get("HANDOVER_DEBUG") == "1"
     err = Console(stderr=True, highlight=False, soft_wrap=True)
+    shown = warnings.showwarning
+    if not debug:  # one line per warning, no source file and line of code
+        warnings.showwarning = lambda message, *_, **__: err.print(
+            f"[bold yellow]warning[/]: {escape(str(message))}"
+        )
     try:
         # With standalone_mode=False, click returns the code of a typer.Exit(code).
         rc = app(args=args, prog_name="handover", standalone_mode=False)
@@ -81,13 +88,11 @@ def main(argv: list[str] | None = None) -> int:
     except HandoverError as e:
         if debug:
             raise
-        err.print(f"[bold red]error[/]: {e}", markup=True)
+        err.print(f"[bold red]error[/]: {escape(str(e))}")
         return e.exit_code
     except MeshError as e:  # geometry's own error (geometry does not import engine)
         if debug:
             raise
-        from rich.markup import escape
-
         err.print(f"[bold red]bad mesh[/]: {escape(str(e))}")
         return EXIT_BAD_MESH
     except _click_exceptions() as e:
@@ -99,10 +104,12 @@ def main(argv: list[str] | None = None) -> int:
         if debug:
             raise
         err.print(
-            f"[bold red]internal error[/]: {type(e).__name__}: {e}\n"
+            f"[bold red]internal error[/]: {type(e).__name__}: {escape(str(e))}\n"
             "This is a bug in handover-grasp. Run again with --debug for the traceback.",
         )
         return EXIT_INTERNAL
+    finally:
+        warnings.showwarning = shown
     return rc if isinstance(rc, int) else 0
 
 
