@@ -168,12 +168,13 @@ def _render(candidates, shown, mesh_info, gripper_info, stats, notes) -> None:
     import numpy as np
     from rich import box
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     from geometry.candidates import SOURCE_FACET
 
     console = Console(highlight=False)
-    what = mesh_info.get("object") or mesh_info.get("file")
+    what = escape(str(mesh_info.get("object") or mesh_info.get("file")))
     ext = " x ".join(f"{1000 * x:.0f}" for x in mesh_info["extents"])
     console.print(
         f"[bold]{what}[/]: {mesh_info['faces']} faces, {ext} mm, "
@@ -186,7 +187,7 @@ def _render(candidates, shown, mesh_info, gripper_info, stats, notes) -> None:
         f"friction {gripper_info['friction']}, roll step {gripper_info['roll_step_deg']:g} deg"
     )
     for note in notes:
-        console.print(f"[yellow]note[/]: {note}", markup=True)
+        console.print(f"[yellow]note[/]: {escape(str(note))}")
     console.print(
         f"facets {stats.facets}, facet pairs {stats.facet_pairs} "
         f"({stats.overlapping_pairs} overlapping) -> {stats.facet_sites} facet sites; "
