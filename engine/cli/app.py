@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     except _click_exceptions() as e:
         e.show()
         return e.exit_code
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, *_click_exceptions("Abort")):
         return 130
     except Exception as e:  # noqa: BLE001 - the last line of defence: no tracebacks
         if debug:
@@ -135,7 +135,16 @@ def _globals_first(args: list[str]) -> list[str]:
     return front + rest
 
 
-def _click_exceptions() -> tuple[type[BaseException], ...]:
-    import click
+def _click_exceptions(name: str = "ClickException") -> tuple[type[BaseException], ...]:
+    """click's exception class ``name`` (``ClickException``: usage errors; ``Abort``: Ctrl-C),
+    from click itself and from typer >= 0.20, which vendors click as ``typer._click`` (with
+    ``Abort`` in ``typer.exceptions``) and raises those classes, which click's do not catch."""
+    import importlib
 
-    return (click.exceptions.ClickException,)
+    found = []
+    for module in ("click.exceptions", "typer._click.exceptions", "typer.exceptions"):
+        try:
+            found.append(getattr(importlib.import_module(module), name))
+        except (ImportError, AttributeError):
+            continue
+    return tuple(found)
