@@ -554,17 +554,21 @@ def _schema():
 
 
 def write_rows(path: Path | str, rows: list[dict]) -> None:
-    """Write ``rows`` sorted by key as Parquet (schema :data:`COLUMNS`), atomically."""
+    """Write ``rows`` sorted by key as Parquet (schema :data:`COLUMNS`), atomically.
+    UsageError when ``path`` cannot be written."""
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from engine.files import write_atomic
+    from engine.files import write_atomic, write_error
 
     rows = sorted(rows, key=row_key)
     table = pa.Table.from_pylist([{c: r.get(c) for c in COLUMNS} for r in rows], schema=_schema())
     sink = pa.BufferOutputStream()
     pq.write_table(table, sink, compression="zstd")
-    write_atomic(path, sink.getvalue().to_pybytes(), fsync=True)
+    try:
+        write_atomic(path, sink.getvalue().to_pybytes(), fsync=True)
+    except OSError as e:
+        raise write_error("--out", path, e) from None
 
 
 def read_rows(path: Path | str) -> list[dict]:
@@ -641,6 +645,7 @@ def run_batch(
     """
     out = Path(out)
     old = read_rows(out)
+    write_rows(out, old)  # an --out that cannot be written fails now, not after the batch
     done = {(row_key(r), r["content_hash"]) for r in old if r.get("error") is None}
     todo: list[Unit] = []
     skipped = 0
