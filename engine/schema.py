@@ -22,7 +22,7 @@ Kinds of KB document, one per file, told apart by their folder:
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal
+from typing import Annotated, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
@@ -171,16 +171,6 @@ class Part(KBModel):
 # toward_receiver: horizontal, from the robot to the receiver; away_from_receiver: its
 # opposite; up/down: world z; receiver_left/right: the receiver's own left/right;
 # receiver_dominant/nondominant: the side of the receiver's dominant hand or the other.
-DIRECTIONS = (
-    "toward_receiver",
-    "away_from_receiver",
-    "up",
-    "down",
-    "receiver_left",
-    "receiver_right",
-    "receiver_dominant",
-    "receiver_nondominant",
-)
 Direction = Literal[
     "toward_receiver",
     "away_from_receiver",
@@ -191,6 +181,7 @@ Direction = Literal[
     "receiver_dominant",
     "receiver_nondominant",
 ]
+DIRECTIONS: tuple[str, ...] = get_args(Direction)
 
 
 class PresentAxis(KBModel):
