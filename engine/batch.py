@@ -581,7 +581,8 @@ def read_rows(path: Path | str) -> list[dict]:
     if not path.exists():
         return []
     try:
-        table = pq.read_table(path)
+        with pq.ParquetFile(path) as pf:  # not read_table: it imports pyarrow.dataset
+            table = pf.read()
     except (OSError, pa.ArrowException, ValueError) as e:
         raise UsageError(
             f"--out {path}: exists but cannot be read as Parquet ({e}); "

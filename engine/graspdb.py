@@ -266,7 +266,8 @@ class GraspDB:
         if not path.is_file():
             return None
         try:
-            table = pq.read_table(path)
+            with pq.ParquetFile(path) as pf:  # not read_table: it imports pyarrow.dataset
+                table = pf.read()
         except (OSError, pa.ArrowException, ValueError) as e:
             raise EntryError(f"unreadable Parquet file: {e}") from e
         raw = (table.schema.metadata or {}).get(META_KEY)

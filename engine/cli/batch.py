@@ -14,18 +14,6 @@ OBJECTS_HELP = (
 )
 
 
-def db_root_option(db: Path | None, no_db: bool) -> Path | None:
-    """The grasp database folder for these options (None: no database on disk): ``--no-db``
-    wins, then ``--db``, then the global options if the app has them, then
-    ``$HANDOVER_DB``, then the user cache folder."""
-    from engine.graspdb import open_db
-
-    if no_db or getattr(state, "no_db", False):
-        return None
-    graspdb = open_db(db if db is not None else getattr(state, "db_dir", None))
-    return None if graspdb is None else graspdb.root
-
-
 @app.command()
 def batch(
     objects: str = typer.Option(..., "--objects", help=OBJECTS_HELP),
@@ -46,9 +34,9 @@ def batch(
                                    "'local' to start a local instance (needs the ray extra)."),
     max_retries: int = typer.Option(2, "--max-retries", min=0,
                                     help="Retries of a unit whose worker died."),
-    db: Path | None = typer.Option(None, "--db", envvar="HANDOVER_DB", file_okay=False,
-                                   help="Grasp database folder (default: the user cache "
-                                   "folder). Also $HANDOVER_DB."),
+    db: Path | None = typer.Option(None, "--db", file_okay=False,
+                                   help="Grasp database folder (default: $HANDOVER_DB, else "
+                                   "the user cache folder)."),
     no_db: bool = typer.Option(False, "--no-db", help="Use no grasp database on disk."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
 ) -> None:  # fmt: skip
@@ -64,12 +52,14 @@ def batch(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from engine.batch import expand, run_batch
+    from engine.graspdb import open_db
     from engine.loader import load_kb
 
     console = Console(stderr=True, highlight=False)
     kb = load_kb(state.kb_dir)
     units = expand(kb, objects, cultures, receivers, tasks, scene, mode)
-    db_root = db_root_option(db, no_db)
+    graspdb = open_db(db, disabled=no_db)
+    db_root = None if graspdb is None else graspdb.root
     bar = Progress(
         TextColumn("{task.description}"),
         BarColumn(),

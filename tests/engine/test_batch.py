@@ -244,8 +244,9 @@ def test_ray_missing_is_a_clear_error(kb, tmp_path, monkeypatch):
         _run(kb, units, tmp_path / "out.parquet", ray_address="local")
 
 
-def test_cli_batch(meshes, tmp_path):
+def test_cli_batch(meshes, tmp_path, monkeypatch):
     from engine.cli.app import main
+    from engine.graspdb import GraspDB
 
     out = tmp_path / "out.parquet"
     args = ["batch", "--objects", str(meshes), "--out", str(out), "--workers", "2",
@@ -254,7 +255,12 @@ def test_cli_batch(meshes, tmp_path):
     rows = batch.read_rows(out)
     assert len(rows) == len(GOOD + BROKEN)
     assert sum(1 for r in rows if r["error"]) == len(BROKEN)
+    assert len(GraspDB(tmp_path / "db").keys()) == len(GOOD)
     assert main([*args[:-1], "--no-db", "--no-progress"]) == 0
+    monkeypatch.setenv("HANDOVER_DB", str(tmp_path / "env_db"))
+    out2 = str(tmp_path / "out2.parquet")
+    assert main(["batch", "--objects", str(meshes), "--out", out2, "--no-progress"]) == 0
+    assert len(GraspDB(tmp_path / "env_db").keys()) == len(GOOD)
     assert main(["batch", "--objects", "kb", "--out", str(out), "--cultures", "martian"]) == 2
 
 
