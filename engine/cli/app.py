@@ -63,7 +63,6 @@ def main(argv: list[str] | None = None) -> int:
     from rich.markup import escape
 
     from engine.errors import EXIT_BAD_MESH, EXIT_INTERNAL, HandoverError, KBError
-    from geometry.mesh import MeshError
 
     args = _globals_first(list(sys.argv[1:] if argv is None else argv))
     debug = "--debug" in args or os.environ.get("HANDOVER_DEBUG") == "1"
@@ -90,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
             raise
         err.print(f"[bold red]error[/]: {escape(str(e))}")
         return e.exit_code
-    except MeshError as e:  # geometry's own error (geometry does not import engine)
+    except _mesh_error() as e:  # geometry's own error (geometry does not import engine)
         if debug:
             raise
         err.print(f"[bold red]bad mesh[/]: {escape(str(e))}")
@@ -111,6 +110,17 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         warnings.showwarning = shown
     return rc if isinstance(rc, int) else 0
+
+
+class _NoMeshError(Exception):
+    """Stands for MeshError while geometry.mesh is not imported (then none can be raised)."""
+
+
+def _mesh_error() -> type[Exception]:
+    """geometry.mesh.MeshError if that module was imported, without importing it (and numpy)
+    for commands that never touch a mesh."""
+    module = sys.modules.get("geometry.mesh")
+    return module.MeshError if module is not None else _NoMeshError
 
 
 def _globals_first(args: list[str]) -> list[str]:
