@@ -14,8 +14,9 @@ mug or a bottle has no large facets, so its grasps come from here:
    the friction cone of the line ``p -> q`` (:func:`geometry.quality.in_friction_cone`).
 4. Deduplicate: orient each pair canonically (contact 0 first when the axis points along a
    fixed generic direction); pairs whose two contacts are both within half the spacing of
-   another's are near-identical, and a pair is dropped when a near-identical one has a
-   better quality (ties to the earlier sample).
+   another's (in either order, so that the result does not depend on the object frame) are
+   near-identical, and a pair is dropped when a near-identical one has a better quality
+   (ties to the earlier sample).
 
 Sites keep the order of their samples. The reference approach (roll 0) is a deterministic
 perpendicular to the closing direction (:func:`geometry.frames.perpendicular`).
@@ -100,22 +101,27 @@ def sample_surface(
 def deduplicate(sites: ContactPairs, quality: np.ndarray, radius: float) -> np.ndarray:
     """Indices (sorted) of the sites to keep, dropping near-identical pairs.
 
-    Two sites are near-identical when, in canonical orientation, contact 0 is within
-    ``radius`` of contact 0 and contact 1 within ``radius`` of contact 1 (max-norm over the
-    six coordinates). A site is dropped when a near-identical site ranks better (higher
-    ``quality``, ties to the lower index); so the best of every cluster stays and clusters
-    do not chain into one.
+    Two sites are near-identical when each contact of one is within ``radius`` of a
+    different contact of the other (max-norm over the six coordinates, the contacts taken
+    in either order: which contact comes first depends on the object frame, the pair does
+    not). A site is dropped when a near-identical site ranks better (higher ``quality``
+    rounded to 1e-9, ties to the lower index, so that rounding noise of 1e-15 does not
+    decide); so the best of every cluster stays and clusters do not chain into one.
     """
     from scipy.spatial import cKDTree
 
     n = len(sites)
     if n <= 1:
         return np.arange(n)
-    pairs = cKDTree(sites.contacts.reshape(n, 6)).query_pairs(
-        radius, p=np.inf, output_type="ndarray"
+    tree = cKDTree(sites.contacts.reshape(n, 6))
+    pairs = tree.query_pairs(radius, p=np.inf, output_type="ndarray")
+    crossed = tree.sparse_distance_matrix(
+        cKDTree(sites.contacts[:, ::-1].reshape(n, 6)), radius, p=np.inf, output_type="ndarray"
     )
+    crossed = np.stack([crossed["i"], crossed["j"]], axis=1).astype(pairs.dtype)
+    pairs = np.concatenate([pairs.reshape(-1, 2), crossed[crossed[:, 0] != crossed[:, 1]]])
     rank = np.empty(n, dtype=np.int64)
-    rank[np.lexsort((np.arange(n), -quality))] = np.arange(n)
+    rank[np.lexsort((np.arange(n), -np.round(quality, 9)))] = np.arange(n)
     a, b = pairs[:, 0], pairs[:, 1]
     dropped = np.zeros(n, dtype=bool)
     dropped[np.where(rank[a] > rank[b], a, b)] = True
