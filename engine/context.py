@@ -94,6 +94,12 @@ class PlanContext:
         handover of a large object sets in ``cache["receiver_sites"]``."""
         return self.cache.get("receiver_sites") or [self.sites]
 
+    def gripper_poses(self) -> np.ndarray:
+        """(N, 4, 4): the candidates' gripper poses in the object frame (computed once)."""
+        if "poses" not in self.cache:
+            self.cache["poses"] = self.candidates.poses()
+        return self.cache["poses"]
+
     def d_obj(self) -> np.ndarray:
         """(K, 3): robot->receiver direction in the object frame, per presentation."""
         if "d_obj" not in self.cache:

@@ -21,7 +21,7 @@ from engine.compiler import CompiledRule, ConstraintGraph
 from engine.context import PlanContext
 from engine.rules import Outcome, evaluate_rule
 
-__all__ = ["Decision", "evaluate", "trace_row", "ROW_LIMIT"]
+__all__ = ["Decision", "evaluate", "infeasible_reason", "trace_row", "ROW_LIMIT"]
 
 # Rows beyond this are a sign of a mis-set generator; the error says how to fix it.
 ROW_LIMIT = 5_000_000
@@ -80,6 +80,20 @@ class Decision:
             keys[ids] += 1
         ranked = sorted(keys.items(), key=lambda kv: (len(kv[0]), -kv[1], kv[0]))
         return ranked[:limit]
+
+
+def infeasible_reason(decision: Decision, mode: str) -> str:
+    """One sentence: why no row of ``decision`` survived, naming the smallest blocking sets."""
+    if decision.n_rows == 0:
+        return f"{mode}: the object has no geometric grasp for this gripper"
+    sets = decision.blocking_sets()
+    parts = [
+        f"{' + '.join(ids)} ({count} candidate{'s' if count != 1 else ''})"
+        for ids, count in sets[:3]
+    ]
+    return f"{mode}: no candidate passes every hard rule; smallest blocking rule sets: " + (
+        "; ".join(parts)
+    )
 
 
 def evaluate(cg: ConstraintGraph, ctx: PlanContext) -> Decision:

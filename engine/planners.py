@@ -17,7 +17,7 @@ import numpy as np
 from engine.compiler import ConstraintGraph, compile
 from engine.context import PlanContext, build_context
 from engine.errors import UsageError
-from engine.evaluate import Decision, evaluate, trace_row
+from engine.evaluate import Decision, evaluate, infeasible_reason, trace_row
 from engine.query import Query, Situation, resolve_situation
 from engine.result import PlanResult
 
@@ -143,19 +143,6 @@ def prepare(kb: KB, query: Query, db=None) -> PlanContext:
     return ctx
 
 
-def _reason(decision: Decision, mode: str) -> str:
-    if decision.n_rows == 0:
-        return f"{mode}: the object has no geometric grasp for this gripper"
-    sets = decision.blocking_sets()
-    parts = [
-        f"{' + '.join(ids)} ({count} candidate{'s' if count != 1 else ''})"
-        for ids, count in sets[:3]
-    ]
-    return f"{mode}: no candidate passes every hard rule; smallest blocking rule sets: " + (
-        "; ".join(parts)
-    )
-
-
 def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
     """One hand, one grasp (seed 3.1): pick at the initial pose and hand over with the same
     grasp. Every hard rule filters, soft rules score; the best row wins."""
@@ -164,7 +151,7 @@ def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
     decision = evaluate(cg, ctx)
     ranking = decision.ranking()
     if len(ranking) == 0:
-        return Attempt("H1G1", False, _reason(decision, "H1G1"), cg, decision)
+        return Attempt("H1G1", False, infeasible_reason(decision, "H1G1"), cg, decision)
     best = int(ranking[0])
     i, k = int(decision.gi[best]), int(decision.pk[best])
     hand = _robot_hand(ctx, i, k)
@@ -181,7 +168,7 @@ def _robot_hand(ctx: PlanContext, i: int, k: int) -> str:
 def grasp_record(ctx: PlanContext, hand: str, i: int, k: int, score: float | None) -> dict:
     """A robot grasp as the JSON result describes it (object frame and world)."""
     c = ctx.candidates
-    pose = c.poses()[i] if "poses" not in ctx.cache else ctx.cache["poses"][i]
+    pose = ctx.gripper_poses()[i]
     return {
         "hand": hand,
         "id": i,
@@ -262,7 +249,7 @@ def _other_gripper_check(ctx: PlanContext, partner: int):
     from geometry.collision import grippers_collide
 
     def hit(gi: np.ndarray, pk: np.ndarray) -> np.ndarray:
-        poses, widths = ctx.cache.get("poses", ctx.candidates.poses()), ctx.candidates.width
+        poses, widths = ctx.gripper_poses(), ctx.candidates.width
         other = np.repeat(poses[partner][None], len(gi), axis=0)
         return grippers_collide(ctx.gripper, poses[gi], widths[gi], other,
                                 np.full(len(gi), widths[partner]), paired=True)

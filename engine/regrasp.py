@@ -22,8 +22,8 @@ import numpy as np
 
 from engine.compiler import CompiledRule, compile
 from engine.context import PlanContext
-from engine.evaluate import _entry, evaluate
-from engine.rules import _poses, evaluate_rule
+from engine.evaluate import _entry, evaluate, infeasible_reason
+from engine.rules import evaluate_rule
 
 if TYPE_CHECKING:
     from engine.loader import KB
@@ -105,7 +105,7 @@ def first_trace(ctx: PlanContext, rules: list[CompiledRule], all_rules: list[Com
 
 def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a midair regrasp; see the module docstring."""
-    from engine.planners import Attempt, _reason
+    from engine.planners import Attempt
     from geometry.collision import grippers_collide
 
     ctx.cache.update(_second_phase(ctx))
@@ -117,14 +117,14 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     extra = {"first_rejected_by": first_removed, "first_feasible": int(len(firsts))}
     ranking = decision.ranking()
     if len(ranking) == 0:
-        return Attempt("H2G2", False, _reason(decision, "H2G2") + " (second hand)", cg,
+        return Attempt("H2G2", False, infeasible_reason(decision, "H2G2") + " (second hand)", cg,
                        decision, extra=extra)
     if len(firsts) == 0:
         why = ", ".join(f"{k} ({v})" for k, v in first_removed.items()) or "no candidates"
         return Attempt("H2G2", False,
                        f"H2G2: no grasp can pick the object at its initial pose: {why}",
                        cg, decision, extra=extra)
-    poses = _poses(ctx)
+    poses = ctx.gripper_poses()
     widths = ctx.candidates.width
     pool = ranking[:SECOND_POOL]
     seconds = decision.gi[pool]

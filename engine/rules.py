@@ -239,16 +239,10 @@ def collision_scene(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
     known = ctx.cache.setdefault("collision_scene", np.full(ctx.n, -1, dtype=np.int8))
     todo = np.unique(gi[known[gi] < 0])
     if len(todo):
-        poses = np.einsum("ij,njk->nik", ctx.initial, _poses(ctx)[todo])
+        poses = np.einsum("ij,njk->nik", ctx.initial, ctx.gripper_poses()[todo])
         hit = ctx.scene.gripper_collides(ctx.gripper, poses, ctx.candidates.width[todo])
         known[todo] = hit.astype(np.int8)
     return known[gi].astype(bool)
-
-
-def _poses(ctx: PlanContext) -> np.ndarray:
-    if "poses" not in ctx.cache:
-        ctx.cache["poses"] = ctx.candidates.poses()
-    return ctx.cache["poses"]
 
 
 def receiver_hand_boxes(ctx: PlanContext, k: int) -> list:
@@ -287,7 +281,7 @@ def collision_receiver_hand(ctx: PlanContext, gi: np.ndarray, pk: np.ndarray) ->
     from geometry.collision import BoxWorld
 
     out = np.zeros(len(gi), dtype=bool)
-    poses = _poses(ctx)
+    poses = ctx.gripper_poses()
     for k in np.unique(pk):
         rows = np.flatnonzero(pk == k)
         boxes = receiver_hand_boxes(ctx, int(k))

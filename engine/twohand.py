@@ -22,9 +22,8 @@ import numpy as np
 
 from engine.compiler import ConstraintGraph, compile
 from engine.context import PlanContext
-from engine.evaluate import evaluate
+from engine.evaluate import evaluate, infeasible_reason
 from engine.presentation import predict_two_hand_sites
-from engine.rules import _poses
 
 if TYPE_CHECKING:
     from engine.loader import KB
@@ -61,13 +60,13 @@ def _palm_centres(ctx: PlanContext) -> np.ndarray:
     a mug."""
     g = ctx.gripper
     back = g.finger_length / 2.0 + g.palm[2] / 2.0
-    poses = _poses(ctx)
+    poses = ctx.gripper_poses()
     return poses[:, :3, 3] - back * poses[:, :3, 2]
 
 
 def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a two-handed handover; see the module docstring."""
-    from engine.planners import Attempt, _reason
+    from engine.planners import Attempt
     from geometry.collision import grippers_collide
 
     ctx.cache.update({"pickup": True, "receiver_present": True, "mode": "H2G1"})
@@ -86,7 +85,8 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
                        f"({facts.payload:g} kg)", cg, decision, extra=extra)
     ranking = decision.ranking()
     if len(ranking) == 0:
-        return Attempt("H2G1", False, _reason(decision, "H2G1"), cg, decision, extra=extra)
+        return Attempt("H2G1", False, infeasible_reason(decision, "H2G1"), cg, decision,
+                       extra=extra)
 
     up = np.array([0.0, 0.0, 1.0])
     lateral = np.cross(up, ctx.situation.toward)  # the robot's left
@@ -100,7 +100,7 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     left = t >= t_max[pk] - SIDE_BAND * span
     right = t <= t_min[pk] + SIDE_BAND * span
     com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
-    poses, widths = _poses(ctx), ctx.candidates.width
+    poses, widths = ctx.gripper_poses(), ctx.candidates.width
     best = None
     checked = colliding = 0
     for k in np.unique(pk):  # at most 24 presentations; pairs within one are vectorised
