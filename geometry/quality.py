@@ -104,11 +104,18 @@ def cone_angles(normals: np.ndarray, o: np.ndarray) -> np.ndarray:
 
     normals : (N, 2, 3) unit outward normals at contact 0 and contact 1.
     o : (N, 3) unit closing direction from contact 0 to contact 1.
-    Column 0 is ``angle(o, -normal0)``, column 1 is ``angle(o, normal1)``.
+    Column 0 is ``angle(o, -normal0)``, column 1 is ``angle(o, normal1)``, computed as
+    ``atan2(|n x o|, n . o)``: accurate near 0, where ``arccos`` turns rounding noise of
+    1e-16 into angles of 1e-8 rad (and the same grasp in a rotated frame would score
+    differently).
     """
+    normals = np.asarray(normals, dtype=float)
+    o = np.asarray(o, dtype=float)
     c0 = -np.einsum("ij,ij->i", normals[:, 0], o)
     c1 = np.einsum("ij,ij->i", normals[:, 1], o)
-    return np.arccos(np.clip(np.stack([c0, c1], axis=1), -1.0, 1.0))
+    s0 = np.linalg.norm(np.cross(normals[:, 0], o), axis=-1)
+    s1 = np.linalg.norm(np.cross(normals[:, 1], o), axis=-1)
+    return np.arctan2(np.stack([s0, s1], axis=1), np.stack([c0, c1], axis=1))
 
 
 def in_friction_cone(normals: np.ndarray, o: np.ndarray, friction: float) -> np.ndarray:
