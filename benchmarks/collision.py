@@ -20,13 +20,20 @@ Tables:
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
-import numpy as np
-import trimesh
-from scipy.spatial.transform import Rotation
+# Run as a file, this folder comes first on sys.path, where benchmarks/geometry.py would
+# shadow the geometry package. Drop it.
+_HERE = Path(__file__).resolve().parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
 
-from geometry.collision import (
+import numpy as np  # noqa: E402
+import trimesh  # noqa: E402
+from scipy.spatial.transform import Rotation  # noqa: E402
+
+from geometry.collision import (  # noqa: E402
     BoxWorld,
     ObjectCollider,
     _bvh_object,
@@ -34,8 +41,8 @@ from geometry.collision import (
     boxes_overlap,
     grippers_collide,
 )
-from geometry.gripper import Gripper
-from geometry.hand import HumanHand
+from geometry.gripper import Gripper  # noqa: E402
+from geometry.hand import HumanHand  # noqa: E402
 
 
 def candidate_poses(
