@@ -156,6 +156,15 @@ def _lint_mesh_file(kb: KB, obj: ObjectSpec) -> Iterator[KBIssue]:
     if not path.is_file():
         rel = os.path.relpath(path, root)
         yield kb.issue(mesh, f"mesh file '{name}' does not exist (looked for {rel})", "file")
+        return
+    real_root = os.path.realpath(root)
+    if os.path.commonpath([real_root, os.path.realpath(path)]) != real_root:
+        yield kb.issue(
+            mesh,
+            f"mesh file '{name}' leads through a symbolic link to {os.path.realpath(path)}, "
+            "outside the KB folder; copy the mesh into the KB",
+            "file",
+        )
 
 
 # ---------------------------------------------------------------- cultures and rules
