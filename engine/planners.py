@@ -273,8 +273,9 @@ def _traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
             entries = first_trace(ctx, first_rules(attempt.graph.hard), attempt.graph.order, i)
             stage = "pick"
         else:
-            if attempt.mode == "H2G2":
-                ctx.cache.update(pickup=False, receiver_present=True)
+            # H2G2's second hand never picks; in H2G1 the hands that lift it are named.
+            picks = attempt.mode == "H1G1" or hand in attempt.extra.get("pickup_hands", ())
+            ctx.cache.update(pickup=picks, receiver_present=True)
             entries = trace_row(attempt.graph, ctx, i, k)
             stage = "handover"
         trace.extend({"grasp": i, "hand": hand, "stage": stage, **e} for e in entries)
@@ -319,7 +320,8 @@ def build_result(
         "generation": ctx.generation,
     }
     for key in ("first_rejected_by", "first_feasible", "pairs_checked", "pairs_colliding",
-                "receiver_hands", "receiver_hands_why", "balance_offset_m"):
+                "pairs_not_liftable", "receiver_hands", "receiver_hands_why",
+                "balance_offset_m", "pickup_hands"):
         if key in attempt.extra:
             candidates[key] = attempt.extra[key]
     if d is not None and not attempt.feasible:

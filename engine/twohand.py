@@ -6,7 +6,11 @@ The receiver's hands are predicted first: two hands for a large object, one for 
 etiquette case (which it is is read from the KB: two hands when the mode rule that asked for
 H2G1 is about mass or size). Their hand models are obstacles for both robot grippers.
 
-Every rule of the culture applies to each robot grasp. The left hand's gripper has its palm
+Every rule of the culture applies to each robot grasp at the presentation. At pick-up, one
+hand must be able to take the object from the table (the other joins it in the air, as a
+person lifts a book with one hand and then offers it with both), or both hands when the
+object is heavier than one hand's payload. Every rule of the culture applies to each robot
+grasp. The left hand's gripper has its palm
 in the outer ``SIDE_BAND`` of the object's extent on the robot's left, or beyond it (it
 holds the left end, or comes from the left), the right hand's on its right, both in the
 same presentation. Pairs are kept when the two grippers do not collide and each
@@ -24,6 +28,7 @@ from engine.compiler import ConstraintGraph, compile
 from engine.context import PlanContext
 from engine.evaluate import evaluate, infeasible_reason
 from engine.presentation import predict_two_hand_sites
+from engine.rules import collision_scene
 
 if TYPE_CHECKING:
     from engine.loader import KB
@@ -69,7 +74,8 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     from engine.planners import Attempt
     from geometry.collision import grippers_collide
 
-    ctx.cache.update({"pickup": True, "receiver_present": True, "mode": "H2G1"})
+    # Rows are judged at the presentation; pick-up is a property of the pair (below).
+    ctx.cache.update({"pickup": False, "receiver_present": True, "mode": "H2G1"})
     cg = compile(kb, ctx, "H2G1")
     hands, hands_why = receiver_hand_count(cg)
     if hands == 2:
@@ -101,8 +107,9 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     right = t <= t_min[pk] + SIDE_BAND * span
     com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
     poses, widths = ctx.gripper_poses(), ctx.candidates.width
+    both_pick = facts.mass > facts.payload  # too heavy for one hand to lift alone
     best = None
-    checked = colliding = 0
+    checked = colliding = unpickable = 0
     for k in np.unique(pk):  # at most 24 presentations; pairs within one are vectorised
         li = ranking[(pk == k) & left][:SIDE_POOL]
         ri = ranking[(pk == k) & right][:SIDE_POOL]
@@ -121,19 +128,30 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
         balance = 1.0 - np.clip(off / max(facts.size / 2.0, 1e-9), 0.0, 1.0)
         mean = 0.5 * (decision.score[li][:, None] + decision.score[ri][None, :])
         score = (1 - BALANCE_WEIGHT) * mean + BALANCE_WEIGHT * balance
-        score = np.where(hit, -np.inf, score)
+        pick_l = ~collision_scene(ctx, gl)  # free of table and obstacles at pick-up
+        pick_r = ~collision_scene(ctx, gr)
+        lifts = (pick_l[:, None] & pick_r[None, :]) if both_pick else (
+            pick_l[:, None] | pick_r[None, :])
+        unpickable += int((~hit & ~lifts).sum())
+        score = np.where(hit | ~lifts, -np.inf, score)
         flat = int(np.argmax(score))
         a, b = divmod(flat, score.shape[1])
         if np.isfinite(score[a, b]) and (best is None or score[a, b] > best[0] + 1e-12):
             best = (float(score[a, b]), int(gl[a]), int(gr[b]), int(k), float(off[a, b]))
-    extra.update(pairs_checked=checked, pairs_colliding=colliding)
+    extra.update(pairs_checked=checked, pairs_colliding=colliding,
+                 pairs_not_liftable=unpickable)
     if best is None:
+        lift = "both hands" if both_pick else "either hand"
         return Attempt("H2G1", False,
                        f"H2G1: no pair of grasps at the far left and far right ({checked} pairs "
-                       f"checked, {colliding} with colliding grippers)", cg, decision,
-                       extra=extra)
+                       f"checked, {colliding} with colliding grippers, {unpickable} that "
+                       f"{lift} cannot take from the table)", cg, decision, extra=extra)
     score, i_left, i_right, k, off = best
+    picks = ~collision_scene(ctx, np.array([i_left, i_right]))
     extra["balance_offset_m"] = off
+    extra["pickup_hands"] = [h for h, ok in zip(("left", "right"), picks, strict=True) if ok]
+    if not both_pick:  # one hand lifts it; the other joins at the presentation
+        extra["pickup_hands"] = extra["pickup_hands"][:1]
     ctx.cache["partner"] = (i_left, i_right)
     return Attempt("H2G1", True, None, cg, decision,
                    [("left", i_left, k), ("right", i_right, k)], score, extra=extra)
