@@ -106,3 +106,16 @@ def test_an_object_no_mode_can_hand_over_exits_4_with_every_modes_reason(capsys,
     tried = {t["mode"]: t["reason"] for t in r["modes_tried"]}
     assert set(tried) == {"H1G1", "H2G2", "H2G1"}
     assert all(tried.values())
+
+
+def test_a_book_for_a_korean_elder_is_lifted_by_one_hand_and_given_with_two(capsys):
+    """The book lies on the table with only its near edge free: one hand lifts it, the other
+    joins it for the two-handed presentation; it stays upright and readable."""
+    r = plan(capsys, "book", "--receiver", "elder", "--culture", "korean")
+    assert r["feasible"] and r["mode"] == "H2G1"
+    assert len(r["candidates"]["pickup_hands"]) == 1
+    axes = r["presentation"]["axes_world"]
+    assert np.degrees(np.arccos(np.clip(axes["up"][2], -1, 1))) <= 20
+    lifting = r["candidates"]["pickup_hands"][0]
+    joining = next(e for e in r["trace"] if e["hand"] != lifting and e["rule"] == "collision_free")
+    assert joining["status"] == "pass"
