@@ -19,7 +19,7 @@ import numpy as np
 
 from engine.compiler import CompiledRule, ConstraintGraph
 from engine.context import PlanContext
-from engine.rules import Outcome, evaluate_rule
+from engine.rules import Outcome, collision_targets, evaluate_rule
 
 __all__ = ["Decision", "evaluate", "infeasible_reason", "trace_row", "ROW_LIMIT"]
 
@@ -172,6 +172,8 @@ def trace_row(cg: ConstraintGraph, ctx: PlanContext, grasp: int, presentation: i
         entry = _entry(c, status, out, passed)
         if out.unit == "part index" and entry["measured"] is not None and entry["measured"] >= 0:
             entry["measured_part"] = ctx.part_mesh.part_names[int(entry["measured"])]
+        if c.rule.kind == "collision" and not passed:
+            entry["hits"] = collision_targets(float(out.measured[0]))
         entries.append(entry)
     for c in cg.inactive:
         entries.append(_entry(c, "not_applicable", None, None))

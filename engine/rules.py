@@ -294,26 +294,45 @@ def collision_receiver_hand(ctx: PlanContext, gi: np.ndarray, pk: np.ndarray) ->
     return out
 
 
+# Bits of a collision rule's measured value: which targets were hit.
+COLLISION_BITS = {"scene": 1, "receiver_hand": 2, "other_gripper": 4}
+
+
+def collision_targets(measured: float) -> list[str]:
+    """The targets a collision rule's measured bit mask names (e.g. 3 -> scene, hand)."""
+    bits = int(measured) if np.isfinite(measured) else 0
+    return [name for name, bit in COLLISION_BITS.items() if bits & bit]
+
+
 def _collision(rule: Rule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray) -> Outcome:
-    hit = np.zeros(len(gi), dtype=bool)
+    mask = np.zeros(len(gi), dtype=np.int64)
+    checked = []
     for target in rule.against:
+        hit = None
         if target == "scene":
-            # The scene is met at pick-up; a hand that never picks (H2G2's second hand)
-            # sets ctx.cache["pickup"] = False.
+            # The scene is met at pick-up; a hand that never picks (H2G2's second hand, the
+            # joining hand of H2G1) sets ctx.cache["pickup"] = False.
             if ctx.cache.get("pickup", True):
-                hit |= collision_scene(ctx, gi)
+                hit = collision_scene(ctx, gi)
         elif target == "receiver_hand":
             # Absent while the robot passes the object between its own hands (H2G2 pick).
             if ctx.cache.get("receiver_present", True):
-                hit |= collision_receiver_hand(ctx, gi, pk)
+                hit = collision_receiver_hand(ctx, gi, pk)
         elif target == "other_gripper":
             other = ctx.cache.get("other_gripper_hit")
             if other is not None:
-                hit |= other(gi, pk)
-        # "object": every generated candidate is already free of the object.
-    ok = ~hit
-    return Outcome(ok, hit.astype(float), ok.astype(float),
-                   "no collision with " + ", ".join(rule.against), "collides")
+                hit = other(gi, pk)
+        else:
+            # "object": every generated candidate is already free of the object.
+            checked.append(target)
+            continue
+        if hit is not None:
+            checked.append(target)
+            mask |= np.where(hit, COLLISION_BITS[target], 0)
+    ok = mask == 0
+    return Outcome(ok, mask.astype(float), ok.astype(float),
+                   "no collision with " + ", ".join(checked or ["nothing checked here"]),
+                   "collides")
 
 
 _KINDS = {

@@ -42,6 +42,8 @@ def _trace_tree(title: str, entries: list[dict]):
             measured = _fmt(e["measured"], e.get("unit", ""))
             if e.get("measured_part"):
                 measured = f"part {e['measured_part']}"
+            if e["kind"] == "collision":
+                measured = "hits " + ", ".join(e["hits"]) if e.get("hits") else "free"
             score = "" if e["hard"] else f", score {_fmt(e['score'])}"
             label = (f"{status} [bold]{e['rule']}[/] ({kind}): measured {escape(measured)} vs "
                      f"{escape(e['threshold'])}{score}")
