@@ -282,16 +282,26 @@ def project_overlaps(facets: Facets, i: np.ndarray, j: np.ndarray, u: np.ndarray
 
 def _envelope_axes(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per geometry: corners (P, 4, 2) of its minimum rotated rectangle, the unit long axis
-    (P, 2) and the short side length (P,)."""
+    (P, 2) and the short side length (P,).
+
+    The rectangle has a side along an edge of the geometry's convex hull (rotating
+    calipers). Rectangles whose areas tie within 1e-9 (every acute triangle has three, one
+    per edge) are told apart by the longer long side, then by the hull's order: a choice
+    made by the shape, not by rounding in the frame the mesh was written in (shapely's
+    ``oriented_envelope`` picks among ties by rounding).
+    """
     import shapely
 
     p_count = len(geoms)
-    coords, owner = shapely.get_coordinates(shapely.oriented_envelope(geoms), return_index=True)
-    if p_count and np.all(np.bincount(owner, minlength=p_count) == 5):
-        rect = coords.reshape(p_count, 5, 2)[:, :4]
-    else:  # a degenerate envelope: fall back to the bounding boxes
-        b = shapely.bounds(geoms)
-        rect = np.stack([b[:, [0, 1]], b[:, [2, 1]], b[:, [2, 3]], b[:, [0, 3]]], axis=1)
+    rect = np.zeros((p_count, 4, 2))
+    hulls = shapely.convex_hull(geoms)
+    for p, hull in enumerate(hulls):
+        pts = shapely.get_coordinates(hull)
+        if len(pts) >= 4 and shapely.get_type_id(hull) == 3:  # a polygon: closed ring
+            rect[p] = _min_rectangle(pts[:-1])
+        else:  # a degenerate envelope: fall back to the bounding box
+            b = shapely.bounds(geoms[p])
+            rect[p] = [b[[0, 1]], b[[2, 1]], b[[2, 3]], b[[0, 3]]]
     side1 = rect[:, 1] - rect[:, 0]
     side2 = rect[:, 2] - rect[:, 1]
     len1 = np.linalg.norm(side1, axis=1)
@@ -299,6 +309,25 @@ def _envelope_axes(geoms: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     long_vec = np.where((len1 >= len2)[:, None], side1, side2)
     long_axis = long_vec / np.maximum(np.linalg.norm(long_vec, axis=1, keepdims=True), 1e-300)
     return rect, long_axis, np.minimum(len1, len2)
+
+
+def _min_rectangle(ring: np.ndarray) -> np.ndarray:
+    """(4, 2) corners of the least-area rectangle around the convex polygon ``ring`` (H, 2)
+    (vertices in order, not closed), with the tie-breaks of :func:`_envelope_axes`."""
+    edges = np.roll(ring, -1, axis=0) - ring
+    length = np.linalg.norm(edges, axis=1)
+    ok = length > 0
+    u = edges[ok] / length[ok, None]  # (E, 2) edge directions
+    v = np.stack([-u[:, 1], u[:, 0]], axis=1)
+    along, across = ring @ u.T, ring @ v.T  # (H, E)
+    lo_u, hi_u, lo_v, hi_v = along.min(0), along.max(0), across.min(0), across.max(0)
+    area = (hi_u - lo_u) * (hi_v - lo_v)
+    longest = np.maximum(hi_u - lo_u, hi_v - lo_v)
+    best = np.flatnonzero(area <= area.min() * (1.0 + 1e-9))
+    best = best[longest[best] >= longest[best].max() * (1.0 - 1e-9)]
+    e = int(best[0])
+    corners = [(lo_u[e], lo_v[e]), (hi_u[e], lo_v[e]), (hi_u[e], hi_v[e]), (lo_u[e], hi_v[e])]
+    return np.array([a * u[e] + b * v[e] for a, b in corners])
 
 
 def _grid_points(overlap, shrunk, rect, long_axis, spacing):
@@ -364,7 +393,13 @@ def _clean_rings(rings: np.ndarray, tol: float) -> np.ndarray:
         remap = np.full(len(rings), -1)
         remap[ids] = np.arange(len(ids))
         rebuilt = shapely.linearrings(coords[order][keep], indices=remap[ring[keep]])
-        out[ids] = shapely.simplify(rebuilt, tol)
+        # GEOS's topology-preserving simplifier leaves a ring of 4 vertices alone (a
+        # triangle keeps an extra vertex on an edge); plain Douglas-Peucker first, and the
+        # topology-preserving one where that made a ring invalid or degenerate
+        simple = shapely.simplify(rebuilt, tol, preserve_topology=False)
+        bad = ~shapely.is_valid(simple) | (shapely.get_num_coordinates(simple) < 4)
+        simple[bad] = shapely.simplify(rebuilt[bad], tol)
+        out[ids] = simple
     return out
 
 
@@ -475,8 +510,13 @@ def overlap_site_points(
     missing = np.setdiff1d(np.arange(p_count), owner)
     if len(missing):
         base = np.where(shapely.is_empty(shrunk[missing]), overlap[missing], shrunk[missing])
+        # the centroid when it lies inside (the seed's P_ic), else GEOS's point on surface
+        # (found along a horizontal line of the 2D frame: frame-dependent, so second choice)
+        inner = shapely.centroid(base)
+        outside = ~shapely.covers(base, inner)
+        inner[outside] = shapely.point_on_surface(base[outside])
         owner = np.concatenate([owner, missing])
-        xy = np.concatenate([xy, shapely.get_coordinates(shapely.point_on_surface(base))])
+        xy = np.concatenate([xy, shapely.get_coordinates(inner)])
         approach = np.concatenate([approach, long_axis[missing]])
     order = np.argsort(owner, kind="stable")
     return owner[order], xy[order], approach[order]
