@@ -21,6 +21,8 @@ import numpy as np
 
 # A compact object's receiver hand stops this far (m) short of the object's middle.
 COMPACT_GAP = 0.005
+BAND_TOL = 1e-9
+"""m: samples this close outside a hand's band still count (rounding, not geometry)."""
 
 __all__ = [
     "presentation_rotations",
@@ -176,7 +178,9 @@ def predict_receiver_sites(
         target = np.maximum(s_max - grip_width / 2.0, 0.5 * (s_min + s_max))
     else:
         target = (3.0 * s_max + s_min) / 4.0
-    band = np.abs(s - target[None, :]) <= grip_width / 2.0  # (M, K)
+    # the far end's target is exactly half a grip from the extreme sample: include it
+    # whatever the rounding (BAND_TOL), or the site would depend on the mesh's frame
+    band = np.abs(s - target[None, :]) <= grip_width / 2.0 + BAND_TOL  # (M, K)
     counts = band.sum(axis=0)
     # Where the band is empty (a tiny region), fall back to the nearest sample.
     nearest = np.argmin(np.abs(s - target[None, :]), axis=0)
@@ -245,7 +249,7 @@ def predict_two_hand_sites(
     for sign in (1.0, -1.0):
         t_target = t_mid + sign * t_half
         dist = np.maximum(np.abs(s - s_target), np.abs(t - t_target))  # (M, K)
-        band = dist <= grip_width / 2.0
+        band = dist <= grip_width / 2.0 + BAND_TOL  # the edge sample, see above
         nearest = np.argmin(dist, axis=0)
         band[nearest, np.arange(k)] |= ~band.any(axis=0)
         counts = band.sum(axis=0)
