@@ -160,7 +160,8 @@ def predict_receiver_sites(
     the receiver's half, s* = (3 s_max + s_min) / 4; ``far_end``: at s* = s_max - grip_width/2
     (clamped into the region). C is the mean of the region samples within ``grip_width / 2``
     of s*, which for a handle is a point on its axis. A region shorter than the hand is
-    wide (a ball): the hand pinches its receiver cap, from the receiver's face to
+    wide (a ball), or an untagged region shorter than two hands (a small box, which the robot
+    holds too): the hand pinches its receiver cap, from the receiver's face to
     ``COMPACT_GAP`` short of the middle, so the robot can hold it across the middle.
 
     rotations : (K, 3, 3) object -> world. grip_width : m, the hand's width along the part.
@@ -193,7 +194,10 @@ def predict_receiver_sites(
         np.add.at(votes[col], region.parts[band[:, col]], 1.0)
     part = votes.argmax(axis=1)
     length = float(np.ptp(region.points @ region.axis))
-    if length < grip_width:
+    # A part the receiver is meant to hold (a handle) takes the hand around it. An object
+    # with no such part is held by the robot as well: the hand may only take the receiver's
+    # half, so one shorter than two hands is cupped too (a 10 cm box, not only a ball).
+    if length < grip_width or (not region.tags and length < 2.0 * grip_width):
         # A compact region (a ball, a short box): no handle to close around, so the hand
         # cups the receiver's half. Site at s*, hand wrapping the horizontal lateral
         # direction, its thickness the depth of that half along robot->receiver.
