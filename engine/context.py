@@ -26,7 +26,7 @@ from engine.query import Situation
 if TYPE_CHECKING:
     from geometry.candidates import CandidateSet
     from geometry.collision import BoxWorld
-    from geometry.gripper import Gripper
+    from geometry.gripper import Gripper, PosedBoxes
     from geometry.hand import HumanHand
     from geometry.mesh import PartMesh
 
@@ -99,6 +99,14 @@ class PlanContext:
         if "poses" not in self.cache:
             self.cache["poses"] = self.candidates.poses()
         return self.cache["poses"]
+
+    def gripper_boxes(self) -> PosedBoxes:
+        """The gripper's boxes at every candidate, object frame (posed once)."""
+        if "gripper_boxes" not in self.cache:
+            self.cache["gripper_boxes"] = self.gripper.posed_boxes(
+                self.gripper_poses(), self.candidates.width
+            )
+        return self.cache["gripper_boxes"]
 
     def d_obj(self) -> np.ndarray:
         """(K, 3): robot->receiver direction in the object frame, per presentation."""

@@ -64,8 +64,9 @@ class Decision:
 
     def rejected_by(self) -> dict[str, int]:
         """Rows removed by each hard rule: the first rule (in order) a row failed."""
-        counts = Counter(int(i) for i in self.first_fail if i >= 0)
-        return {self.hard[i].id: counts[i] for i in range(len(self.hard)) if counts[i]}
+        first = self.first_fail[self.first_fail >= 0]
+        counts = np.bincount(first, minlength=len(self.hard))
+        return {self.hard[i].id: int(counts[i]) for i in range(len(self.hard)) if counts[i]}
 
     def blocking_sets(self, limit: int = 5) -> list[tuple[tuple[str, ...], int]]:
         """The smallest sets of hard rules that, if lifted, would let some row through, with

@@ -281,16 +281,19 @@ def collision_receiver_hand(ctx: PlanContext, gi: np.ndarray, pk: np.ndarray) ->
     from geometry.collision import BoxWorld
 
     out = np.zeros(len(gi), dtype=bool)
-    poses = ctx.gripper_poses()
+    # The grippers are posed once in the object frame; each presentation's hands are moved
+    # into it (two boxes per hand, instead of every gripper into the world).
+    posed = ctx.gripper_boxes()
     for k in np.unique(pk):
         rows = np.flatnonzero(pk == k)
         boxes = receiver_hand_boxes(ctx, int(k))
         if not boxes:
             continue
-        world = np.einsum("ij,njk->nik", ctx.poses[k], poses[gi[rows]])
-        out[rows] = BoxWorld(boxes).gripper_collides(
-            ctx.gripper, world, ctx.candidates.width[gi[rows]]
-        )
+        hands = BoxWorld(boxes).moved(np.linalg.inv(ctx.poses[k]))
+        sel = gi[rows]
+        out[rows] = hands.posed_hits(
+            posed._replace(centres=posed.centres[sel], rotations=posed.rotations[sel])
+        ).any(axis=1)
     return out
 
 

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geometry.gripper import Box, Gripper, check_poses
+from geometry.gripper import Box, Gripper, PosedBoxes, check_poses
 
 if TYPE_CHECKING:
     import trimesh
@@ -316,12 +316,18 @@ class BoxWorld:
         r = np.broadcast_to(rotations, shape + (3, 3)).reshape(-1, 3, 3)
         e = np.broadcast_to(extents, shape + (3,)).reshape(-1, 3)
         flat = out.reshape(-1, k)
-        step = max(1, _SAT_CHUNK // k)
-        for s in range(0, len(c), step):
-            flat[s : s + step] = boxes_overlap(
-                c[s : s + step, None], r[s : s + step, None], e[s : s + step, None],
-                self.centres, self.rotations, self.extents,
-            )  # fmt: skip
+        # Bounding spheres first: a pair whose centres are farther apart than the sum of the
+        # half-diagonals cannot touch, so only the others go through the 15-axis test.
+        reach = 0.5 * np.linalg.norm(e, axis=1)[:, None] + 0.5 * np.linalg.norm(
+            self.extents, axis=1
+        )[None, :]
+        gap = np.linalg.norm(c[:, None, :] - self.centres[None, :, :], axis=2)
+        rows, cols = np.nonzero(gap <= reach * (1.0 + 1e-9) + _SAT_EPS)
+        for s in range(0, len(rows), _SAT_CHUNK):
+            i, j = rows[s : s + _SAT_CHUNK], cols[s : s + _SAT_CHUNK]
+            flat[i, j] = boxes_overlap(
+                c[i], r[i], e[i], self.centres[j], self.rotations[j], self.extents[j]
+            )
         return out
 
     def gripper_hits(
@@ -339,11 +345,25 @@ class BoxWorld:
         ``hits.any(axis=1)`` is :meth:`gripper_collides`; ``hits.argmax(axis=1)`` names the
         first obstacle hit (check ``any`` first).
         """
-        posed = gripper.posed_boxes(poses_world, widths)
+        return self.posed_hits(gripper.posed_boxes(poses_world, widths), margin=margin)
+
+    def posed_hits(self, posed: PosedBoxes, *, margin: float = 0.0) -> np.ndarray:
+        """(N, K) bool: :meth:`gripper_hits` for grippers already posed in W (posing many
+        grasps once and testing them against several box worlds saves the posing)."""
         per_part = self.boxes_hit(
             posed.centres, posed.rotations[:, None], posed.extents + 2.0 * float(margin)
         )
         return per_part.any(axis=1)
+
+    def moved(self, transform: np.ndarray) -> BoxWorld:
+        """The same boxes in another frame: ``transform`` (4, 4) maps W to that frame."""
+        transform = _check_rigid(transform, "transform")
+        out = object.__new__(BoxWorld)
+        rot, shift = transform[:3, :3], transform[:3, 3]
+        out.names, out.extents = self.names, self.extents
+        out.centres = self.centres @ rot.T + shift
+        out.rotations = np.einsum("ij,kjl->kil", rot, self.rotations)
+        return out
 
     def gripper_collides(
         self,
