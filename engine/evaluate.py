@@ -12,7 +12,6 @@ deterministic.
 
 from __future__ import annotations
 
-from collections import Counter
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -75,10 +74,18 @@ class Decision:
             return []
         # Rows that were fully checked (collision rules evaluated) give exact sets; rows that
         # failed cheap rules were not collision-checked, their sets are lower bounds.
-        keys = Counter()
-        for row in np.flatnonzero(self.fails.any(axis=1)):
-            ids = tuple(self.hard[h].id for h in np.flatnonzero(self.fails[row]))
-            keys[ids] += 1
+        failing = self.fails[self.fails.any(axis=1)]
+        n_hard = failing.shape[1]
+        if n_hard <= 62:  # one integer per row: a plain sort instead of a row-wise one
+            weights = np.left_shift(np.int64(1), np.arange(n_hard, dtype=np.int64))
+            codes, counts = np.unique(failing.astype(np.int64) @ weights, return_counts=True)
+            patterns = (codes[:, None] & weights[None, :]) != 0
+        else:
+            patterns, counts = np.unique(failing, axis=0, return_counts=True)
+        keys = {
+            tuple(self.hard[h].id for h in np.flatnonzero(pattern)): int(count)
+            for pattern, count in zip(patterns, counts, strict=True)
+        }
         ranked = sorted(keys.items(), key=lambda kv: (len(kv[0]), -kv[1], kv[0]))
         return ranked[:limit]
 
