@@ -255,13 +255,26 @@ class ObjectCollider:
         nearest = np.clip(local, -extents / 2.0, extents / 2.0)
         near &= ((local - nearest) ** 2).sum(axis=2) <= self._radius**2
 
+        # A near part lying inside the mesh's bounding box collides if its centre is inside
+        # the mesh (it crosses the surface or lies wholly within); one batched point test
+        # settles those rows before any pairwise call.
         hit = np.zeros(n_rows, dtype=bool)
+        rows, cols = np.nonzero(near)
+        if len(rows):
+            part_c = centres[rows, cols]
+            reach = np.einsum("mij,mj->mi", np.abs(rot4[rows, cols]), extents[cols] / 2.0)
+            boxed = (np.abs(part_c - box_centre) + reach <= box_ext / 2.0).all(axis=1)
+            if boxed.any():
+                inside = self.mesh.contains(part_c[boxed])
+                hit[rows[boxed][inside]] = True
+
+        # The rest: a part collides where it crosses the surface (python-fcl, box vs BVH).
         parts = [fcl.CollisionObject(fcl.Box(*map(float, e)), fcl.Transform()) for e in extents]
         target = self._fcl_object
         request = fcl.CollisionRequest()
         make, collide = fcl.Transform, fcl.collide
         near_rows = near.tolist()
-        for i in np.flatnonzero(near.any(axis=1)).tolist():
+        for i in np.flatnonzero(near.any(axis=1) & ~hit).tolist():
             row = near_rows[i]
             for k in range(n_boxes):
                 if row[k]:
@@ -270,17 +283,6 @@ class ObjectCollider:
                     if collide(part, target, request):
                         hit[i] = True
                         break
-
-        # No crossing surfaces left: a near part collides if it lies inside the mesh (then
-        # its centre does). Only parts inside the mesh's bounding box can.
-        rows, cols = np.nonzero(near & ~hit[:, None])
-        if len(rows):
-            part_c = centres[rows, cols]
-            reach = np.einsum("mij,mj->mi", np.abs(rot4[rows, cols]), extents[cols] / 2.0)
-            boxed = (np.abs(part_c - box_centre) + reach <= box_ext / 2.0).all(axis=1)
-            if boxed.any():
-                inside = self.mesh.contains(part_c[boxed])
-                hit[rows[boxed][inside]] = True
         return hit
 
 
