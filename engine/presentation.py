@@ -23,6 +23,10 @@ import numpy as np
 COMPACT_GAP = 0.005
 BAND_TOL = 1e-9
 """m: samples this close outside a hand's band still count (rounding, not geometry)."""
+ISOTROPY = 0.95
+"""A region whose second principal spread is at least this fraction of its first has no long
+direction of its own (a disc, a square plate, a cube): its frame, not its shape, would pick
+the SVD's axis, so the hand's axis is taken from the presentation instead."""
 
 __all__ = [
     "presentation_rotations",
@@ -30,6 +34,7 @@ __all__ = [
     "ReceiverRegion",
     "ReceiverSites",
     "receiver_region",
+    "hand_axes",
     "predict_receiver_sites",
     "predict_two_hand_sites",
 ]
@@ -81,14 +86,20 @@ class ReceiverRegion:
 
     points : (M, 3) float, m. Area-weighted face centroids of the allowed parts.
     parts : (M,) int. Part index of each point.
-    axis : (3,) unit. Long direction of the region (the hand wraps around it).
+    axis : (3,) unit. Long direction of the region (the hand wraps around it); meaningless
+        where ``isotropic``.
     tags : the tags that selected the region (empty: every part not forbidden).
+    isotropic : the region has no long direction (see ``ISOTROPY``).
+    normal : (3,) unit or None. For an isotropic region that is flat (a disc, a plate), the
+        normal of its plane; None for one that is round in every direction (a cube).
     """
 
     points: np.ndarray
     parts: np.ndarray
     axis: np.ndarray
     tags: tuple[str, ...]
+    isotropic: bool = False
+    normal: np.ndarray | None = None
 
     @property
     def empty(self) -> bool:
@@ -115,15 +126,50 @@ def receiver_region(
     mask = chosen[face_part] if len(part_tags) else np.zeros(len(face_part), dtype=bool)
     points = face_centroids[mask]
     axis = np.array([1.0, 0.0, 0.0])
+    isotropic, normal = False, None
     if len(points) >= 2:
         centred = points - points.mean(axis=0)
-        _, _, vt = np.linalg.svd(centred, full_matrices=False)
+        _, spread, vt = np.linalg.svd(centred, full_matrices=False)
         axis = vt[0] / np.linalg.norm(vt[0])
         # Fix the sign for determinism: largest component positive.
         if axis[np.argmax(np.abs(axis))] < 0:
             axis = -axis
+        spread = np.concatenate([spread, np.zeros(3 - len(spread))])
+        isotropic = bool(spread[1] >= ISOTROPY * spread[0] > 0)
+        if isotropic and spread[2] < ISOTROPY * spread[1] and len(vt) == 3:
+            normal = vt[2] / np.linalg.norm(vt[2])
     used = tuple(sorted(want_tags)) if want_tags and (allowed & wanted).any() else ()
-    return ReceiverRegion(points=points, parts=face_part[mask], axis=axis, tags=used)
+    return ReceiverRegion(points=points, parts=face_part[mask], axis=axis, tags=used,
+                          isotropic=isotropic, normal=normal)  # fmt: skip
+
+
+def hand_axes(region: ReceiverRegion, rotations: np.ndarray, toward: np.ndarray) -> np.ndarray:
+    """(K, 3) unit, object frame: the direction the receiver's hand wraps around in each
+    presentation. The region's long axis where it has one; for an isotropic region, the
+    tangent of its rim at the point nearest the receiver: in its plane (if flat), across the
+    robot->receiver direction, horizontal where it can be, else vertical. These depend on the
+    presentation (world directions), never on the frame the mesh was written in.
+
+    rotations : (K, 3, 3) object -> world. toward : (3,) unit, world, robot -> receiver.
+    """
+    k = len(rotations)
+    if not region.isotropic:
+        return np.broadcast_to(region.axis, (k, 3)).copy()
+    up = np.array([0.0, 0.0, 1.0])
+    d_obj = np.einsum("kji,j->ki", rotations, toward)
+    choices = [np.einsum("kji,j->ki", rotations, np.cross(up, toward)),
+               np.einsum("kji,j->ki", rotations, up)]  # fmt: skip
+    out = choices[0].copy()
+    if region.normal is not None:
+        n = region.normal
+        d_in = d_obj - np.outer(d_obj @ n, n)
+        rim = np.cross(n[None, :], d_in)  # tangent at the receiver's rim point
+        out = np.where((np.linalg.norm(rim, axis=1) > 0.3)[:, None], rim, np.nan)
+        for choice in choices:  # facing the receiver: horizontal in the plane, else vertical
+            flat = choice - np.outer(choice @ n, n)
+            todo = np.isnan(out[:, 0]) & (np.linalg.norm(flat, axis=1) > 0.3)
+            out[todo] = flat[todo]
+    return out / np.linalg.norm(out, axis=1, keepdims=True)
 
 
 @dataclass
@@ -193,7 +239,10 @@ def predict_receiver_sites(
     for col in range(k):  # K = 24: a per-presentation tally, not per candidate
         np.add.at(votes[col], region.parts[band[:, col]], 1.0)
     part = votes.argmax(axis=1)
-    length = float(np.ptp(region.points @ region.axis))
+    axes = hand_axes(region, rotations, toward)  # (K, 3)
+    # The region's length along the hand: for an isotropic one, its longest extent over the
+    # presentations' hand axes (a frame-free measure, where the SVD axis is not).
+    length = float(np.ptp(region.points @ axes.T, axis=0).max())
     # A part the receiver is meant to hold (a handle) takes the hand around it. An object
     # with no such part is held by the robot as well: the hand may only take the receiver's
     # half, so one shorter than two hands is cupped too (a 10 cm box, not only a ball).
@@ -210,12 +259,13 @@ def predict_receiver_sites(
         centre_s = s_max - thickness / 2.0
         site = site + (centre_s - np.einsum("ki,ki->k", site, d_obj))[:, None] * d_obj
         return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj)
-    # Section thickness: spread of the band samples across the region axis.
-    across = region.points - np.outer(region.points @ region.axis, region.axis)
+    # Section thickness: spread of the band samples across the hand's axis.
     for col in range(k):
-        pts = across[band[:, col]]
+        pts = region.points[band[:, col]]
+        pts = pts - np.outer(pts @ axes[col], axes[col])
         thickness[col] = float(np.ptp(pts, axis=0).max()) if len(pts) > 1 else 0.02
-    return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool))
+    return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool),
+                         axis=axes if region.isotropic else None)  # fmt: skip
 
 
 def predict_two_hand_sites(

@@ -6,6 +6,7 @@ import numpy as np
 from numpy.testing import assert_allclose
 
 from engine.presentation import (
+    hand_axes,
     handover_poses,
     predict_receiver_sites,
     predict_two_hand_sites,
@@ -99,3 +100,27 @@ def test_two_hand_sites_are_on_the_receivers_edge_left_and_right():
     assert abs(right.site[0][0] - 0.11) < 0.02 and abs(left.site[0][0] - 0.11) < 0.02
     assert abs(right.site[0][1] - (0.25 - 0.08)) < 0.02
     assert abs(left.site[0][1] + (0.25 - 0.08)) < 0.02
+
+
+def test_a_disc_has_no_long_axis_and_the_hand_takes_its_rim_tangent():
+    # A disc of radius 12 cm in the object's xy plane, sampled on rings.
+    r, a = np.meshgrid(np.linspace(0.01, 0.12, 12), np.linspace(0, 2 * np.pi, 72, endpoint=False))
+    pts = np.stack([(r * np.cos(a)).ravel(), (r * np.sin(a)).ravel(), np.zeros(r.size)], axis=1)
+    region = receiver_region(pts, np.zeros(len(pts), dtype=np.int64), [set()], set(), set())
+    assert region.isotropic
+    assert_allclose(np.abs(region.normal), [0, 0, 1], atol=1e-9)
+    rots = presentation_rotations(TOWARD)
+    axes = hand_axes(region, rots, TOWARD)
+    world = np.einsum("kij,kj->ki", rots, axes)
+    for k, rot in enumerate(rots):
+        normal_w = rot @ region.normal
+        if abs(normal_w[0]) > 0.9:  # facing the receiver: the hand's axis is horizontal
+            assert abs(world[k][2]) < 1e-9
+        else:  # the rim tangent at the point nearest the receiver: across robot->receiver
+            assert abs(world[k][0]) < 1e-9
+        assert abs(world[k] @ normal_w) < 1e-9  # in the disc's plane
+    # A ruler is not isotropic: its hand axis is its length, in every presentation.
+    ruler = receiver_region(pts * [1.0, 0.1, 1.0], np.zeros(len(pts), dtype=np.int64), [set()],
+                            set(), set())  # fmt: skip
+    assert not ruler.isotropic
+    assert_allclose(np.abs(hand_axes(ruler, rots, TOWARD)), [[1, 0, 0]] * 24, atol=1e-9)
