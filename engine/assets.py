@@ -70,14 +70,25 @@ def mesh_file_object(path: str | Path) -> PartMesh:
     return gm.part_mesh_from_regions(gm.load_mesh(path), MESH_FILE_PART, [])
 
 
-def gripper_from_spec(spec: GripperSpec) -> Gripper:
-    """The geometry model of a KB gripper (lengths in m, tolerances in degrees).
+def gripper_from_spec(spec: GripperSpec, kb: KB | None = None) -> Gripper:
+    """The geometry model of a KB gripper (lengths in m, tolerances in degrees). A gripper
+    with ``meshes`` needs ``kb`` to find its files (relative to its YAML file); a missing or
+    bad file raises :class:`geometry.mesh.MeshError`.
 
     ``max_finger_depth`` has no counterpart in the model: the model's finger depth is half
     the finger length (the pads are centred on the contacts).
     """
+    from geometry import mesh as gm
     from geometry.gripper import Gripper
 
+    meshes = {}
+    if spec.meshes is not None:
+        if kb is None:
+            raise ValueError(f"gripper '{spec.id}' has mesh files: pass the KB to find them")
+        for part in ("palm", "finger"):
+            path = kb.relative_path(spec, getattr(spec.meshes, part))
+            mesh = gm.load_mesh(path, scale=spec.meshes.scale)
+            meshes[f"{part}_mesh"] = (np.asarray(mesh.vertices), np.asarray(mesh.faces))
     return Gripper(
         max_opening=spec.max_opening,
         min_opening=spec.min_opening,
@@ -90,4 +101,5 @@ def gripper_from_spec(spec: GripperSpec) -> Gripper:
         parallel_tol_deg=spec.parallel_tol_deg,
         min_overlap_area=spec.min_overlap_area,
         roll_step_deg=spec.roll_step_deg,
+        **meshes,
     )

@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING
 
 from engine.errors import KBIssue
 from engine.etiquette import _resolve, _rotation, applies_to_object, object_tags
-from engine.schema import ObjectSpec, Rule
+from engine.schema import KBModel, ObjectSpec, Rule
 
 if TYPE_CHECKING:
     from engine.loader import KB
@@ -133,37 +133,42 @@ def lint_object(kb: KB, obj: ObjectSpec) -> Iterator[KBIssue]:
 def _lint_mesh_file(kb: KB, obj: ObjectSpec) -> Iterator[KBIssue]:
     mesh = obj.geometry.mesh
     assert mesh is not None
-    name = mesh.file
+    yield from lint_mesh_path(kb, mesh, obj, mesh.file, "file")
+
+
+def lint_mesh_path(
+    kb: KB, at: KBModel, owner: KBModel, name: str, *sub: str | int
+) -> Iterator[KBIssue]:
+    """A mesh file ``name`` given relative to ``owner``'s YAML file: not empty, not absolute,
+    inside the KB folder (also through symbolic links), existing. Issues are located at the
+    node ``sub`` of ``at``."""
     if not name.strip():
-        yield kb.issue(mesh, "mesh file name is empty", "file")
+        yield kb.issue(at, "mesh file name is empty", *sub)
         return
     if PurePosixPath(name).is_absolute() or PureWindowsPath(name).is_absolute():
         yield kb.issue(
-            mesh,
-            f"mesh file '{name}' is an absolute path; give it relative to the object's file, "
+            at,
+            f"mesh file '{name}' is an absolute path; give it relative to the YAML file, "
             "inside the KB folder",
-            "file",
+            *sub,
         )
         return
-    path = kb.mesh_path(obj)
-    assert path is not None
+    path = kb.relative_path(owner, name)
     root = os.path.normpath(kb.root)
     if os.path.commonpath([root, str(path)]) != root:
-        yield kb.issue(
-            mesh, f"mesh file '{name}' leaves the KB folder; keep meshes inside it", "file"
-        )
+        yield kb.issue(at, f"mesh file '{name}' leaves the KB folder; keep meshes inside it", *sub)
         return
     if not path.is_file():
         rel = os.path.relpath(path, root)
-        yield kb.issue(mesh, f"mesh file '{name}' does not exist (looked for {rel})", "file")
+        yield kb.issue(at, f"mesh file '{name}' does not exist (looked for {rel})", *sub)
         return
     real_root = os.path.realpath(root)
     if os.path.commonpath([real_root, os.path.realpath(path)]) != real_root:
         yield kb.issue(
-            mesh,
+            at,
             f"mesh file '{name}' leads through a symbolic link to {os.path.realpath(path)}, "
             "outside the KB folder; copy the mesh into the KB",
-            "file",
+            *sub,
         )
 
 
@@ -243,6 +248,11 @@ def lint_references(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                     "hand",
                 )
     if "grippers" not in failed:
+        for gripper in kb.grippers.values():
+            if gripper.meshes is not None:
+                for part in ("palm", "finger"):
+                    name = getattr(gripper.meshes, part)
+                    yield from lint_mesh_path(kb, gripper, gripper, name, "meshes", part)
         for robot in kb.robots.values():
             if robot.gripper not in kb.grippers:
                 yield kb.issue(

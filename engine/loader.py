@@ -572,8 +572,14 @@ class KB:
         mesh = obj.geometry.mesh
         if mesh is None:
             return None
-        base = (self.root / obj.source.file).parent if obj.source.file != "<memory>" else self.root
-        return Path(os.path.normpath(base / mesh.file))
+        return self.relative_path(obj, mesh.file)
+
+    def relative_path(self, model: KBModel, name: str) -> Path:
+        """Absolute path of a file ``name`` given relative to ``model``'s YAML file (the KB
+        root for a model made in memory). The file may not exist (lint reports that)."""
+        src = model.source.file
+        base = (self.root / src).parent if src != "<memory>" else self.root
+        return Path(os.path.normpath(base / name))
 
     def locate(self, model: KBModel, *sub: str | int) -> tuple[str, int, int]:
         """``(file, line, col)`` of ``model`` or of the node ``sub`` below it (a key path,

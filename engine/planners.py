@@ -125,7 +125,7 @@ def prepare(kb: KB, query: Query, db=None) -> PlanContext:
         set(situation.obj.parts[name].tags) if name in situation.obj.parts else set()
         for name in part_mesh.part_names
     ]
-    gripper = assets.gripper_from_spec(situation.gripper)
+    gripper = assets.gripper_from_spec(situation.gripper, kb)
     collider = ObjectCollider(part_mesh.mesh)
     candidates, stats = cached_candidates(part_mesh, gripper, {"seed": 0}, db,
                                           collider=collider)

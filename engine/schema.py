@@ -414,6 +414,19 @@ class ReceiverProfile(KBModel):
     hand: Id = "adult_hand"
 
 
+class GripperMeshes(KBModel):
+    """A real gripper's palm and finger as mesh files (relative to the gripper's YAML file,
+    inside the KB), for the collision test against the object. Frames (m, axes ``n o a``):
+    the palm's origin is the centre of its face that carries the fingers, the palm at
+    ``a <= 0``; the finger is the ``+o`` finger with its origin at the centre of its pad
+    (inner face), its body at ``o >= 0``; the other finger is the same mesh turned half a
+    turn about ``a``. ``finger_length`` etc. still give the pads (grasp depth, drawing)."""
+
+    palm: str
+    finger: str
+    scale: Positive = 1.0
+
+
 class GripperSpec(KBModel):
     """A parallel-jaw gripper (the seed's F_grasp: origin between the fingertips, ``a`` along
     the fingers, ``o`` the closing direction). Lengths in metres."""
@@ -432,6 +445,7 @@ class GripperSpec(KBModel):
     min_overlap_area: NonNegative = 0.0
     roll_step_deg: Annotated[float, Field(gt=0, le=180)] = 15.0
     max_finger_depth: Positive | None = None
+    meshes: GripperMeshes | None = None
 
     @model_validator(mode="after")
     def _opening(self) -> GripperSpec:

@@ -154,15 +154,22 @@ def _check_boxes(
     )
 
 
-def _bvh_object(vertices: np.ndarray, faces: np.ndarray):
-    """An ``fcl.CollisionObject`` holding a ``BVHModel`` of a triangle mesh."""
+def _bvh_model(vertices: np.ndarray, faces: np.ndarray):
+    """An ``fcl.BVHModel`` of a triangle mesh."""
     import fcl
 
     bvh = fcl.BVHModel()
     bvh.beginModel(len(vertices), len(faces))
     bvh.addSubModel(np.asarray(vertices, dtype=float), np.asarray(faces, dtype=np.int64))
     bvh.endModel()
-    return fcl.CollisionObject(bvh, fcl.Transform())
+    return bvh
+
+
+def _bvh_object(vertices: np.ndarray, faces: np.ndarray):
+    """An ``fcl.CollisionObject`` holding a ``BVHModel`` of a triangle mesh."""
+    import fcl
+
+    return fcl.CollisionObject(_bvh_model(vertices, faces), fcl.Transform())
 
 
 class ObjectCollider:
@@ -221,10 +228,17 @@ class ObjectCollider:
         """
         poses, widths = check_poses(poses, widths)
         posed = gripper.posed_boxes(self._to_object(poses), widths)
-        return self.boxes_collide(posed.centres, posed.rotations, posed.extents)
+        return self.boxes_collide(
+            posed.centres, posed.rotations, posed.extents, shapes=gripper.collision_shapes()
+        )
 
     def boxes_collide(
-        self, centres: np.ndarray, rotations: np.ndarray, extents: np.ndarray
+        self,
+        centres: np.ndarray,
+        rotations: np.ndarray,
+        extents: np.ndarray,
+        *,
+        shapes: Sequence[tuple[np.ndarray, np.ndarray]] | None = None,
     ) -> np.ndarray:
         """(N,) bool: whether any of the K boxes of each row touches or enters the object.
 
@@ -232,6 +246,8 @@ class ObjectCollider:
         maps poses into it). rotations : (N, 3, 3) (one per row, shared by its boxes) or
         (N, K, 3, 3). extents : (K, 3) m. Boxes are tried in column order and a row stops at
         its first hit, so put the likeliest first.
+        shapes : optional K ``(vertices, faces)`` meshes in their boxes' frames (each within
+            its box): then the meshes are tested, the boxes serve as their broad phase.
         """
         import fcl
 
@@ -255,13 +271,19 @@ class ObjectCollider:
         nearest = np.clip(local, -extents / 2.0, extents / 2.0)
         near &= ((local - nearest) ** 2).sum(axis=2) <= self._radius**2
 
-        # A near part lying inside the mesh's bounding box collides if its centre is inside
-        # the mesh (it crosses the surface or lies wholly within); one batched point test
-        # settles those rows before any pairwise call.
+        # A near part lying inside the mesh's bounding box collides if a point of it (its
+        # centre; a mesh part's first vertex) is inside the mesh: it crosses the surface or
+        # lies wholly within. One batched point test settles those rows before any pairwise
+        # call.
         hit = np.zeros(n_rows, dtype=bool)
         rows, cols = np.nonzero(near)
+        if shapes is not None and len(shapes) != n_boxes:
+            raise ValueError(f"shapes must hold {n_boxes} meshes, got {len(shapes)}")
         if len(rows):
             part_c = centres[rows, cols]
+            if shapes is not None:
+                probe = np.array([np.asarray(v, dtype=float)[0] for v, _ in shapes])
+                part_c = part_c + np.einsum("mij,mj->mi", rot4[rows, cols], probe[cols])
             reach = np.einsum("mij,mj->mi", np.abs(rot4[rows, cols]), extents[cols] / 2.0)
             boxed = (np.abs(part_c - box_centre) + reach <= box_ext / 2.0).all(axis=1)
             if boxed.any():
@@ -269,7 +291,11 @@ class ObjectCollider:
                 hit[rows[boxed][inside]] = True
 
         # The rest: a part collides where it crosses the surface (python-fcl, box vs BVH).
-        parts = [fcl.CollisionObject(fcl.Box(*map(float, e)), fcl.Transform()) for e in extents]
+        if shapes is None:
+            geoms = [fcl.Box(*map(float, e)) for e in extents]
+        else:
+            geoms = [_bvh_model(v, f) for v, f in shapes]
+        parts = [fcl.CollisionObject(g, fcl.Transform()) for g in geoms]
         target = self._fcl_object
         request = fcl.CollisionRequest()
         make, collide = fcl.Transform, fcl.collide

@@ -25,11 +25,23 @@ An object wider than ``max_opening`` therefore puts the fingers inside it.
 Lengths are metres. Boxes are ``(name, extents (3,), transform (4, 4))``: ``extents`` are full
 edge lengths along the box's own x, y, z (the columns of the transform's rotation), the
 transform places the box centre; the same convention as ``trimesh.creation.box``.
+
+**Mesh parts** (optional, ``Gripper.palm_mesh`` / ``finger_mesh``: a real gripper's shape).
+The palm mesh is given in a frame at the centre of the palm's face that carries the fingers,
+axes along ``(n, o, a)`` (so the palm lies at ``a <= 0``); it is placed at
+``a = -finger_length / 2``. The finger mesh is the ``+o`` finger (finger 1) in a frame at the
+centre of its pad (its inner face), axes ``(n, o, a)``, the finger body at ``o >= 0``; it is
+placed at ``o = +opening / 2``, and finger 0 is the same mesh turned half a turn about ``a``,
+placed at ``o = -opening / 2``. A box-shaped palm ``[-p_n/2, p_n/2] x [-p_o/2, p_o/2] x
+[-p_a, 0]`` and finger ``[-w/2, w/2] x [0, t] x [-L/2, L/2]`` give exactly the box model.
+With meshes, each part's box is the meshes' bounding box (what the box tests against the
+table, obstacles, hands and the other gripper use: conservative), and the test against the
+object uses the meshes themselves (``collision_shapes``).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
@@ -105,6 +117,8 @@ class Gripper:
     parallel_tol_deg : degrees, how far from antiparallel two contact normals may be.
     min_overlap_area : m^2, least projected pad/facet overlap for a facet grasp.
     roll_step_deg : degrees, step of the roll angles about ``o`` tried per grasp site.
+    palm_mesh, finger_mesh : optional ``(vertices (V, 3) float m, faces (F, 3) int)`` in the
+        part frames of the module docstring; both or neither.
     """
 
     max_opening: float
@@ -118,8 +132,19 @@ class Gripper:
     parallel_tol_deg: float = 10.0
     min_overlap_area: float = 0.0
     roll_step_deg: float = 15.0
+    palm_mesh: tuple[np.ndarray, np.ndarray] | None = field(
+        default=None, repr=False, compare=False
+    )
+    finger_mesh: tuple[np.ndarray, np.ndarray] | None = field(
+        default=None, repr=False, compare=False
+    )
 
     def __post_init__(self) -> None:
+        if (self.palm_mesh is None) != (self.finger_mesh is None):
+            raise ValueError("Gripper needs both palm_mesh and finger_mesh, or neither")
+        for name in ("palm_mesh", "finger_mesh"):
+            if getattr(self, name) is not None:
+                object.__setattr__(self, name, _check_part_mesh(getattr(self, name), name))
         palm = tuple(float(v) for v in self.palm)
         if len(palm) != 3:
             raise ValueError(f"Gripper.palm must have 3 extents, got {len(palm)}")
@@ -179,21 +204,72 @@ class Gripper:
             self.max_opening,
         )
 
+    @property
+    def has_meshes(self) -> bool:
+        """Whether the palm and fingers are meshes (else boxes)."""
+        return self.palm_mesh is not None
+
+    def _part_bounds(self) -> np.ndarray:
+        """(3, 2, 3) float, m: each part's bounding box (min, max corners) in its box frame
+        before the opening is applied: palm at ``a = -finger_length / 2``, finger 0 and 1
+        with their inner faces at ``o = 0``."""
+        if not self.has_meshes:
+            w, t, length = self.finger_width, self.finger_thickness, self.finger_length
+            pn, po, pa = self.palm
+            top = -length / 2.0
+            palm = [[-pn / 2, -po / 2, top - pa], [pn / 2, po / 2, top]]
+            finger1 = [[-w / 2, 0.0, -length / 2], [w / 2, t, length / 2]]
+        else:
+            pv = self.palm_mesh[0] + [0.0, 0.0, -self.finger_length / 2.0]
+            palm = [pv.min(axis=0), pv.max(axis=0)]
+            fv = self.finger_mesh[0]
+            finger1 = [fv.min(axis=0), fv.max(axis=0)]
+        finger1 = np.asarray(finger1, dtype=float)
+        turn = np.array([-1.0, -1.0, 1.0])  # half a turn about a
+        finger0 = np.sort(finger1 * turn, axis=0)
+        return np.array([palm, finger0, finger1], dtype=float)
+
     def part_extents(self) -> np.ndarray:
         """(3, 3) float, m: extents of palm, finger0, finger1 (rows, in ``PART_NAMES`` order)
-        along the grasp frame's ``(n, o, a)``."""
-        finger = (self.finger_width, self.finger_thickness, self.finger_length)
-        return np.array([self.palm, finger, finger], dtype=float)
+        along the grasp frame's ``(n, o, a)`` (the meshes' bounding boxes, with meshes)."""
+        if not self.has_meshes:
+            finger = (self.finger_width, self.finger_thickness, self.finger_length)
+            return np.array([self.palm, finger, finger], dtype=float)
+        bounds = self._part_bounds()
+        return bounds[:, 1] - bounds[:, 0]
 
     def part_offsets(self, width: np.ndarray | float) -> np.ndarray:
         """(..., 3, 3) float, m: centres of palm, finger0, finger1 in the grasp frame for
         object widths of shape ``(...)``."""
-        half = (self.opening(width) + self.finger_thickness) / 2.0
-        out = np.zeros(np.shape(half) + (3, 3))
-        out[..., 0, 2] = -(self.finger_length + self.palm[2]) / 2.0
-        out[..., 1, 1] = -half
-        out[..., 2, 1] = half
+        half_open = self.opening(width) / 2.0
+        out = np.zeros(np.shape(half_open) + (3, 3))
+        if not self.has_meshes:
+            half = half_open + self.finger_thickness / 2.0
+            out[..., 0, 2] = -(self.finger_length + self.palm[2]) / 2.0
+            out[..., 1, 1] = -half
+            out[..., 2, 1] = half
+            return out
+        centres = self._part_bounds().mean(axis=1)  # (3, 3): at zero opening
+        out[...] = centres
+        out[..., 1, 1] -= half_open
+        out[..., 2, 1] += half_open
         return out
+
+    def collision_shapes(self) -> list[tuple[np.ndarray, np.ndarray]] | None:
+        """With meshes: each part's ``(vertices, faces)`` in its box frame (box centre at
+        the origin, axes ``(n, o, a)``), in ``PART_NAMES`` order, for an exact test against
+        the object; None for the box model (the boxes are exact)."""
+        if not self.has_meshes:
+            return None
+        centres = self._part_bounds().mean(axis=1)
+        palm_v = self.palm_mesh[0] + [0.0, 0.0, -self.finger_length / 2.0]
+        finger_v = self.finger_mesh[0]
+        turn = np.array([-1.0, -1.0, 1.0])
+        return [
+            (palm_v - centres[0], self.palm_mesh[1]),
+            (finger_v * turn - centres[1], self.finger_mesh[1]),
+            (finger_v - centres[2], self.finger_mesh[1]),
+        ]
 
     def boxes(self, width: float) -> list[Box]:
         """The palm and the two fingers in the grasp frame, open for an object of ``width``.
@@ -223,8 +299,36 @@ class Gripper:
         return PosedBoxes(PART_NAMES, centres, rot, self.part_extents())
 
     def trimesh(self, width: float) -> trimesh.Trimesh:
-        """The three boxes as one mesh in the grasp frame (for drawing and tests)."""
+        """The palm and fingers (boxes, or the meshes) as one mesh in the grasp frame, open
+        for an object of ``width`` (for drawing and tests)."""
         import trimesh
 
-        parts = [trimesh.creation.box(extents=e, transform=t) for _, e, t in self.boxes(width)]
+        shapes = self.collision_shapes()
+        if shapes is None:
+            parts = [trimesh.creation.box(extents=e, transform=t)
+                     for _, e, t in self.boxes(width)]  # fmt: skip
+        else:
+            offsets = self.part_offsets(float(width))
+            parts = [trimesh.Trimesh(v + c, f, process=False)
+                     for (v, f), c in zip(shapes, offsets, strict=True)]  # fmt: skip
         return trimesh.util.concatenate(parts)
+
+
+def _check_part_mesh(mesh, name: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices (V, 3) float, faces (F, 3) int)`` checked: finite, indices in range, at
+    least one triangle; raises ``ValueError`` naming ``name``."""
+    try:
+        vertices, faces = mesh
+    except (TypeError, ValueError):
+        raise ValueError(f"Gripper.{name} must be (vertices, faces)") from None
+    vertices = np.asarray(vertices, dtype=float)
+    faces = np.asarray(faces)
+    if vertices.ndim != 2 or vertices.shape[1] != 3 or not np.isfinite(vertices).all():
+        raise ValueError(f"Gripper.{name}: vertices must be finite (V, 3) numbers")
+    if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+        raise ValueError(f"Gripper.{name}: faces must be (F, 3) indices, at least one")
+    if faces.min() < 0 or faces.max() >= len(vertices):
+        raise ValueError(f"Gripper.{name}: a face index is out of range")
+    if np.ptp(vertices, axis=0).min() <= 0:
+        raise ValueError(f"Gripper.{name}: the mesh is flat (no volume to collide with)")
+    return vertices, faces.astype(np.int64)

@@ -35,12 +35,12 @@ def _gripper(kb: KB, gripper_id: str | None) -> tuple[Gripper, str, str]:
     from geometry.gripper import Gripper
 
     if gripper_id is not None:
-        return gripper_from_spec(kb.gripper(gripper_id)), gripper_id, "kb"
+        return gripper_from_spec(kb.gripper(gripper_id), kb), gripper_id, "kb"
     if DEFAULT_GRIPPER in kb.grippers:
-        return gripper_from_spec(kb.grippers[DEFAULT_GRIPPER]), DEFAULT_GRIPPER, "kb"
+        return gripper_from_spec(kb.grippers[DEFAULT_GRIPPER], kb), DEFAULT_GRIPPER, "kb"
     if kb.grippers:
         first = sorted(kb.grippers)[0]
-        return gripper_from_spec(kb.grippers[first]), first, "kb"
+        return gripper_from_spec(kb.grippers[first], kb), first, "kb"
     return Gripper.default(), "default", "default"
 
 

@@ -366,3 +366,90 @@ def test_all_pairs_matches_paired_on_the_diagonal():
     assert 0 < matrix.sum() < count * count
     with pytest.raises(ValueError, match="as many"):
         grippers_collide(G, poses, widths, poses[:3], widths[:3])
+
+
+# ------------------------------------------------------------------ gripper from meshes
+
+
+def _mesh_gripper(palm: trimesh.Trimesh, finger: trimesh.Trimesh) -> Gripper:
+    fields = ("max_opening", "min_opening", "finger_length", "finger_width", "finger_thickness",
+              "palm", "clearance", "friction")  # fmt: skip
+    return Gripper(**{f: getattr(G, f) for f in fields},
+                   palm_mesh=(palm.vertices, palm.faces),
+                   finger_mesh=(finger.vertices, finger.faces))  # fmt: skip
+
+
+def _box_shaped_meshes() -> Gripper:
+    """The default gripper's boxes written as meshes in the part frames the docstring gives."""
+    pn, po, pa = G.palm
+    w, t, length = G.finger_width, G.finger_thickness, G.finger_length
+    palm = trimesh.creation.box(bounds=[[-pn / 2, -po / 2, -pa], [pn / 2, po / 2, 0.0]])
+    finger = trimesh.creation.box(bounds=[[-w / 2, 0.0, -length / 2], [w / 2, t, length / 2]])
+    return _mesh_gripper(palm, finger)
+
+
+def test_box_shaped_meshes_are_the_box_model():
+    meshed = _box_shaped_meshes()
+    widths = np.array([0.0, 0.03, 0.2])
+    assert_array_equal(meshed.part_extents(), G.part_extents())
+    np.testing.assert_allclose(meshed.part_offsets(widths), G.part_offsets(widths), atol=1e-15)
+    rng = np.random.default_rng(3)
+    torus = trimesh.creation.torus(0.05, 0.012, major_sections=48, minor_sections=24)
+    count = 400
+    poses = np.tile(np.eye(4), (count, 1, 1))
+    poses[:, :3, :3] = Rotation.random(count, random_state=5).as_matrix()
+    poses[:, :3, 3] = rng.uniform(-0.09, 0.09, (count, 3))
+    widths = rng.uniform(0.0, 0.08, count)
+    collider = ObjectCollider(torus)
+    boxes = collider.gripper_collides(G, poses, widths)
+    assert_array_equal(collider.gripper_collides(meshed, poses, widths), boxes)
+    assert 0 < boxes.sum() < count
+
+
+def test_a_palm_mesh_with_a_bump_hits_what_the_palm_box_clears():
+    # A 4 cm cube; the pads centred 1 cm below its top face, approaching down (-z). The palm
+    # box's face is finger_depth = 2 cm behind the contacts, 1 cm above the cube: clear. A
+    # palm mesh with a 2 x 2 cm bump reaching 2.5 cm towards the fingertips (between them)
+    # ends 0.5 cm past the contacts, inside the cube.
+    cube = _box([0.04, 0.04, 0.04])
+    pose = _pose([-1, 0, 0], [0, 1, 0], [0, 0, -1], [0, 0, 0.01])
+    pn, po, pa = G.palm
+    w, t, length = G.finger_width, G.finger_thickness, G.finger_length
+    palm = trimesh.util.concatenate([
+        trimesh.creation.box(bounds=[[-pn / 2, -po / 2, -pa], [pn / 2, po / 2, 0.0]]),
+        trimesh.creation.box(bounds=[[-0.01, -0.01, 0.0], [0.01, 0.01, 0.025]]),
+    ])  # fmt: skip
+    finger = trimesh.creation.box(bounds=[[-w / 2, 0.0, -length / 2], [w / 2, t, length / 2]])
+    bumped = _mesh_gripper(palm, finger)
+    collider = ObjectCollider(cube)
+    assert collider.gripper_collides(G, pose, 0.04).tolist() == [False]
+    assert collider.gripper_collides(bumped, pose, 0.04).tolist() == [True]
+    # Lifted 2 cm, the bump clears the cube too.
+    lifted = _pose([-1, 0, 0], [0, 1, 0], [0, 0, -1], [0, 0, 0.03])
+    assert collider.gripper_collides(bumped, lifted, 0.04).tolist() == [False]
+
+
+def test_a_thin_finger_mesh_fits_where_the_box_finger_does_not():
+    # A finger mesh that is a thin blade (2 mm, not 10 mm thick) beside a post 8 mm from the
+    # pad: the box finger reaches 10 mm out and hits it, the blade does not.
+    w, length = G.finger_width, G.finger_length
+    blade = trimesh.creation.box(bounds=[[-w / 2, 0.0, -length / 2], [w / 2, 0.002, length / 2]])
+    pn, po, pa = G.palm
+    palm = trimesh.creation.box(bounds=[[-pn / 2, -po / 2, -pa], [pn / 2, po / 2, 0.0]])
+    thin = _mesh_gripper(palm, blade)
+    width = 0.02  # opening 30 mm: pads at o = +-15 mm
+    post = _box([0.01, 0.004, 0.01], centre=(0, 0.015 + 0.008 + 0.002, 0))
+    collider = ObjectCollider(post)
+    pose = np.eye(4)
+    assert collider.gripper_collides(G, pose, width).tolist() == [True]
+    assert collider.gripper_collides(thin, pose, width).tolist() == [False]
+
+
+def test_gripper_meshes_are_checked():
+    palm = trimesh.creation.box(extents=[0.06, 0.13, 0.08])
+    with pytest.raises(ValueError, match="both palm_mesh and finger_mesh"):
+        Gripper(**{**{f: getattr(G, f) for f in ("max_opening", "min_opening", "finger_length",
+                  "finger_width", "finger_thickness", "palm", "clearance", "friction")},
+                   "palm_mesh": (palm.vertices, palm.faces)})  # fmt: skip
+    with pytest.raises(ValueError, match="finite"):
+        _mesh_gripper(palm, trimesh.Trimesh(palm.vertices * np.nan, palm.faces, process=False))
