@@ -422,3 +422,36 @@ def test_a_broken_object_does_not_make_rules_look_unused(make_kb):
 def test_a_broken_hands_file_does_not_make_receivers_look_wrong(make_kb):
     root = make_kb({"hands/adult_hand.yaml": "id: adult_hand\nname: [\n"})
     assert {i.file for i in problems(root)} == {"hands/adult_hand.yaml"}
+
+
+GRIPPER_WITH_MESHES = """\
+id: jaw
+name: Jaw
+max_opening: 0.085
+finger_length: 0.04
+finger_width: 0.022
+finger_thickness: 0.01
+palm: [0.06, 0.13, 0.08]
+meshes:
+  palm: {palm}
+  finger: {finger}
+"""
+
+
+@pytest.mark.parametrize(
+    ("palm", "finger", "part", "expected"),
+    [
+        ("palm.stl", "missing.stl", "finger",
+         "mesh file 'missing.stl' does not exist (looked for grippers/missing.stl)"),
+        ("../../outside.stl", "finger.stl", "palm", "leaves the KB folder"),
+        ("/etc/palm.stl", "finger.stl", "palm", "is an absolute path"),
+    ],
+)  # fmt: skip
+def test_gripper_mesh_file_problems(make_kb, palm, finger, part, expected):
+    text = GRIPPER_WITH_MESHES.format(palm=palm, finger=finger)
+    root = make_kb({"grippers/jaw.yaml": text, "grippers/palm.stl": "solid\n",
+                    "grippers/finger.stl": "solid\n"})  # fmt: skip
+    (root.parent / "outside.stl").write_text("solid\n")
+    issue = the_error(root, "mesh file")
+    assert (issue.file, issue.line) == ("grippers/jaw.yaml", line_of(text, f"  {part}:"))
+    assert expected in issue.message

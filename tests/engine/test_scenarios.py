@@ -272,3 +272,44 @@ def test_small_untagged_meshes_are_handed_with_one_hand(capsys, tmp_path, name, 
     assert robot_s < human_s  # the robot on its side, the receiver on theirs
     rules = {e["rule"]: e for e in r["trace"]}
     assert rules["collision_free"]["status"] == "pass"
+
+
+def _gripper_meshes(root: Path, bump: float = 0.0) -> None:
+    """Give the KB copy's gripper its palm and finger as STL files: the YAML's boxes, and
+    the palm with a 2 x 2 cm bump of ``bump`` m towards the fingertips."""
+    import trimesh
+
+    spec = yaml.safe_load((root / "grippers/parallel_jaw.yaml").read_text())
+    pn, po, pa = spec["palm"]
+    w, t, length = spec["finger_width"], spec["finger_thickness"], spec["finger_length"]
+    palm = [trimesh.creation.box(bounds=[[-pn / 2, -po / 2, -pa], [pn / 2, po / 2, 0.0]])]
+    if bump:
+        palm.append(trimesh.creation.box(bounds=[[-0.01, -0.01, 0.0], [0.01, 0.01, bump]]))
+    # OBJ keeps the decimal digits (STL is float32: a pad 2e-10 m thinner frees grasps that
+    # exactly touch the object)
+    trimesh.util.concatenate(palm).export(root / "grippers/palm.obj")
+    finger = trimesh.creation.box(bounds=[[-w / 2, 0.0, -length / 2], [w / 2, t, length / 2]])
+    finger.export(root / "grippers/finger.obj")
+    path = root / "grippers/parallel_jaw.yaml"
+    if "meshes:" not in path.read_text():
+        with open(path, "a") as f:
+            f.write("meshes: {palm: palm.obj, finger: finger.obj}\n")
+
+
+def test_a_gripper_given_as_meshes_plans_through_the_cli(capsys, tmp_path):
+    builtin = plan(capsys, "knife")
+    root = _copy_kb(tmp_path)
+    _gripper_meshes(root)
+    assert main(["kb", "validate", "--kb", str(root)]) == 0
+    capsys.readouterr()
+    meshed = plan(capsys, "knife", "--kb", str(root))
+    # Meshes shaped like the YAML's boxes plan exactly what the boxes plan.
+    assert meshed == builtin
+    # A palm with a bump between the fingers keeps fewer grasps, and still hands the knife
+    # over handle first.
+    _gripper_meshes(root, bump=0.025)
+    bumped = plan(capsys, "knife", "--kb", str(root))
+    assert bumped["feasible"]
+    assert bumped["candidates"]["grasps"] < builtin["candidates"]["grasps"]
+    (human,) = bumped["human_grasps"]
+    assert "handle" in part_tags("knife")[human["part"]]
