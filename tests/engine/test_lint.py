@@ -424,14 +424,7 @@ def test_a_broken_hands_file_does_not_make_receivers_look_wrong(make_kb):
     assert {i.file for i in problems(root)} == {"hands/adult_hand.yaml"}
 
 
-GRIPPER_WITH_MESHES = """\
-id: jaw
-name: Jaw
-max_opening: 0.085
-finger_length: 0.04
-finger_width: 0.022
-finger_thickness: 0.01
-palm: [0.06, 0.13, 0.08]
+GRIPPER_MESHES = """\
 meshes:
   palm: {palm}
   finger: {finger}
@@ -448,9 +441,10 @@ meshes:
     ],
 )  # fmt: skip
 def test_gripper_mesh_file_problems(make_kb, palm, finger, part, expected):
-    text = GRIPPER_WITH_MESHES.format(palm=palm, finger=finger)
-    root = make_kb({"grippers/jaw.yaml": text, "grippers/palm.stl": "solid\n",
-                    "grippers/finger.stl": "solid\n"})  # fmt: skip
+    root = make_kb({"grippers/palm.stl": "solid\n", "grippers/finger.stl": "solid\n"})
+    gripper = root / "grippers/jaw.yaml"  # the minimal KB's gripper, given meshes
+    text = gripper.read_text() + GRIPPER_MESHES.format(palm=palm, finger=finger)
+    gripper.write_text(text)
     (root.parent / "outside.stl").write_text("solid\n")
     issue = the_error(root, "mesh file")
     assert (issue.file, issue.line) == ("grippers/jaw.yaml", line_of(text, f"  {part}:"))

@@ -250,14 +250,21 @@ def _reference(mesh, poses, widths):
     return np.array(out)
 
 
-def test_agrees_with_a_plain_reference_on_random_poses():
-    rng = np.random.default_rng(7)
-    torus = trimesh.creation.torus(0.05, 0.012, major_sections=48, minor_sections=24)
-    count = 150
+TORUS = trimesh.creation.torus(0.05, 0.012, major_sections=48, minor_sections=24)
+
+
+def _random_poses(count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(count, 4, 4) random rigid grasp poses within 9 cm of the origin, and widths."""
+    rng = np.random.default_rng(seed)
     poses = np.tile(np.eye(4), (count, 1, 1))
-    poses[:, :3, :3] = Rotation.random(count, random_state=11).as_matrix()
+    poses[:, :3, :3] = Rotation.random(count, random_state=seed + 4).as_matrix()
     poses[:, :3, 3] = rng.uniform(-0.09, 0.09, (count, 3))
-    widths = rng.uniform(0.0, 0.08, count)
+    return poses, rng.uniform(0.0, 0.08, count)
+
+
+def test_agrees_with_a_plain_reference_on_random_poses():
+    torus, count = TORUS, 150
+    poses, widths = _random_poses(count, 7)
     ours = ObjectCollider(torus).gripper_collides(G, poses, widths)
     assert_array_equal(ours, _reference(torus, poses, widths))
     assert 0 < ours.sum() < count  # the sample holds both answers
@@ -393,14 +400,9 @@ def test_box_shaped_meshes_are_the_box_model():
     widths = np.array([0.0, 0.03, 0.2])
     assert_array_equal(meshed.part_extents(), G.part_extents())
     np.testing.assert_allclose(meshed.part_offsets(widths), G.part_offsets(widths), atol=1e-15)
-    rng = np.random.default_rng(3)
-    torus = trimesh.creation.torus(0.05, 0.012, major_sections=48, minor_sections=24)
     count = 400
-    poses = np.tile(np.eye(4), (count, 1, 1))
-    poses[:, :3, :3] = Rotation.random(count, random_state=5).as_matrix()
-    poses[:, :3, 3] = rng.uniform(-0.09, 0.09, (count, 3))
-    widths = rng.uniform(0.0, 0.08, count)
-    collider = ObjectCollider(torus)
+    poses, widths = _random_poses(count, 3)
+    collider = ObjectCollider(TORUS)
     boxes = collider.gripper_collides(G, poses, widths)
     assert_array_equal(collider.gripper_collides(meshed, poses, widths), boxes)
     assert 0 < boxes.sum() < count
