@@ -15,6 +15,8 @@ Tables:
    BVH parts, three ``fcl.Box`` parts (no broad phase).
 3. box against box: numpy separating-axis test against an ``fcl.Box`` loop on the same pairs;
    ``BoxWorld`` and ``grippers_collide`` throughput.
+4. the gripper given as meshes (a 64-sided cylindrical palm of radius 4 cm, fingers of 192
+   triangles) against the box model, on the same poses: what a real gripper's meshes cost.
 """
 
 from __future__ import annotations
@@ -244,6 +246,35 @@ def table_boxes(gripper: Gripper, repeat: int) -> None:
     print(f"grippers_collide all pairs     {m * m / t_all:12.0f} pose pairs/s ({m} x {m})")
 
 
+def table_mesh_gripper(gripper: Gripper, sites: int, repeat: int) -> None:
+    import dataclasses
+
+    pa = gripper.palm[2]
+    w, t, length = gripper.finger_width, gripper.finger_thickness, gripper.finger_length
+    palm = trimesh.creation.cylinder(radius=0.04, height=pa, sections=64)
+    palm.apply_translation([0.0, 0.0, -pa / 2.0])
+    finger = trimesh.creation.box(bounds=[[-w / 2, 0, -length / 2], [w / 2, t, length / 2]])
+    finger = finger.subdivide().subdivide()
+    meshed = dataclasses.replace(gripper, palm_mesh=(palm.vertices, palm.faces),
+                                 finger_mesh=(finger.vertices, finger.faces))  # fmt: skip
+    print(f"\n4. gripper as meshes (palm {len(palm.faces)} triangles, finger "
+          f"{len(finger.faces)}) vs boxes (checks/s)")  # fmt: skip
+    print(f"{'mesh':14s} {'boxes':>9s} {'hit':>5s} {'meshes':>9s} {'hit':>5s} {'ratio':>6s}")
+    for name, mesh in meshes().items():
+        poses, widths = candidate_poses(mesh, gripper, sites)
+        collider = ObjectCollider(mesh)
+        collider.mesh.contains(np.zeros((1, 3)))
+        row = []
+        for model in (gripper, meshed):
+            hit = collider.gripper_collides(model, poses, widths)
+            t = best(lambda c=collider, m=model, p=poses, w=widths: c.gripper_collides(m, p, w),
+                     repeat)
+            row.append((len(poses) / t, hit.mean()))
+        (box_rate, box_hit), (mesh_rate, mesh_hit) = row
+        print(f"{name:14s} {box_rate:9.0f} {box_hit:5.2f} {mesh_rate:9.0f} {mesh_hit:5.2f} "
+              f"{box_rate / mesh_rate:6.2f}")  # fmt: skip
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sites", type=int, default=200, help="grasp sites per mesh (x24 rolls)")
@@ -254,6 +285,7 @@ def main() -> None:
     table_mesh(gripper, args.sites, args.repeat)
     table_choices(gripper, args.sites, args.repeat)
     table_boxes(gripper, args.repeat)
+    table_mesh_gripper(gripper, args.sites, args.repeat)
 
 
 if __name__ == "__main__":
