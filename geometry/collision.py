@@ -271,24 +271,25 @@ class ObjectCollider:
         nearest = np.clip(local, -extents / 2.0, extents / 2.0)
         near &= ((local - nearest) ** 2).sum(axis=2) <= self._radius**2
 
-        # A near part lying inside the mesh's bounding box collides if a point of it (its
-        # centre; a mesh part's first vertex) is inside the mesh: it crosses the surface or
-        # lies wholly within. One batched point test settles those rows before any pairwise
-        # call.
+        # A near part collides if a point of it is inside the mesh (it crosses the surface
+        # or lies wholly within): a box's centre; a mesh part's vertex nearest its box centre
+        # and its extreme vertices along the box axes. One batched point test (points inside
+        # the mesh's bounding box only) settles those rows before any pairwise call.
         hit = np.zeros(n_rows, dtype=bool)
         rows, cols = np.nonzero(near)
         if shapes is not None and len(shapes) != n_boxes:
             raise ValueError(f"shapes must hold {n_boxes} meshes, got {len(shapes)}")
         if len(rows):
-            part_c = centres[rows, cols]
-            if shapes is not None:
-                probe = np.array([np.asarray(v, dtype=float)[0] for v, _ in shapes])
-                part_c = part_c + np.einsum("mij,mj->mi", rot4[rows, cols], probe[cols])
-            reach = np.einsum("mij,mj->mi", np.abs(rot4[rows, cols]), extents[cols] / 2.0)
-            boxed = (np.abs(part_c - box_centre) + reach <= box_ext / 2.0).all(axis=1)
+            probes = _part_probes(shapes, n_boxes)  # (K, P, 3), box frames
+            points = centres[rows, cols][:, None, :] + np.einsum(
+                "mij,mpj->mpi", rot4[rows, cols], probes[cols]
+            )
+            owner = np.repeat(rows, probes.shape[1])
+            points = points.reshape(-1, 3)
+            boxed = (np.abs(points - box_centre) <= box_ext / 2.0).all(axis=1)
             if boxed.any():
-                inside = self.mesh.contains(part_c[boxed])
-                hit[rows[boxed][inside]] = True
+                inside = self.mesh.contains(points[boxed])
+                hit[owner[boxed][inside]] = True
 
         # The rest: a part collides where it crosses the surface (python-fcl, box vs BVH).
         if shapes is None:
@@ -310,6 +311,22 @@ class ObjectCollider:
                         hit[i] = True
                         break
         return hit
+
+
+def _part_probes(shapes, n_boxes: int) -> np.ndarray:
+    """(K, P, 3) points of each part in its box frame whose inside-the-object test proves a
+    collision: the box centre for boxes; for mesh parts, the vertex nearest the box centre
+    and the extreme vertices along the box axes (P = 7)."""
+    if shapes is None:
+        return np.zeros((n_boxes, 1, 3))
+    out = []
+    for vertices, _ in shapes:
+        v = np.asarray(vertices, dtype=float)
+        pick = [int(np.argmin((v**2).sum(axis=1)))]
+        for axis in range(3):
+            pick += [int(np.argmin(v[:, axis])), int(np.argmax(v[:, axis]))]
+        out.append(v[pick])
+    return np.array(out)
 
 
 class BoxWorld:
