@@ -23,7 +23,7 @@ from engine.result import PlanResult
 
 if TYPE_CHECKING:
     from engine.loader import KB
-    from engine.schema import ObjectSpec
+    from engine.schema import GripperSpec, ObjectSpec
 
 __all__ = [
     "Attempt",
@@ -141,6 +141,14 @@ def prepare(kb: KB, query: Query, db=None) -> PlanContext:
                         want, receiver_forbid, giver_forbid)
     ctx.cache["collider"] = collider
     return ctx
+
+
+def _gripper_meshes(spec: GripperSpec) -> dict:
+    """``{"meshes": {palm, finger, scale}}`` for a gripper given as mesh files (the files as
+    the KB names them), else nothing: the result says which collision model was used."""
+    if spec.meshes is None:
+        return {}
+    return {"meshes": spec.meshes.model_dump()}
 
 
 def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
@@ -356,7 +364,8 @@ def build_result(
         gripper={"id": s.gripper.id, "max_width": g.max_opening, "min_width": g.min_opening,
                  "finger_depth": g.finger_length / 2.0, "finger_length": g.finger_length,
                  "finger_width": g.finger_width, "finger_thickness": g.finger_thickness,
-                 "palm": list(g.palm), "friction": g.friction, "clearance": g.clearance},
+                 "palm": list(g.palm), "friction": g.friction, "clearance": g.clearance,
+                 **_gripper_meshes(s.gripper)},
         candidates=candidates,
         trace=trace,
         regrasp=regrasp,

@@ -148,6 +148,7 @@ def grasps(
         "friction": model.friction,
         "parallel_tol_deg": model.parallel_tol_deg,
         "roll_step_deg": model.roll_step_deg if roll_step_deg is None else roll_step_deg,
+        "collision_model": "meshes" if model.has_meshes else "boxes",
     }
     stats_info = {k: v for k, v in stats.as_dict().items() if k != "seconds"}
     if json_out:

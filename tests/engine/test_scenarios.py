@@ -303,8 +303,14 @@ def test_a_gripper_given_as_meshes_plans_through_the_cli(capsys, tmp_path):
     assert main(["kb", "validate", "--kb", str(root)]) == 0
     capsys.readouterr()
     meshed = plan(capsys, "knife", "--kb", str(root))
-    # Meshes shaped like the YAML's boxes plan exactly what the boxes plan.
+    # The result names the meshes; shaped like the YAML's boxes, they plan exactly what the
+    # boxes plan.
+    assert meshed["gripper"].pop("meshes") == {"palm": "palm.obj", "finger": "finger.obj",
+                                               "scale": 1.0}  # fmt: skip
+    assert "meshes" not in builtin["gripper"]
     assert meshed == builtin
+    assert main(["grasps", "knife", "--kb", str(root), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["gripper"]["collision_model"] == "meshes"
     # A palm with a bump between the fingers keeps fewer grasps, and still hands the knife
     # over handle first.
     _gripper_meshes(root, bump=0.025)
