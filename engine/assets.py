@@ -17,7 +17,13 @@ if TYPE_CHECKING:
     from geometry.gripper import Gripper
     from geometry.mesh import PartMesh
 
-__all__ = ["object_part_mesh", "primitive_mesh", "gripper_from_spec", "mesh_file_object"]
+__all__ = [
+    "object_part_mesh",
+    "primitive_mesh",
+    "gripper_from_spec",
+    "mesh_file_object",
+    "units_hint",
+]
 
 MESH_FILE_PART = "body"
 """Part name of every face of a mesh file given with no KB entry."""
@@ -63,11 +69,29 @@ def object_part_mesh(kb: KB, obj: ObjectSpec) -> PartMesh:
     return gm.part_mesh_from_regions(mesh, spec.default_part, regions)
 
 
-def mesh_file_object(path: str | Path) -> PartMesh:
-    """A mesh file with no KB entry: one part named ``body`` (metres assumed)."""
+LARGEST_HANDED_OBJECT = 2.0
+"""m: no object handed from person to person is larger; a mesh file bigger than this is
+likely in other units (CAD files are mostly in millimetres)."""
+
+
+def mesh_file_object(path: str | Path, scale: float = 1.0) -> PartMesh:
+    """A mesh file with no KB entry: one part named ``body``. ``scale`` turns its units into
+    metres (0.001 for a file in millimetres)."""
     from geometry import mesh as gm
 
-    return gm.part_mesh_from_regions(gm.load_mesh(path), MESH_FILE_PART, [])
+    return gm.part_mesh_from_regions(gm.load_mesh(path, scale=scale), MESH_FILE_PART, [])
+
+
+def units_hint(part_mesh: PartMesh, scale: float = 1.0) -> str | None:
+    """A warning for a mesh file larger than :data:`LARGEST_HANDED_OBJECT` (m): what its size
+    is, and the ``--mesh-scale`` that would read it as millimetres. None when it is not."""
+    size = float(np.ptp(part_mesh.mesh.vertices, axis=0).max())
+    if size <= LARGEST_HANDED_OBJECT:
+        return None
+    return (
+        f"the mesh is {size:.4g} m across, larger than anything handed from hand to hand: "
+        f"if its units are millimetres, give --mesh-scale {scale * 0.001:g}"
+    )
 
 
 def gripper_from_spec(spec: GripperSpec, kb: KB | None = None) -> Gripper:

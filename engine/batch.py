@@ -82,12 +82,15 @@ class ObjectRef:
     query_object : what ``Query.object`` gets (KB id, or the mesh file's absolute path: a
         worker may run in another folder).
     mesh : the mesh file whose bytes enter the content hash (None: built from primitives).
+    scale : units of an untagged mesh file to metres (``--mesh-scale``; KB objects say
+        their own).
     """
 
     name: str
     query_object: str
     kind: str  # "kb" | "mesh"
     mesh: str | None = None
+    scale: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -127,12 +130,13 @@ def _is_mesh(path: Path) -> bool:
     return path.suffix.lower() in MESH_SUFFIXES and not path.name.startswith(".")
 
 
-def resolve_objects(spec: str, kb: KB) -> list[ObjectRef]:
+def resolve_objects(spec: str, kb: KB, mesh_scale: float = 1.0) -> list[ObjectRef]:
     """The objects named by ``--objects``: ``kb`` (every KB object), a folder (its mesh files,
     recursively), a glob pattern, or a comma list of KB ids and mesh files.
 
     A mesh file that is the mesh of a KB object is planned as that object; any other as one
-    untagged part. Raises UsageError for an unknown id, a missing file, or nothing found.
+    untagged part, its units times ``mesh_scale`` in metres. Raises UsageError for an unknown
+    id, a missing file, or nothing found.
     """
     spec = spec.strip()
     by_mesh: dict[str, str] = {}
@@ -145,7 +149,7 @@ def resolve_objects(spec: str, kb: KB) -> list[ObjectRef]:
         oid = by_mesh.get(os.path.realpath(path))
         if oid is not None:
             return kb_ref(oid)
-        return ObjectRef(path, os.path.abspath(path), "mesh", os.path.abspath(path))
+        return ObjectRef(path, os.path.abspath(path), "mesh", os.path.abspath(path), mesh_scale)
 
     def kb_ref(oid: str) -> ObjectRef:
         mp = kb.mesh_path(kb.objects[oid])
@@ -239,6 +243,7 @@ def expand(
     tasks: Iterable[str] | None = None,
     scene: str | None = None,
     mode: str = "auto",
+    mesh_scale: float = 1.0,
 ) -> list[Unit]:
     """The units of work of a batch, in object order (see :func:`resolve_objects`).
 
@@ -257,7 +262,7 @@ def expand(
     recv = _choose("receiver", receivers, kb.receivers, DEFAULTS["receiver"])
     asked_tasks = [n.strip() for a in (tasks or []) for n in a.split(",") if n.strip()] or None
     base = kb_digest(kb.root)
-    refs = resolve_objects(objects, kb)
+    refs = resolve_objects(objects, kb, mesh_scale)
     if asked_tasks and asked_tasks != ["all"]:
         known = {t for r in refs if r.kind == "kb" for t in kb.objects[r.name].tasks}
         unknown = [t for t in asked_tasks if t not in known]
@@ -281,7 +286,8 @@ def expand(
         )
         if not queries:
             continue
-        digest = hashlib.sha256(f"{base}\0{ref.name}\0{_file_digest(ref.mesh)}".encode())
+        scale = f"\0{ref.scale!r}" if ref.scale != 1.0 else ""  # unchanged keys at 1
+        digest = hashlib.sha256(f"{base}\0{ref.name}\0{_file_digest(ref.mesh)}{scale}".encode())
         units.append(Unit(ref, queries, digest.hexdigest()[:32]))
     return units
 
@@ -332,7 +338,7 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
     from engine.result import to_jsonable
 
     query = Query(object=obj.query_object, task=q.task, receiver=q.receiver, culture=q.culture,
-                  scene=q.scene, mode=q.mode)  # fmt: skip
+                  scene=q.scene, mode=q.mode, mesh_scale=obj.scale)  # fmt: skip
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -340,7 +346,7 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
         except Exception as e:  # noqa: BLE001 - one failing object must not stop the batch
             messages = sorted({str(w.message) for w in caught})
             return _row(q, content_hash, error=_error_text(e), warnings=json.dumps(messages))
-    messages = sorted({str(w.message) for w in caught})
+    messages = sorted({str(w.message) for w in caught} | set(result.warnings))
     grasps = to_jsonable(result.robot_grasps)
     score = grasps[0].get("score") if grasps else None
     return _row(

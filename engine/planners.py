@@ -59,8 +59,9 @@ class Attempt:
     extra: dict = field(default_factory=dict)
 
 
-def mesh_file_spec(path: Path) -> ObjectSpec:
-    """A KB object for a mesh file with no KB entry: one untagged part named ``body``."""
+def mesh_file_spec(path: Path, scale: float = 1.0) -> ObjectSpec:
+    """A KB object for a mesh file with no KB entry: one untagged part named ``body``
+    (``scale``: the file's units to metres)."""
     from engine.schema import Geometry, MeshGeometry, ObjectSpec, Part
 
     stem = re.sub(r"[^a-z0-9_\-]+", "_", path.stem.lower()).strip("_-") or "mesh"
@@ -70,7 +71,7 @@ def mesh_file_spec(path: Path) -> ObjectSpec:
         id=stem[:64],
         name=path.name,
         mass=0.3,  # replaced from the mesh volume in prepare()
-        geometry=Geometry(mesh=MeshGeometry(file=str(path), default_part="body")),
+        geometry=Geometry(mesh=MeshGeometry(file=str(path), scale=scale, default_part="body")),
         parts={"body": Part(tags=[])},
     )
 
@@ -112,10 +113,12 @@ def prepare(kb: KB, query: Query, db=None) -> PlanContext:
     path = Path(query.object)
     obj = None
     if path.suffix.lower() in MESH_SUFFIXES:  # a missing file: MeshError (exit 5) on loading
-        obj = mesh_file_spec(path)
+        obj = mesh_file_spec(path, query.mesh_scale)
     situation = resolve_situation(kb, query, obj)
+    hints: list[str] = []
     if obj is not None:
-        part_mesh = assets.mesh_file_object(path)
+        part_mesh = assets.mesh_file_object(path, scale=query.mesh_scale)
+        hints = [h for h in [assets.units_hint(part_mesh, query.mesh_scale)] if h]
         volume = float(abs(part_mesh.mesh.volume)) if part_mesh.mesh.is_volume else 0.0
         mass = volume * DEFAULT_DENSITY if volume > 0 else 0.3
         situation.obj = situation.obj.model_copy(update={"mass": max(mass, 1e-3)})
@@ -140,6 +143,7 @@ def prepare(kb: KB, query: Query, db=None) -> PlanContext:
     ctx = build_context(situation, part_mesh, part_tags, candidates, stats, gripper, hand,
                         want, receiver_forbid, giver_forbid)
     ctx.cache["collider"] = collider
+    ctx.cache["warnings"] = hints
     return ctx
 
 
@@ -382,6 +386,7 @@ def build_result(
     )
     if attempt.graph is not None and attempt.decision is not None:
         result.why_not = [_why_not(attempt, ctx, gid) for gid in why_not]
+    result.warnings.extend(ctx.cache.get("warnings", []))
     for c in attempt.graph.order if attempt.graph is not None else []:
         if c.overridden_safety:
             result.warnings.append(

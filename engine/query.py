@@ -46,6 +46,7 @@ class Query:
     object : object id in the KB, or a path to a mesh file (planned as one untagged part).
     task : task id of the object (None: the object's ``default_task``, else no task).
     mode : "auto" or a forced mode, "h1g1" | "h2g2" | "h2g1".
+    mesh_scale : units of a mesh-file ``object`` to metres (0.001: millimetres).
     """
 
     object: str
@@ -56,9 +57,10 @@ class Query:
     mode: str = DEFAULTS["mode"]
     robot: str = DEFAULTS["robot"]
     gripper: str | None = None
+    mesh_scale: float = 1.0
 
     def as_dict(self) -> dict:
-        return {
+        out = {
             "object": self.object,
             "task": self.task,
             "receiver": self.receiver,
@@ -68,6 +70,9 @@ class Query:
             "robot": self.robot,
             "gripper": self.gripper,
         }
+        if self.mesh_scale != 1.0:  # only where asked: other results stay as they were
+            out["mesh_scale"] = self.mesh_scale
+        return out
 
 
 @dataclass

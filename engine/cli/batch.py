@@ -7,6 +7,7 @@ from pathlib import Path
 import typer
 
 from engine.cli.app import app, state
+from engine.cli.plan import check_mesh_scale
 
 OBJECTS_HELP = (
     "What to plan: 'kb' (every KB object), KB ids and mesh files as a comma list, a folder "
@@ -27,6 +28,8 @@ def batch(
                                     "(default: each object's default task)."),  # fmt: skip
     scene: str | None = typer.Option(None, "--scene", "-s", help="Scene id (default: table)."),
     mode: str = typer.Option("auto", "--mode", "-m", help="auto or h1g1|h2g2|h2g1."),
+    mesh_scale: float = typer.Option(1.0, "--mesh-scale", help="Units of the mesh files with no "
+                                     "KB entry to metres (0.001: millimetres)."),
     workers: int | None = typer.Option(None, "--workers", "-j", min=1,
                                        help="Processes (default: all cores; 1: in this one)."),
     ray: str | None = typer.Option(None, "--ray", metavar="ADDRESS",
@@ -57,7 +60,8 @@ def batch(
 
     console = Console(stderr=True, highlight=False)
     kb = load_kb(state.kb_dir)
-    units = expand(kb, objects, cultures, receivers, tasks, scene, mode)
+    units = expand(kb, objects, cultures, receivers, tasks, scene, mode,
+                   check_mesh_scale(mesh_scale))  # fmt: skip
     graspdb = open_db(db, disabled=no_db)
     db_root = None if graspdb is None else graspdb.root
     bar = Progress(

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from engine.cli.app import app, state
+from engine.cli.plan import MESH_SCALE_HELP, check_mesh_scale
 
 if TYPE_CHECKING:
     from engine.loader import KB
@@ -82,6 +83,7 @@ def grasps(
     roll_step_deg: float | None = typer.Option(
         None, "--roll-step-deg", help="Degrees between roll angles (default: the gripper's)."
     ),
+    mesh_scale: float = typer.Option(1.0, "--mesh-scale", help=MESH_SCALE_HELP),
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
     limit: int | None = typer.Option(
         None, "--limit", min=0, help=f"List at most N grasps, best first (table: {TABLE_ROWS})."
@@ -109,18 +111,23 @@ def grasps(
 
     if roll_step_deg is not None and not 0 < roll_step_deg <= 360:
         raise UsageError(f"--roll-step-deg must be in (0, 360], got {roll_step_deg}")
+    check_mesh_scale(mesh_scale)
     kb = load_kb(state.kb_dir)
     model, gripper_id, gripper_source = _gripper(kb, gripper)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", MeshWarning)
         if _is_mesh_file(target):
-            part_mesh = assets.mesh_file_object(target)
+            part_mesh = assets.mesh_file_object(target, scale=mesh_scale)
             mesh_info: dict[str, Any] = {"file": str(target)}
+            if mesh_scale != 1.0:
+                mesh_info["scale"] = mesh_scale
         else:
             obj = kb.object(target)
             part_mesh = assets.object_part_mesh(kb, obj)
             mesh_info = {"object": obj.id}
     notes = [str(w.message) for w in caught if issubclass(w.category, MeshWarning)]
+    if _is_mesh_file(target) and (hint := assets.units_hint(part_mesh, mesh_scale)):
+        notes.append(hint)
     if gripper_source == "default":
         notes.append("the KB has no gripper: using the built-in default (Robotiq-2F-85-like)")
 

@@ -12,10 +12,25 @@ from engine.files import write_atomic, write_error
 MODE_HELP = "auto (default: H1G1 first, then two hands as rules require) or h1g1|h2g2|h2g1."
 
 
-def _query(object_: str, task, receiver, culture, scene, mode, gripper):
+MESH_SCALE_HELP = "Units of a mesh-file OBJECT to metres (0.001: a file in millimetres)."
+
+
+def check_mesh_scale(mesh_scale: float) -> float:
+    """``--mesh-scale`` as given, or a usage error (exit 2) unless positive and finite."""
+    import math
+
+    from engine.errors import UsageError
+
+    if not (math.isfinite(mesh_scale) and mesh_scale > 0):
+        raise UsageError(f"--mesh-scale must be a positive number, got {mesh_scale}")
+    return mesh_scale
+
+
+def _query(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0):
     from engine.query import DEFAULTS, Query
 
     return Query(
+        mesh_scale=check_mesh_scale(mesh_scale),
         object=object_,
         task=task,
         receiver=receiver or DEFAULTS["receiver"],
@@ -35,6 +50,7 @@ def plan(
     scene: str | None = typer.Option(None, "--scene", "-s", help="Scene id."),
     mode: str = typer.Option("auto", "--mode", "-m", help=MODE_HELP),
     gripper: str | None = typer.Option(None, "--gripper", help="Gripper id."),
+    mesh_scale: float = typer.Option(1.0, "--mesh-scale", help=MESH_SCALE_HELP),
     json_out: bool = typer.Option(False, "--json", help="Print the JSON result."),
     output: Path | None = typer.Option(None, "-o", "--output", help="Write the JSON here."),
     explain: bool = typer.Option(False, "--explain", "-e", help="Show the full rule trace."),
@@ -58,7 +74,7 @@ def plan(
     from engine.planners import plan as run_plan
 
     kb = load_kb(state.kb_dir)
-    query = _query(object_, task, receiver, culture, scene, mode, gripper)
+    query = _query(object_, task, receiver, culture, scene, mode, gripper, mesh_scale)
     result, ctx = run_plan(kb, query, why_not=tuple(why_not), db=open_db(db, disabled=no_db))
     data = result.to_dict()
     if rrd is not None:

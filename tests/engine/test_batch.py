@@ -264,6 +264,29 @@ def test_cli_batch(meshes, tmp_path, monkeypatch):
     assert main(["batch", "--objects", "kb", "--out", str(out), "--cultures", "martian"]) == 2
 
 
+def test_cli_batch_mesh_scale_reads_millimetres_and_is_part_of_the_work(tmp_path):
+    import trimesh
+
+    from engine.cli.app import main
+
+    folder = tmp_path / "mm"
+    folder.mkdir()
+    trimesh.creation.cylinder(radius=33, height=120, sections=48).export(folder / "can.stl")
+    out = tmp_path / "out.parquet"
+    args = ["batch", "--objects", str(folder), "--out", str(out), "--workers", "1", "--no-db",
+            "--no-progress"]  # fmt: skip
+    assert main(args) == 0
+    (as_metres,) = batch.read_rows(out)
+    assert as_metres["feasible"] is False
+    assert any("--mesh-scale 0.001" in w for w in json.loads(as_metres["warnings"]))
+    # Another scale is other work: not skipped as finished, planned again.
+    assert main([*args, "--mesh-scale", "0.001"]) == 0
+    (scaled,) = batch.read_rows(out)
+    assert scaled["feasible"] is True and scaled["mode"] == "H1G1"
+    assert scaled["content_hash"] != as_metres["content_hash"]
+    assert main([*args, "--mesh-scale", "-2"]) == 2
+
+
 # ---------------------------------------------------------------- Ray
 
 

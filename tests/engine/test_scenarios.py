@@ -319,3 +319,26 @@ def test_a_gripper_given_as_meshes_plans_through_the_cli(capsys, tmp_path):
     assert bumped["candidates"]["grasps"] < builtin["candidates"]["grasps"]
     (human,) = bumped["human_grasps"]
     assert "handle" in part_tags("knife")[human["part"]]
+
+
+def test_a_mesh_in_millimetres_is_named_and_planned_with_mesh_scale(capsys, tmp_path):
+    """CAD files are mostly in millimetres: read as metres, a can is 100 m tall; the plan says
+    so and names the option, with which the same file plans."""
+    import trimesh
+
+    path = tmp_path / "can_mm.stl"
+    trimesh.creation.cylinder(radius=33, height=120, sections=48).export(path)
+    as_metres = plan(capsys, str(path), code=4)
+    (hint,) = [w for w in as_metres["warnings"] if "across" in w]
+    assert "120 m across" in hint and "--mesh-scale 0.001" in hint
+    scaled = plan(capsys, str(path), "--mesh-scale", "0.001")
+    assert scaled["feasible"] and scaled["mode"] == "H1G1"
+    assert scaled["query"]["mesh_scale"] == 0.001 and scaled["warnings"] == []
+    assert "mesh_scale" not in as_metres["query"]
+    assert main(["grasps", str(path), "--mesh-scale", "0.001", "--json"]) == 0
+    listed = json.loads(capsys.readouterr().out)
+    assert listed["mesh"]["scale"] == 0.001 and listed["grasps"]
+    np.testing.assert_allclose(listed["mesh"]["extents"], [0.066, 0.066, 0.12], atol=1e-3)
+    for bad in ("0", "-1", "nan"):
+        assert main(["plan", str(path), "--mesh-scale", bad]) == 2
+        assert "--mesh-scale must be a positive number" in capsys.readouterr().err
