@@ -29,8 +29,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from engine import batch  # noqa: E402
-from engine.loader import load_kb  # noqa: E402
+from handover.engine import batch  # noqa: E402
+from handover.engine.loader import load_kb  # noqa: E402
 
 
 def make_meshes(folder: Path, count: int, seed: int = 0) -> None:

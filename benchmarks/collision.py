@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from geometry.collision import (  # noqa: E402
+from handover.geometry.collision import (  # noqa: E402
     BoxWorld,
     ObjectCollider,
     _bvh_object,
@@ -43,8 +43,8 @@ from geometry.collision import (  # noqa: E402
     boxes_overlap,
     grippers_collide,
 )
-from geometry.gripper import Gripper  # noqa: E402
-from geometry.hand import HumanHand  # noqa: E402
+from handover.geometry.gripper import Gripper  # noqa: E402
+from handover.geometry.hand import HumanHand  # noqa: E402
 
 
 def candidate_poses(

@@ -44,11 +44,11 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
 
 import numpy as np  # noqa: E402
 
-from geometry import mesh as gm  # noqa: E402
-from geometry.collision import ObjectCollider, bare_fcl_loop_seconds  # noqa: E402
-from geometry.frames import rotation_about_axis, transform_from  # noqa: E402
-from geometry.generate import generate_with_stats  # noqa: E402
-from geometry.gripper import Gripper  # noqa: E402
+from handover.geometry import mesh as gm  # noqa: E402
+from handover.geometry.collision import ObjectCollider, bare_fcl_loop_seconds  # noqa: E402
+from handover.geometry.frames import rotation_about_axis, transform_from  # noqa: E402
+from handover.geometry.generate import generate_with_stats  # noqa: E402
+from handover.geometry.gripper import Gripper  # noqa: E402
 
 
 def hammer() -> gm.PartMesh:
@@ -62,8 +62,8 @@ def hammer() -> gm.PartMesh:
 def builtin_objects() -> list[tuple[str, Callable[[], gm.PartMesh]]]:
     """The built-in KB's objects, or nothing (with a note) if the KB does not load."""
     try:
-        from engine.assets import object_part_mesh
-        from engine.loader import load_kb
+        from handover.engine.assets import object_part_mesh
+        from handover.engine.loader import load_kb
 
         kb = load_kb(None)
     except Exception as e:  # noqa: BLE001 - a benchmark reports and goes on
@@ -77,8 +77,8 @@ def builtin_objects() -> list[tuple[str, Callable[[], gm.PartMesh]]]:
 
 def kb_gripper() -> Gripper:
     try:
-        from engine.assets import gripper_from_spec
-        from engine.loader import load_kb
+        from handover.engine.assets import gripper_from_spec
+        from handover.engine.loader import load_kb
 
         kb = load_kb(None)
         if "parallel_jaw" in kb.grippers:

@@ -24,10 +24,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from engine.graspdb import GraspDB, cached_candidates  # noqa: E402
-from engine.loader import load_kb  # noqa: E402
-from engine.planners import plan  # noqa: E402
-from engine.query import Query  # noqa: E402
+from handover.engine.graspdb import GraspDB, cached_candidates  # noqa: E402
+from handover.engine.loader import load_kb  # noqa: E402
+from handover.engine.planners import plan  # noqa: E402
+from handover.engine.query import Query  # noqa: E402
 
 RADIUS = 0.015  # m: a 3 cm ball; a larger one is too deep for 2 cm of finger past the contacts
 
@@ -83,8 +83,8 @@ def bench_objects(kb, modes: list[str], runs: int) -> None:
 def _generation_times(path: Path, gripper, runs: int) -> tuple[float, float, int]:
     """Median seconds to build the collider and to generate candidates on a freshly loaded
     mesh (trimesh caches facets and the ray scene on a mesh: a reused one would flatter)."""
-    from engine import assets
-    from geometry.collision import ObjectCollider
+    from handover.engine import assets
+    from handover.geometry.collision import ObjectCollider
 
     t_col, t_gen, count = [], [], 0
     for _ in range(runs + 1):
@@ -102,7 +102,7 @@ def _generation_times(path: Path, gripper, runs: int) -> tuple[float, float, int
 def bench_scaling(kb, max_subdiv: int, runs: int) -> None:
     import trimesh
 
-    from engine import assets
+    from handover.engine import assets
 
     gripper = assets.gripper_from_spec(kb.gripper(kb.robot("idro").gripper))
     print(f"\n## Scaling with mesh size (icosphere, radius {RADIUS * 100:g} cm; median seconds)")

@@ -31,19 +31,19 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
 
 import numpy as np  # noqa: E402
 
-from engine.compiler import CompiledRule  # noqa: E402
-from engine.context import PlanContext  # noqa: E402
-from engine.evaluate import Decision  # noqa: E402
-from engine.planners import Attempt  # noqa: E402
-from engine.presentation import ReceiverRegion, ReceiverSites, presentation_rotations  # noqa: E402
-from engine.record import write_recording  # noqa: E402
-from engine.result import PlanResult  # noqa: E402
-from engine.schema import Rule  # noqa: E402
-from geometry.candidates import SOURCE_ANTIPODAL, CandidateSet  # noqa: E402
-from geometry.frames import perpendicular, unit  # noqa: E402
-from geometry.gripper import Gripper  # noqa: E402
-from geometry.hand import HumanHand  # noqa: E402
-from geometry.mesh import PartMesh, capsule  # noqa: E402
+from handover.engine.compiler import CompiledRule  # noqa: E402
+from handover.engine.context import PlanContext  # noqa: E402
+from handover.engine.evaluate import Decision  # noqa: E402
+from handover.engine.planners import Attempt  # noqa: E402
+from handover.engine.presentation import ReceiverRegion, ReceiverSites, presentation_rotations  # noqa: E402
+from handover.engine.record import write_recording  # noqa: E402
+from handover.engine.result import PlanResult  # noqa: E402
+from handover.engine.schema import Rule  # noqa: E402
+from handover.geometry.candidates import SOURCE_ANTIPODAL, CandidateSet  # noqa: E402
+from handover.geometry.frames import perpendicular, unit  # noqa: E402
+from handover.geometry.gripper import Gripper  # noqa: E402
+from handover.geometry.hand import HumanHand  # noqa: E402
+from handover.geometry.mesh import PartMesh, capsule  # noqa: E402
 
 K = 24
 HARD = [
@@ -173,9 +173,9 @@ def knife(folder: Path) -> str:
     """Plan time and recording time of the real knife plan (first recording of a process
     pays rerun's import; this one runs after the synthetic ones, so it does not)."""
     try:
-        from engine.loader import load_kb
-        from engine.planners import plan
-        from engine.query import Query
+        from handover.engine.loader import load_kb
+        from handover.engine.planners import plan
+        from handover.engine.query import Query
 
         kb = load_kb(None)
         t = time.perf_counter()

@@ -23,7 +23,8 @@ from pathlib import Path
 PY = sys.executable
 HANDOVER = str(Path(PY).parent / "handover")
 BARE = "import numpy, trimesh, fcl, networkx, pydantic, yaml"
-CLI = "import sys; from engine.cli import main; sys.argv = ['handover', *sys.argv[1:]]; main()"
+CLI = ("import sys; from handover.engine.cli import main; "
+       "sys.argv = ['handover', *sys.argv[1:]]; main()")
 
 
 def run(cmd: list[str], runs: int, env: dict) -> tuple[float, int]:

@@ -12,10 +12,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from engine.loader import KB
-    from engine.schema import GripperSpec, ObjectSpec, Primitive
-    from geometry.gripper import Gripper
-    from geometry.mesh import PartMesh
+    from handover.engine.loader import KB
+    from handover.engine.schema import GripperSpec, ObjectSpec, Primitive
+    from handover.geometry.gripper import Gripper
+    from handover.geometry.mesh import PartMesh
 
 __all__ = [
     "object_part_mesh",
@@ -35,8 +35,8 @@ def primitive_mesh(prim: Primitive):
     ``position`` (m) then ``rotation_deg`` (extrinsic x, y, z, degrees) place the shape:
     ``T = translate(position) @ rotate(rotation_deg)`` about the primitive's own centre.
     """
-    from geometry import mesh as gm
-    from geometry.frames import rotation_from_euler_deg, transform_from
+    from handover.geometry import mesh as gm
+    from handover.geometry.frames import rotation_from_euler_deg, transform_from
 
     transform = transform_from(rotation_from_euler_deg(prim.rotation_deg), prim.position)
     if prim.shape == "box":
@@ -56,7 +56,7 @@ def object_part_mesh(kb: KB, obj: ObjectSpec) -> PartMesh:
     rest of its faces by ``default_part``. Raises ``geometry.mesh.MeshError`` on a missing or
     bad mesh file.
     """
-    from geometry import mesh as gm
+    from handover.geometry import mesh as gm
 
     if obj.geometry.primitives:
         return gm.compose([(p.part, primitive_mesh(p)) for p in obj.geometry.primitives])
@@ -77,7 +77,7 @@ likely in other units (CAD files are mostly in millimetres)."""
 def mesh_file_object(path: str | Path, scale: float = 1.0) -> PartMesh:
     """A mesh file with no KB entry: one part named ``body``. ``scale`` turns its units into
     metres (0.001 for a file in millimetres)."""
-    from geometry import mesh as gm
+    from handover.geometry import mesh as gm
 
     return gm.part_mesh_from_regions(gm.load_mesh(path, scale=scale), MESH_FILE_PART, [])
 
@@ -102,8 +102,8 @@ def gripper_from_spec(spec: GripperSpec, kb: KB | None = None) -> Gripper:
     ``max_finger_depth`` has no counterpart in the model: the model's finger depth is half
     the finger length (the pads are centred on the contacts).
     """
-    from geometry import mesh as gm
-    from geometry.gripper import Gripper
+    from handover.geometry import mesh as gm
+    from handover.geometry.gripper import Gripper
 
     meshes = {}
     if spec.meshes is not None:

@@ -27,12 +27,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from engine.errors import UsageError
-from geometry.mesh import MESH_SUFFIXES
+from handover.engine.errors import UsageError
+from handover.geometry.mesh import MESH_SUFFIXES
 
 if TYPE_CHECKING:
-    from engine.graspdb import GraspDB
-    from engine.loader import KB
+    from handover.engine.graspdb import GraspDB
+    from handover.engine.loader import KB
 
 __all__ = [
     "COLUMNS",
@@ -251,7 +251,7 @@ def expand(
         (``common``, ``adult``). tasks : None for each object's default task, ``all`` for
         every task of each object, or ids (an object without a listed task skips it).
     """
-    from engine.query import DEFAULTS, MODES
+    from handover.engine.query import DEFAULTS, MODES
 
     mode = mode.lower()
     if mode not in MODES:
@@ -303,7 +303,7 @@ def _worker_kb(kb_dir: str) -> KB:
     digest = kb_digest(kb_dir)
     cached = _KB_CACHE.get(kb_dir)
     if cached is None or cached[0] != digest:
-        from engine.loader import load_kb
+        from handover.engine.loader import load_kb
 
         cached = _KB_CACHE[kb_dir] = (digest, load_kb(kb_dir))
     return cached[1]
@@ -333,9 +333,9 @@ def error_rows(unit: Unit, error: BaseException | str) -> list[dict]:
 
 def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: GraspDB | None) -> dict:
     """Plan one query; its row. Any failure becomes the row's ``error``."""
-    from engine.planners import plan
-    from engine.query import Query
-    from engine.result import to_jsonable
+    from handover.engine.planners import plan
+    from handover.engine.query import Query
+    from handover.engine.result import to_jsonable
 
     query = Query(object=obj.query_object, task=q.task, receiver=q.receiver, culture=q.culture,
                   scene=q.scene, mode=q.mode, mesh_scale=obj.scale)  # fmt: skip
@@ -362,7 +362,7 @@ def run_unit(unit: Unit, kb_dir: str, db_root: str | None) -> list[dict]:
 
     db_root : the grasp database folder, or None for an in-memory one for this unit only.
     """
-    from engine.graspdb import GraspDB, MemoryDB
+    from handover.engine.graspdb import GraspDB, MemoryDB
 
     try:
         kb = _worker_kb(kb_dir)
@@ -389,11 +389,11 @@ def _preload() -> None:
     """Import what planning needs, once, before workers fork from this process."""
     import trimesh  # noqa: F401
 
-    import engine.planners  # noqa: F401
-    import engine.regrasp  # noqa: F401
-    import engine.twohand  # noqa: F401
-    import geometry.collision  # noqa: F401
-    import geometry.generate  # noqa: F401
+    import handover.engine.planners  # noqa: F401
+    import handover.engine.regrasp  # noqa: F401
+    import handover.engine.twohand  # noqa: F401
+    import handover.geometry.collision  # noqa: F401
+    import handover.geometry.generate  # noqa: F401
 
 
 def _run_inline(units: list[Unit], kb_dir: str, db_root: str | None, on_rows: OnRows) -> None:
@@ -413,7 +413,9 @@ def _pool_context():
         return mp.get_context("fork")
     if "forkserver" in methods:
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["engine.batch", "engine.planners", "geometry.generate"])
+        ctx.set_forkserver_preload(
+            ["handover.engine.batch", "handover.engine.planners", "handover.geometry.generate"]
+        )
         return ctx
     return mp.get_context("spawn")
 
@@ -565,7 +567,7 @@ def write_rows(path: Path | str, rows: list[dict]) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from engine.files import write_atomic, write_error
+    from handover.engine.files import write_atomic, write_error
 
     rows = sorted(rows, key=row_key)
     table = pa.Table.from_pylist([{c: r.get(c) for c in COLUMNS} for r in rows], schema=_schema())

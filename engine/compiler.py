@@ -19,14 +19,14 @@ from typing import TYPE_CHECKING
 
 import networkx as nx
 
-from engine.errors import KBError, KBIssue
-from engine.rules import FEATURES, not_applicable_reason, rule_features
-from engine.schema import Applies, Rule
+from handover.engine.errors import KBError, KBIssue
+from handover.engine.rules import FEATURES, not_applicable_reason, rule_features
+from handover.engine.schema import Applies, Rule
 
 if TYPE_CHECKING:
-    from engine.context import ObjectFacts, PlanContext
-    from engine.loader import KB
-    from engine.query import Situation
+    from handover.engine.context import ObjectFacts, PlanContext
+    from handover.engine.loader import KB
+    from handover.engine.query import Situation
 
 __all__ = ["CompiledRule", "ConstraintGraph", "compile", "conditions_hold", "graph_to_dot"]
 
@@ -136,7 +136,7 @@ def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  #
     Raises KBError (with the rules' file:line) when the graph has a cycle (rules overriding
     each other in a loop).
     """
-    from engine.etiquette import resolve_culture
+    from handover.engine.etiquette import resolve_culture
 
     situation = ctx.situation
     resolved = resolve_culture(kb, situation.query.culture)

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from engine.presentation import (
+from handover.engine.presentation import (
     ReceiverRegion,
     ReceiverSites,
     handover_poses,
@@ -21,14 +21,14 @@ from engine.presentation import (
     presentation_rotations,
     receiver_region,
 )
-from engine.query import Situation
+from handover.engine.query import Situation
 
 if TYPE_CHECKING:
-    from geometry.candidates import CandidateSet
-    from geometry.collision import BoxWorld
-    from geometry.gripper import Gripper, PosedBoxes
-    from geometry.hand import HumanHand
-    from geometry.mesh import PartMesh
+    from handover.geometry.candidates import CandidateSet
+    from handover.geometry.collision import BoxWorld
+    from handover.geometry.gripper import Gripper, PosedBoxes
+    from handover.geometry.hand import HumanHand
+    from handover.geometry.mesh import PartMesh
 
 __all__ = ["ObjectFacts", "PlanContext", "build_context", "initial_pose", "scene_boxes"]
 
@@ -118,7 +118,7 @@ class PlanContext:
 
 
 def _rotation_deg(angles) -> np.ndarray:
-    from geometry.frames import rotation_from_euler_deg
+    from handover.geometry.frames import rotation_from_euler_deg
 
     return rotation_from_euler_deg(np.asarray(angles, dtype=float))
 
@@ -177,7 +177,7 @@ def build_context(
         graspable region, whose robot-side half the ``giver_side`` rule measures (seed 3.1:
         "the half of the graspable region near the robot").
     """
-    from geometry.collision import BoxWorld
+    from handover.geometry.collision import BoxWorld
 
     mesh = part_mesh.mesh
     vertices = np.asarray(mesh.vertices, dtype=float)

@@ -19,11 +19,11 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from engine.errors import KBError, KBIssue
-from engine.schema import Culture, ObjectSpec, Primitive, Rule
+from handover.engine.errors import KBError, KBIssue
+from handover.engine.schema import Culture, ObjectSpec, Primitive, Rule
 
 if TYPE_CHECKING:
-    from engine.loader import KB
+    from handover.engine.loader import KB
 
 __all__ = [
     "ResolvedRule",

@@ -16,9 +16,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from engine.compiler import CompiledRule, ConstraintGraph
-from engine.context import PlanContext
-from engine.rules import Outcome, collision_targets, evaluate_rule
+from handover.engine.compiler import CompiledRule, ConstraintGraph
+from handover.engine.context import PlanContext
+from handover.engine.rules import Outcome, collision_targets, evaluate_rule
 
 __all__ = ["Decision", "evaluate", "infeasible_reason", "trace_row", "ROW_LIMIT"]
 
@@ -108,7 +108,7 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext) -> Decision:
     """Build the decision table of ``cg`` over all rows of ``ctx``."""
     n, k = ctx.n, ctx.k
     if n * k > ROW_LIMIT:
-        from engine.errors import UsageError
+        from handover.engine.errors import UsageError
 
         raise UsageError(
             f"{n} grasp candidates x {k} presentations = {n * k} rows is more than "

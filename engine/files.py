@@ -70,7 +70,7 @@ def write_error(option: str, path: Path | str, error: OSError):
     """The :class:`engine.errors.UsageError` for an output that cannot be written: ``option``
     (``-o``, ``--rrd``) and ``path`` as the user gave them, and why, e.g.
     ``-o /etc/passwd/x.json: cannot write there (/etc/passwd: File exists)``."""
-    from engine.errors import UsageError
+    from handover.engine.errors import UsageError
 
     why = error.strerror or str(error)
     if error.filename and str(error.filename) != str(path):

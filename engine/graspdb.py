@@ -33,12 +33,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from engine.files import write_atomic
-from geometry.candidates import CandidateSet
+from handover.engine.files import write_atomic
+from handover.geometry.candidates import CandidateSet
 
 if TYPE_CHECKING:
-    from geometry.gripper import Gripper
-    from geometry.mesh import PartMesh
+    from handover.geometry.gripper import Gripper
+    from handover.geometry.mesh import PartMesh
 
 __all__ = [
     "GraspDB",
@@ -92,7 +92,7 @@ def open_db(db_dir: Path | str | None = None, disabled: bool = False) -> GraspDB
 def generator_fingerprint() -> str:
     """Hash of the ``geometry`` package's sources and the entry layout: an entry written by
     other code is stale. (16 hex digits.)"""
-    import geometry
+    import handover.geometry as geometry
 
     h = hashlib.sha256(f"format {FORMAT}\0".encode())
     root = Path(geometry.__file__).parent
@@ -366,7 +366,7 @@ so that the same query gives the same result, byte for byte, cold or warm."""
 def _generate(
     part_mesh: PartMesh, gripper: Gripper, settings: dict, collider: Any
 ) -> tuple[CandidateSet, dict]:
-    from geometry.generate import generate_with_stats
+    from handover.geometry.generate import generate_with_stats
 
     kwargs = dict(settings)
     if collider is not None:

@@ -45,12 +45,12 @@ from collections.abc import Iterable, Iterator
 from pathlib import PurePosixPath, PureWindowsPath
 from typing import TYPE_CHECKING
 
-from engine.errors import KBIssue
-from engine.etiquette import _resolve, _rotation, applies_to_object, object_tags
-from engine.schema import KBModel, ObjectSpec, Rule
+from handover.engine.errors import KBIssue
+from handover.engine.etiquette import _resolve, _rotation, applies_to_object, object_tags
+from handover.engine.schema import KBModel, ObjectSpec, Rule
 
 if TYPE_CHECKING:
-    from engine.loader import KB
+    from handover.engine.loader import KB
 
 __all__ = ["lint_kb", "lint_object", "lint_cultures", "lint_references", "lint_scene"]
 

@@ -36,8 +36,8 @@ import pydantic
 import yaml
 from pydantic import BaseModel
 
-from engine.errors import KBError, KBIssue, UsageError
-from engine.schema import (
+from handover.engine.errors import KBError, KBIssue, UsageError
+from handover.engine.schema import (
     DOCUMENT_KINDS,
     Culture,
     GripperSpec,
@@ -605,7 +605,7 @@ def builtin_kb_dir() -> Path:
     """The knowledge base shipped with the package (the ``kb`` package folder)."""
     from importlib.resources import files
 
-    return Path(str(files("kb")))
+    return Path(str(files("handover.kb")))
 
 
 def resolve_kb_dir(kb_dir: Path | str | None) -> Path:
@@ -637,7 +637,7 @@ def load_kb(root: Path | str | None = None) -> KB:
     and semantic checks, each ``file:line:col``; the warnings are in ``error.warnings``),
     UsageError when the folder does not exist. Nothing is cached between calls.
     """
-    from engine.lint import lint_kb
+    from handover.engine.lint import lint_kb
 
     root = resolve_kb_dir(root)
     kb = KB(root=root)

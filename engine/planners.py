@@ -14,16 +14,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from engine.compiler import ConstraintGraph, compile
-from engine.context import PlanContext, build_context
-from engine.errors import UsageError
-from engine.evaluate import Decision, evaluate, infeasible_reason, trace_row
-from engine.query import Query, Situation, resolve_situation
-from engine.result import PlanResult
+from handover.engine.compiler import ConstraintGraph, compile
+from handover.engine.context import PlanContext, build_context
+from handover.engine.errors import UsageError
+from handover.engine.evaluate import Decision, evaluate, infeasible_reason, trace_row
+from handover.engine.query import Query, Situation, resolve_situation
+from handover.engine.result import PlanResult
 
 if TYPE_CHECKING:
-    from engine.loader import KB
-    from engine.schema import GripperSpec, ObjectSpec
+    from handover.engine.loader import KB
+    from handover.engine.schema import GripperSpec, ObjectSpec
 
 __all__ = [
     "Attempt",
@@ -62,7 +62,7 @@ class Attempt:
 def mesh_file_spec(path: Path, scale: float = 1.0) -> ObjectSpec:
     """A KB object for a mesh file with no KB entry: one untagged part named ``body``
     (``scale``: the file's units to metres)."""
-    from engine.schema import Geometry, MeshGeometry, ObjectSpec, Part
+    from handover.engine.schema import Geometry, MeshGeometry, ObjectSpec, Part
 
     stem = re.sub(r"[^a-z0-9_\-]+", "_", path.stem.lower()).strip("_-") or "mesh"
     if not stem[0].isalpha():
@@ -80,7 +80,7 @@ def _tag_roles(kb: KB, situation: Situation) -> tuple[set[str], set[str], set[st
     """Tags of the part the receiver should hold (the task's, else those required by the
     culture's receiver contact rules), tags the receiver must never hold, and tags the giver
     must never hold (hard contact rules)."""
-    from engine.etiquette import resolve_culture
+    from handover.engine.etiquette import resolve_culture
 
     want: set[str] = set(situation.task.receiver_tags) if situation.task else set()
     receiver_forbid: set[str] = set()
@@ -105,10 +105,10 @@ def prepare(kb: KB, query: Query, db=None) -> PlanContext:
     db : an ``engine.graspdb.GraspDB`` to read candidates from (and store them in), or None
         to generate them.
     """
-    from engine import assets
-    from engine.graspdb import cached_candidates
-    from geometry.collision import ObjectCollider
-    from geometry.hand import HumanHand
+    from handover.engine import assets
+    from handover.engine.graspdb import cached_candidates
+    from handover.geometry.collision import ObjectCollider
+    from handover.geometry.hand import HumanHand
 
     path = Path(query.object)
     obj = None
@@ -202,7 +202,7 @@ def human_record(ctx: PlanContext, k: int, hand: str, sites=None) -> dict | None
     if not sites.valid[k]:
         return None
     site = sites.site[k]
-    from engine.rules import hand_model
+    from handover.engine.rules import hand_model
 
     return {
         "hand": hand,
@@ -258,7 +258,7 @@ def _why_not(attempt: Attempt, ctx: PlanContext, grasp: int) -> dict:
 
 def _other_gripper_check(ctx: PlanContext, partner: int):
     """A callable for the ``other_gripper`` collision rule: rows against one fixed grasp."""
-    from geometry.collision import grippers_collide
+    from handover.geometry.collision import grippers_collide
 
     def hit(gi: np.ndarray, pk: np.ndarray) -> np.ndarray:
         poses, widths = ctx.gripper_poses(), ctx.candidates.width
@@ -272,7 +272,7 @@ def _other_gripper_check(ctx: PlanContext, partner: int):
 def _traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
     """The trace of every chosen grasp, with the other hand's grasp as the obstacle for the
     ``other_gripper`` rule in the two-hand modes."""
-    from engine.regrasp import first_rules, first_trace
+    from handover.engine.regrasp import first_rules, first_trace
 
     trace: list[dict] = []
     chosen = attempt.chosen
@@ -425,8 +425,8 @@ def plan(
     H2G1; a mode a soft rule prefers goes first. Returns the result (feasible or not) and its
     context (for recordings). db : the grasp database (see :func:`prepare`).
     """
-    from engine.regrasp import plan_h2g2
-    from engine.twohand import plan_h2g1
+    from handover.engine.regrasp import plan_h2g2
+    from handover.engine.twohand import plan_h2g1
 
     planners = {"H1G1": plan_h1g1, "H2G2": plan_h2g2, "H2G1": plan_h2g1}
     ctx = prepare(kb, query, db)

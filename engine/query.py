@@ -12,11 +12,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from engine.errors import UsageError
+from handover.engine.errors import UsageError
 
 if TYPE_CHECKING:
-    from engine.loader import KB
-    from engine.schema import (
+    from handover.engine.loader import KB
+    from handover.engine.schema import (
         GripperSpec,
         HumanHandSpec,
         ObjectSpec,

@@ -66,14 +66,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from engine.errors import UsageError
-from engine.files import atomic_path, write_error
+from handover.engine.errors import UsageError
+from handover.engine.files import atomic_path, write_error
 
 if TYPE_CHECKING:
-    from engine.context import PlanContext
-    from engine.evaluate import Decision
-    from engine.planners import Attempt
-    from engine.result import PlanResult
+    from handover.engine.context import PlanContext
+    from handover.engine.evaluate import Decision
+    from handover.engine.planners import Attempt
+    from handover.engine.result import PlanResult
 
 __all__ = [
     "write_recording",
@@ -733,7 +733,7 @@ def _write(result: PlanResult, ctx: PlanContext, decision: Decision | None, tmp:
             origins=np.repeat(origin[None], len(vec), axis=0), vectors=0.6 * size * vec,
             labels=list(axes), colors=[AXIS_COLOURS.get(a, OTHER_AXIS_COLOUR) for a in axes]),
             static=True)  # fmt: skip
-    from engine.rules import receiver_hand_boxes
+    from handover.engine.rules import receiver_hand_boxes
 
     names, centres, half, quats = _boxes_arrays(receiver_hand_boxes(ctx, k))
     if names:

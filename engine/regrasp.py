@@ -20,14 +20,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from engine.compiler import CompiledRule, compile
-from engine.context import PlanContext
-from engine.evaluate import _entry, evaluate, infeasible_reason
-from engine.rules import evaluate_rule
+from handover.engine.compiler import CompiledRule, compile
+from handover.engine.context import PlanContext
+from handover.engine.evaluate import _entry, evaluate, infeasible_reason
+from handover.engine.rules import evaluate_rule
 
 if TYPE_CHECKING:
-    from engine.loader import KB
-    from engine.planners import Attempt
+    from handover.engine.loader import KB
+    from handover.engine.planners import Attempt
 
 __all__ = ["plan_h2g2", "first_rules", "first_trace", "midair_pose", "MIDAIR_BACKOFF"]
 
@@ -105,8 +105,8 @@ def first_trace(ctx: PlanContext, rules: list[CompiledRule], all_rules: list[Com
 
 def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a midair regrasp; see the module docstring."""
-    from engine.planners import Attempt
-    from geometry.collision import grippers_collide
+    from handover.engine.planners import Attempt
+    from handover.geometry.collision import grippers_collide
 
     ctx.cache.update(_second_phase(ctx))
     cg = compile(kb, ctx, "H2G2")

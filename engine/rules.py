@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from engine.context import GRAVITY, PlanContext
-from engine.schema import Rule
+from handover.engine.context import GRAVITY, PlanContext
+from handover.engine.schema import Rule
 
 __all__ = ["Outcome", "FEATURES", "rule_features", "evaluate_rule", "not_applicable_reason"]
 
@@ -278,7 +278,7 @@ def _hand_approach(axis: np.ndarray, toward: np.ndarray) -> np.ndarray:
 
 def collision_receiver_hand(ctx: PlanContext, gi: np.ndarray, pk: np.ndarray) -> np.ndarray:
     """(R,) bool: the gripper at grasp ``gi`` in presentation ``pk`` hits the receiver's hand."""
-    from geometry.collision import BoxWorld
+    from handover.geometry.collision import BoxWorld
 
     out = np.zeros(len(gi), dtype=bool)
     # The grippers are posed once in the object frame; each presentation's hands are moved

@@ -24,15 +24,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from engine.compiler import ConstraintGraph, compile
-from engine.context import PlanContext
-from engine.evaluate import evaluate, infeasible_reason
-from engine.presentation import predict_two_hand_sites
-from engine.rules import collision_scene
+from handover.engine.compiler import ConstraintGraph, compile
+from handover.engine.context import PlanContext
+from handover.engine.evaluate import evaluate, infeasible_reason
+from handover.engine.presentation import predict_two_hand_sites
+from handover.engine.rules import collision_scene
 
 if TYPE_CHECKING:
-    from engine.loader import KB
-    from engine.planners import Attempt
+    from handover.engine.loader import KB
+    from handover.engine.planners import Attempt
 
 __all__ = ["plan_h2g1", "receiver_hand_count", "SIDE_BAND", "BALANCE_WEIGHT"]
 
@@ -71,8 +71,8 @@ def _palm_centres(ctx: PlanContext) -> np.ndarray:
 
 def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a two-handed handover; see the module docstring."""
-    from engine.planners import Attempt
-    from geometry.collision import grippers_collide
+    from handover.engine.planners import Attempt
+    from handover.geometry.collision import grippers_collide
 
     # Rows are judged at the presentation; pick-up is a property of the pair (below).
     ctx.cache.update({"pickup": False, "receiver_present": True, "mode": "H2G1"})

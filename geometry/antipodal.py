@@ -29,9 +29,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geometry.frames import GENERIC_DIRECTION, perpendicular
-from geometry.mesh import ray_first_hits
-from geometry.quality import ContactPairs, antipodal_quality, in_friction_cone
+from handover.geometry.frames import GENERIC_DIRECTION, perpendicular
+from handover.geometry.mesh import ray_first_hits
+from handover.geometry.quality import ContactPairs, antipodal_quality, in_friction_cone
 
 if TYPE_CHECKING:
     import trimesh
@@ -145,7 +145,7 @@ def antipodal_sites(
     max_opening : m, allowed contact distance. friction : mu. seed : sampling seed.
     face_mask : (F,) bool, faces to sample (default all).
     """
-    from geometry.candidates import SOURCE_ANTIPODAL
+    from handover.geometry.candidates import SOURCE_ANTIPODAL
 
     points, faces, used_spacing = sample_surface(mesh, spacing, seed, face_mask, max_samples)
     n_samples = len(points)

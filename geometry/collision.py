@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geometry.gripper import Box, Gripper, PosedBoxes, check_poses
+from handover.geometry.gripper import Box, Gripper, PosedBoxes, check_poses
 
 if TYPE_CHECKING:
     import trimesh
@@ -182,7 +182,7 @@ class ObjectCollider:
     """
 
     def __init__(self, mesh: trimesh.Trimesh, transform: np.ndarray | None = None) -> None:
-        from geometry.mesh import MeshError
+        from handover.geometry.mesh import MeshError
 
         vertices = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), dtype=float)
         faces = np.asarray(getattr(mesh, "faces", np.zeros((0, 3))))

@@ -42,9 +42,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geometry.frames import perpendicular, unit
-from geometry.mesh import ray_first_hits
-from geometry.quality import ContactPairs, in_friction_cone
+from handover.geometry.frames import perpendicular, unit
+from handover.geometry.mesh import ray_first_hits
+from handover.geometry.quality import ContactPairs, in_friction_cone
 
 if TYPE_CHECKING:
     import trimesh
@@ -543,7 +543,7 @@ def facet_sites(
     """
     import shapely
 
-    from geometry.candidates import SOURCE_FACET
+    from handover.geometry.candidates import SOURCE_FACET
 
     facets = planar_facets(mesh, min_area)
     i, j, u = antiparallel_pairs(facets, parallel_tol_rad, min_opening, max_opening)

@@ -27,15 +27,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from geometry.antipodal import antipodal_sites
-from geometry.candidates import CandidateSet
-from geometry.facets import facet_sites
-from geometry.quality import ContactPairs, antipodal_quality, com_distance
+from handover.geometry.antipodal import antipodal_sites
+from handover.geometry.candidates import CandidateSet
+from handover.geometry.facets import facet_sites
+from handover.geometry.quality import ContactPairs, antipodal_quality, com_distance
 
 if TYPE_CHECKING:
-    from geometry.collision import ObjectCollider
-    from geometry.gripper import Gripper
-    from geometry.mesh import PartMesh
+    from handover.geometry.collision import ObjectCollider
+    from handover.geometry.gripper import Gripper
+    from handover.geometry.mesh import PartMesh
 
 __all__ = [
     "GenerationStats",

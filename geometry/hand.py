@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geometry.gripper import Box
+from handover.geometry.gripper import Box
 
 __all__ = ["HumanHand"]
 

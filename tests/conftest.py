@@ -118,7 +118,7 @@ def make_kb(tmp_path: Path) -> Callable[..., Path]:
 @pytest.fixture(scope="session")
 def builtin_kb():
     """The built-in knowledge base, loaded once (do not modify it)."""
-    from engine.loader import builtin_kb_dir, load_kb
+    from handover.engine.loader import builtin_kb_dir, load_kb
 
     return load_kb(builtin_kb_dir())
 

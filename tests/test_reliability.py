@@ -21,8 +21,11 @@ import pytest
 import trimesh
 import yaml
 
-from engine.cli.app import main
-from engine.errors import (
+import handover.engine.files
+import handover.engine.record
+import handover.geometry.mesh
+from handover.engine.cli.app import main
+from handover.engine.errors import (
     EXIT_BAD_MESH,
     EXIT_INFEASIBLE,
     EXIT_INTERNAL,
@@ -31,8 +34,8 @@ from engine.errors import (
     EXIT_USAGE,
     UsageError,
 )
-from engine.loader import builtin_kb_dir, load_yaml_with_marks, validate_document
-from engine.schema import DOCUMENT_KINDS
+from handover.engine.loader import builtin_kb_dir, load_yaml_with_marks, validate_document
+from handover.engine.schema import DOCUMENT_KINDS
 
 HANDOVER = Path(sys.executable).parent / "handover"
 OBJECTS = sorted(p.stem for p in (builtin_kb_dir() / "objects").glob("*.yaml"))
@@ -215,16 +218,15 @@ def test_a_non_manifold_mesh_plans_with_one_warning_line(capsys, meshes):
 
 
 def test_an_enormous_mesh_is_refused_with_the_limit(capsys, meshes, monkeypatch):
-    import geometry.mesh
 
-    monkeypatch.setattr(geometry.mesh, "MAX_FACES", 10)  # the 12-face box is "too big"
+    monkeypatch.setattr(handover.geometry.mesh, "MAX_FACES", 10)  # the 12-face box is "too big"
     code, _, err = run(capsys, "plan", str(meshes["box"]))
     assert code == EXIT_BAD_MESH
     assert "12 faces is more than the limit of 10; decimate the mesh first" in err
 
 
 def test_debug_shows_the_traceback_of_a_bad_mesh(capsys, meshes):
-    from geometry.mesh import MeshError
+    from handover.geometry.mesh import MeshError
 
     with pytest.raises(MeshError, match="no area"):
         main(["--debug", "plan", str(meshes["flat"])])
@@ -562,8 +564,8 @@ def test_separate_processes_give_the_same_bytes(capsys, tmp_path, query):
 def test_ties_go_to_the_lower_row(builtin_kb):
     """The ranking is score descending, then row index: equal scores are common (a ball, a
     symmetric book), and the choice among them must not depend on anything else."""
-    from engine.planners import plan
-    from engine.query import Query
+    from handover.engine.planners import plan
+    from handover.engine.query import Query
 
     ties = 0
     for obj in ("ball", "book", "hammer", "scissors"):
@@ -579,7 +581,7 @@ def test_ties_go_to_the_lower_row(builtin_kb):
 
 
 def test_batch_rows_hold_the_grasps_plan_prints(capsys, tmp_path):
-    from engine.batch import read_rows
+    from handover.engine.batch import read_rows
 
     out = tmp_path / "rows.parquet"
     code, _, _ = run(capsys, "batch", "--objects", "knife,hammer", "--out", str(out),
@@ -623,8 +625,6 @@ def test_outputs_get_the_umask_mode(capsys, tmp_path, umask, mask, mode):
 
 
 def test_a_failed_write_keeps_the_old_file(capsys, tmp_path, monkeypatch):
-    import engine.files
-    import engine.record
 
     out, rrd = tmp_path / "pen.json", tmp_path / "pen.rrd"
     out.write_text("old json")
@@ -634,7 +634,7 @@ def test_a_failed_write_keeps_the_old_file(capsys, tmp_path, monkeypatch):
         Path(tmp).write_bytes(b"half a recording")
         raise RuntimeError("the disk went away")
 
-    monkeypatch.setattr(engine.record, "_write", half_written)
+    monkeypatch.setattr(handover.engine.record, "_write", half_written)
     code, _, err = run(capsys, "plan", "pen", "--rrd", str(rrd), "--no-db")
     assert code == EXIT_INTERNAL and "the disk went away" in err
     assert rrd.read_bytes() == b"old recording"
@@ -642,7 +642,7 @@ def test_a_failed_write_keeps_the_old_file(capsys, tmp_path, monkeypatch):
     def no_rename(src, dst):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(engine.files.os, "replace", no_rename)
+    monkeypatch.setattr(handover.engine.files.os, "replace", no_rename)
     code, _, err = run(capsys, "plan", "pen", "-o", str(out), "--no-db")
     assert code == EXIT_USAGE
     assert f"-o {out}: cannot write there (No space left on device)" in err

@@ -8,9 +8,9 @@ from __future__ import annotations
 import sys
 
 # Command modules register themselves on `app` / `kb_app` when imported.
-from engine.cli import commands as _commands  # noqa: F401,E402
-from engine.cli.app import app, kb_app, state
-from engine.cli.app import main as _main
+from handover.engine.cli import commands as _commands  # noqa: F401,E402
+from handover.engine.cli.app import app, kb_app, state
+from handover.engine.cli.app import main as _main
 
 __all__ = ["app", "kb_app", "state", "main"]
 

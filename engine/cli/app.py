@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
     from rich.console import Console
     from rich.markup import escape
 
-    from engine.errors import EXIT_BAD_MESH, EXIT_INTERNAL, HandoverError, KBError
+    from handover.engine.errors import EXIT_BAD_MESH, EXIT_INTERNAL, HandoverError, KBError
 
     args = _globals_first(list(sys.argv[1:] if argv is None else argv))
     debug = "--debug" in args or os.environ.get("HANDOVER_DEBUG") == "1"
@@ -119,7 +119,7 @@ class _NoMeshError(Exception):
 def _mesh_error() -> type[Exception]:
     """geometry.mesh.MeshError if that module was imported, without importing it (and numpy)
     for commands that never touch a mesh."""
-    module = sys.modules.get("geometry.mesh")
+    module = sys.modules.get("handover.geometry.mesh")
     return module.MeshError if module is not None else _NoMeshError
 
 

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import typer
 
-from engine.cli.app import app, state
-from engine.cli.plan import check_mesh_scale
+from handover.engine.cli.app import app, state
+from handover.engine.cli.plan import check_mesh_scale
 
 OBJECTS_HELP = (
     "What to plan: 'kb' (every KB object), KB ids and mesh files as a comma list, a folder "
@@ -54,9 +54,9 @@ def batch(
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from engine.batch import expand, run_batch
-    from engine.graspdb import open_db
-    from engine.loader import load_kb
+    from handover.engine.batch import expand, run_batch
+    from handover.engine.graspdb import open_db
+    from handover.engine.loader import load_kb
 
     console = Console(stderr=True, highlight=False)
     kb = load_kb(state.kb_dir)

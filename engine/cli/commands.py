@@ -5,7 +5,7 @@ Add a new command module here (one line) when you add one.
 
 from __future__ import annotations
 
-from engine.cli import (
+from handover.engine.cli import (
     batch,  # noqa: F401,E402  (batch)
     grasps,  # noqa: F401,E402  (grasps)
     kb,  # noqa: F401,E402  (kb validate, kb list, kb show, kb schema)

@@ -11,20 +11,20 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from engine.cli.app import app, state
-from engine.cli.plan import MESH_SCALE_HELP, check_mesh_scale
+from handover.engine.cli.app import app, state
+from handover.engine.cli.plan import MESH_SCALE_HELP, check_mesh_scale
 
 if TYPE_CHECKING:
-    from engine.loader import KB
-    from geometry.candidates import CandidateSet
-    from geometry.gripper import Gripper
+    from handover.engine.loader import KB
+    from handover.geometry.candidates import CandidateSet
+    from handover.geometry.gripper import Gripper
 
 DEFAULT_GRIPPER = "parallel_jaw"
 TABLE_ROWS = 15
 
 
 def _is_mesh_file(arg: str) -> bool:
-    from geometry.mesh import MESH_SUFFIXES
+    from handover.geometry.mesh import MESH_SUFFIXES
 
     return Path(arg).suffix.lower() in MESH_SUFFIXES or Path(arg).is_file()
 
@@ -32,8 +32,8 @@ def _is_mesh_file(arg: str) -> bool:
 def _gripper(kb: KB, gripper_id: str | None) -> tuple[Gripper, str, str]:
     """``(model, id, source)``: the asked gripper, else ``parallel_jaw``, else the first
     gripper of the KB by id, else ``Gripper.default()`` (source ``"default"``)."""
-    from engine.assets import gripper_from_spec
-    from geometry.gripper import Gripper
+    from handover.engine.assets import gripper_from_spec
+    from handover.geometry.gripper import Gripper
 
     if gripper_id is not None:
         return gripper_from_spec(kb.gripper(gripper_id), kb), gripper_id, "kb"
@@ -49,7 +49,7 @@ def _grasp_rows(c: CandidateSet, order: Any) -> list[dict]:
     """One JSON-ready dict per candidate row in ``order``."""
     import numpy as np
 
-    from geometry.candidates import SOURCE_FACET
+    from handover.geometry.candidates import SOURCE_FACET
 
     poses = c.poses()
     return [
@@ -101,13 +101,13 @@ def grasps(
 
     import numpy as np
 
-    from engine import assets
-    from engine.errors import UsageError
-    from engine.loader import load_kb
-    from engine.result import dumps
-    from geometry.collision import ObjectCollider
-    from geometry.generate import generate_with_stats
-    from geometry.mesh import MeshWarning
+    from handover.engine import assets
+    from handover.engine.errors import UsageError
+    from handover.engine.loader import load_kb
+    from handover.engine.result import dumps
+    from handover.geometry.collision import ObjectCollider
+    from handover.geometry.generate import generate_with_stats
+    from handover.geometry.mesh import MeshWarning
 
     if roll_step_deg is not None and not 0 < roll_step_deg <= 360:
         raise UsageError(f"--roll-step-deg must be in (0, 360], got {roll_step_deg}")
@@ -179,7 +179,7 @@ def _render(candidates, shown, mesh_info, gripper_info, stats, notes) -> None:
     from rich.markup import escape
     from rich.table import Table
 
-    from geometry.candidates import SOURCE_FACET
+    from handover.geometry.candidates import SOURCE_FACET
 
     console = Console(highlight=False)
     what = escape(str(mesh_info.get("object") or mesh_info.get("file")))

@@ -12,21 +12,21 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from engine.cli.app import kb_app, state
+from handover.engine.cli.app import kb_app, state
 
 if TYPE_CHECKING:
     from rich.console import Console
 
-    from engine.errors import KBIssue
-    from engine.etiquette import ResolvedRule
-    from engine.loader import KB
-    from engine.schema import KBModel, ObjectSpec
+    from handover.engine.errors import KBIssue
+    from handover.engine.etiquette import ResolvedRule
+    from handover.engine.loader import KB
+    from handover.engine.schema import KBModel, ObjectSpec
 
 __all__ = ["validate", "list_kb", "show", "schema"]
 
 
 def _load() -> KB:
-    from engine.loader import load_kb
+    from handover.engine.loader import load_kb
 
     return load_kb(state.kb_dir)
 
@@ -66,7 +66,7 @@ def validate(
 
     Exit code 0 when valid (warnings are printed), 3 with every error as file:line:col.
     """
-    from engine.errors import KBError
+    from handover.engine.errors import KBError
 
     try:
         kb = _load()
@@ -117,7 +117,7 @@ def validate(
 
 
 def _culture_parent(kb: KB, culture_id: str) -> str | None:
-    from engine.etiquette import culture_parent
+    from handover.engine.etiquette import culture_parent
 
     return culture_parent(kb.cultures[culture_id])
 
@@ -241,7 +241,7 @@ _ATTR = {
 
 
 def _rule_json(rr: ResolvedRule, obj: ObjectSpec | None = None) -> dict[str, Any]:
-    from engine.etiquette import applies_to_object, describe_applies, describe_rule
+    from handover.engine.etiquette import applies_to_object, describe_applies, describe_rule
 
     rule = rr.rule
     out: dict[str, Any] = {
@@ -269,7 +269,7 @@ def _rule_json(rr: ResolvedRule, obj: ObjectSpec | None = None) -> dict[str, Any
 
 
 def _object_json(kb: KB, obj: ObjectSpec, culture: str) -> dict[str, Any]:
-    from engine.etiquette import object_size, resolve_culture
+    from handover.engine.etiquette import object_size, resolve_culture
 
     resolved = resolve_culture(kb, culture)
     rules, skipped = [], []
@@ -316,7 +316,7 @@ def _object_json(kb: KB, obj: ObjectSpec, culture: str) -> dict[str, Any]:
 def _not_applicable(rule, obj: ObjectSpec) -> str | None:
     """Why ``rule`` cannot bear on ``obj`` (None when it can): its object conditions fail,
     it forbids tags the object does not carry, or it is about an axis the object lacks."""
-    from engine.etiquette import applies_to_object, describe_applies, object_tags
+    from handover.engine.etiquette import applies_to_object, describe_applies, object_tags
 
     if applies_to_object(rule, obj) is False:
         return f"needs {describe_applies(rule.applies)}"
@@ -329,7 +329,7 @@ def _not_applicable(rule, obj: ObjectSpec) -> str | None:
 
 
 def _culture_json(kb: KB, culture_id: str) -> dict[str, Any]:
-    from engine.etiquette import culture_chain, resolve_culture
+    from handover.engine.etiquette import culture_chain, resolve_culture
 
     c = kb.culture(culture_id)
     chain, _ = culture_chain(kb, culture_id)
@@ -367,7 +367,7 @@ def show(
     file:line and the rules it overrides. Also shows a culture (its resolved rules), a
     receiver, scene, gripper, hand or robot.
     """
-    from engine.errors import UsageError
+    from handover.engine.errors import UsageError
 
     kb = _load()
     if kind is not None and kind not in _KINDS:
@@ -510,9 +510,9 @@ def schema(
     Each KB file starts with ``# yaml-language-server: $schema=../schema/<kind>.json``;
     regenerate those files with ``handover kb schema -o kb/schema``.
     """
-    from engine.files import write_atomic, write_error
-    from engine.loader import document_schema
-    from engine.schema import DOCUMENT_KINDS
+    from handover.engine.files import write_atomic, write_error
+    from handover.engine.loader import document_schema
+    from handover.engine.schema import DOCUMENT_KINDS
 
     def text(k: str | None) -> str:
         return json.dumps(document_schema(k), indent=2, sort_keys=False, ensure_ascii=False) + "\n"

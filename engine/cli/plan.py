@@ -6,8 +6,8 @@ from pathlib import Path
 
 import typer
 
-from engine.cli.app import app, state
-from engine.files import write_atomic, write_error
+from handover.engine.cli.app import app, state
+from handover.engine.files import write_atomic, write_error
 
 MODE_HELP = "auto (default: H1G1 first, then two hands as rules require) or h1g1|h2g2|h2g1."
 
@@ -19,7 +19,7 @@ def check_mesh_scale(mesh_scale: float) -> float:
     """``--mesh-scale`` as given, or a usage error (exit 2) unless positive and finite."""
     import math
 
-    from engine.errors import UsageError
+    from handover.engine.errors import UsageError
 
     if not (math.isfinite(mesh_scale) and mesh_scale > 0):
         raise UsageError(f"--mesh-scale must be a positive number, got {mesh_scale}")
@@ -27,7 +27,7 @@ def check_mesh_scale(mesh_scale: float) -> float:
 
 
 def _query(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0):
-    from engine.query import DEFAULTS, Query
+    from handover.engine.query import DEFAULTS, Query
 
     return Query(
         mesh_scale=check_mesh_scale(mesh_scale),
@@ -68,17 +68,17 @@ def plan(
     """
     from rich.console import Console
 
-    from engine.errors import EXIT_INFEASIBLE
-    from engine.graspdb import open_db
-    from engine.loader import load_kb
-    from engine.planners import plan as run_plan
+    from handover.engine.errors import EXIT_INFEASIBLE
+    from handover.engine.graspdb import open_db
+    from handover.engine.loader import load_kb
+    from handover.engine.planners import plan as run_plan
 
     kb = load_kb(state.kb_dir)
     query = _query(object_, task, receiver, culture, scene, mode, gripper, mesh_scale)
     result, ctx = run_plan(kb, query, why_not=tuple(why_not), db=open_db(db, disabled=no_db))
     data = result.to_dict()
     if rrd is not None:
-        from engine.record import write_recording
+        from handover.engine.record import write_recording
 
         write_recording(result, ctx, rrd)
     text = result.to_json()
@@ -90,7 +90,7 @@ def plan(
     if json_out:
         typer.echo(text, nl=False)
     else:
-        from engine.trace import render_plan
+        from handover.engine.trace import render_plan
 
         render_plan(data, Console(highlight=False, soft_wrap=False), explain=explain)
     if not result.feasible:
@@ -111,16 +111,16 @@ def explain_graph(
     evaluation order."""
     from rich.console import Console
 
-    from engine.compiler import compile, graph_to_dot
-    from engine.loader import load_kb
-    from engine.planners import prepare
-    from engine.trace import render_graph
+    from handover.engine.compiler import compile, graph_to_dot
+    from handover.engine.loader import load_kb
+    from handover.engine.planners import prepare
+    from handover.engine.trace import render_graph
 
     kb = load_kb(state.kb_dir)
     ctx = prepare(kb, _query(object_, task, receiver, culture, scene, "auto", None))
     mode = mode.upper()
     if mode not in ("H1G1", "H2G2", "H2G1"):
-        from engine.errors import UsageError
+        from handover.engine.errors import UsageError
 
         raise UsageError(f"unknown mode '{mode}' for explain-graph: choose H1G1, H2G2 or H2G1")
     ctx.cache["mode"] = mode

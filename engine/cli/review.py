@@ -16,7 +16,7 @@ from pathlib import Path
 
 import typer
 
-from engine.cli.app import app
+from handover.engine.cli.app import app
 
 __all__ = ["review", "viewer_command", "render_summary"]
 
@@ -87,8 +87,8 @@ def review(
     """
     import subprocess
 
-    from engine.record import read_recording
-    from engine.result import dumps
+    from handover.engine.record import read_recording
+    from handover.engine.result import dumps
 
     data = read_recording(file)  # validates the file first, whatever is asked
     if not (summary or json_out):

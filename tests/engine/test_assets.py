@@ -9,10 +9,15 @@ import pytest
 import trimesh
 from numpy.testing import assert_allclose
 
-from engine.assets import gripper_from_spec, mesh_file_object, object_part_mesh, primitive_mesh
-from engine.loader import load_kb
-from engine.schema import GripperSpec, Primitive
-from geometry.mesh import MeshError
+from handover.engine.assets import (
+    gripper_from_spec,
+    mesh_file_object,
+    object_part_mesh,
+    primitive_mesh,
+)
+from handover.engine.loader import load_kb
+from handover.engine.schema import GripperSpec, Primitive
+from handover.geometry.mesh import MeshError
 
 BRICK = """\
 id: brick

@@ -10,8 +10,8 @@ import pytest
 import trimesh
 from numpy.testing import assert_allclose
 
-import engine.cli  # noqa: F401  (registers the commands)
-from engine.cli.app import main
+import handover.engine.cli  # noqa: F401  (registers the commands)
+from handover.engine.cli.app import main
 
 GRIPPER = """\
 id: parallel_jaw

@@ -14,9 +14,9 @@ import jsonschema
 import pytest
 import yaml
 
-from engine.cli.app import main
-from engine.loader import builtin_kb_dir, document_schema
-from engine.schema import DOCUMENT_KINDS
+from handover.engine.cli.app import main
+from handover.engine.loader import builtin_kb_dir, document_schema
+from handover.engine.schema import DOCUMENT_KINDS
 
 HANDOVER = Path(sys.executable).parent / "handover"
 

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from engine.cli.app import main
-from engine.cli.review import viewer_command
+from handover.engine.cli.app import main
+from handover.engine.cli.review import viewer_command
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +70,9 @@ def test_review_with_a_viewer_spawns_it_and_returns(knife_rrd, capsys, monkeypat
         def __init__(self, command, **kwargs):
             started.append((command, kwargs))
 
-    monkeypatch.setattr("engine.cli.review.viewer_command", lambda path: ["rerun", str(path)])
+    monkeypatch.setattr(
+        "handover.engine.cli.review.viewer_command", lambda path: ["rerun", str(path)]
+    )
     monkeypatch.setattr(subprocess, "Popen", FakePopen)
     assert main(["review", str(rrd)]) == 0
     assert started == [(["rerun", str(rrd)], started[0][1])]

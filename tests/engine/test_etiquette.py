@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from engine.errors import UsageError
-from engine.etiquette import (
+from handover.engine.errors import UsageError
+from handover.engine.etiquette import (
     applies_to_object,
     culture_chain,
     describe_rule,
@@ -14,8 +14,8 @@ from engine.etiquette import (
     object_tags,
     resolve_culture,
 )
-from engine.loader import load_kb
-from engine.schema import Applies, ObjectSpec, Rule
+from handover.engine.loader import load_kb
+from handover.engine.schema import Applies, ObjectSpec, Rule
 
 
 def rule(rid: str, **fields) -> Rule:

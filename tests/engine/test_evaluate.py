@@ -10,7 +10,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from engine.evaluate import Decision
+from handover.engine.evaluate import Decision
 
 
 def _decision(fails: np.ndarray) -> Decision:

@@ -8,10 +8,10 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from engine import graspdb
-from engine.graspdb import EntryError, GraspDB, cached_candidates, candidate_key, open_db
-from geometry.candidates import SOURCE_ANTIPODAL, SOURCE_FACET, CandidateSet
-from geometry.gripper import Gripper
+from handover.engine import graspdb
+from handover.engine.graspdb import EntryError, GraspDB, cached_candidates, candidate_key, open_db
+from handover.geometry.candidates import SOURCE_ANTIPODAL, SOURCE_FACET, CandidateSet
+from handover.geometry.gripper import Gripper
 
 
 def _unit(rng: np.random.Generator, n: int) -> np.ndarray:
@@ -210,13 +210,13 @@ def test_entry_of_another_generator_is_stale(tmp_path, monkeypatch):
 
 
 def _part_mesh(extents=(0.2, 0.04, 0.03), names=("body",)):
-    from geometry.mesh import PartMesh, box
+    from handover.geometry.mesh import PartMesh, box
 
     mesh = box(np.array(extents))
     face_part = np.zeros(len(mesh.faces), dtype=np.int64)
     if len(names) > 1:
         face_part[len(face_part) // 2 :] = 1
-    from geometry.mesh import mass_centre
+    from handover.geometry.mesh import mass_centre
 
     return PartMesh(mesh, face_part, list(names), mass_centre(mesh))
 
@@ -257,7 +257,7 @@ def test_plain_stats_are_json_data():
 
 @pytest.fixture()
 def generator():
-    return pytest.importorskip("geometry.generate")
+    return pytest.importorskip("handover.geometry.generate")
 
 
 def test_cached_candidates_generates_once_then_reads(tmp_path, generator):
@@ -275,7 +275,7 @@ def test_cached_candidates_generates_once_then_reads(tmp_path, generator):
 
 
 def test_collision_filtered_candidates_have_their_own_entry(tmp_path, generator):
-    from geometry.collision import ObjectCollider
+    from handover.geometry.collision import ObjectCollider
 
     pm, g = _part_mesh(), Gripper.default()
     collider = ObjectCollider(pm.mesh)

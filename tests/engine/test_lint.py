@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from engine.errors import KBError
-from engine.loader import load_kb
+from handover.engine.errors import KBError
+from handover.engine.loader import load_kb
 
 
 def line_of(text: str, needle: str, nth: int = 0) -> int:

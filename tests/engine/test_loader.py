@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from engine.errors import KBError, UsageError
-from engine.loader import (
+from handover.engine.errors import KBError, UsageError
+from handover.engine.loader import (
     builtin_kb_dir,
     load_kb,
     load_yaml_with_marks,

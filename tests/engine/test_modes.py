@@ -11,9 +11,9 @@ import json
 import numpy as np
 import trimesh
 
-from engine.cli.app import main
-from geometry.collision import BoxWorld, grippers_collide
-from geometry.gripper import Gripper
+from handover.engine.cli.app import main
+from handover.geometry.collision import BoxWorld, grippers_collide
+from handover.geometry.gripper import Gripper
 
 
 def plan(capsys, *args: str, code: int = 0) -> dict:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.testing import assert_allclose
 
-from engine.presentation import (
+from handover.engine.presentation import (
     hand_axes,
     handover_poses,
     predict_receiver_sites,

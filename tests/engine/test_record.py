@@ -15,13 +15,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from engine.compiler import CompiledRule
-from engine.context import PlanContext
-from engine.errors import UsageError
-from engine.evaluate import Decision
-from engine.planners import Attempt
-from engine.presentation import ReceiverRegion, ReceiverSites
-from engine.record import (
+from handover.engine.compiler import CompiledRule
+from handover.engine.context import PlanContext
+from handover.engine.errors import UsageError
+from handover.engine.evaluate import Decision
+from handover.engine.planners import Attempt
+from handover.engine.presentation import ReceiverRegion, ReceiverSites
+from handover.engine.record import (
     CLASS_ALIVE,
     CLASS_CHOSEN,
     CLASS_GENERATED,
@@ -35,11 +35,11 @@ from engine.record import (
     stage_classes,
     write_recording,
 )
-from engine.result import PlanResult
-from engine.schema import RULE_KINDS, Rule
-from geometry.candidates import SOURCE_FACET, CandidateSet
-from geometry.gripper import Gripper
-from geometry.hand import HumanHand
+from handover.engine.result import PlanResult
+from handover.engine.schema import RULE_KINDS, Rule
+from handover.geometry.candidates import SOURCE_FACET, CandidateSet
+from handover.geometry.gripper import Gripper
+from handover.geometry.hand import HumanHand
 
 N, K = 6, 2
 HARD = [
@@ -106,7 +106,7 @@ def _decision(feasible: bool) -> Decision:
 
 
 def _context(cands: CandidateSet) -> PlanContext:
-    from geometry.mesh import PartMesh, box
+    from handover.geometry.mesh import PartMesh, box
 
     mesh = box([0.2, 0.03, 0.02])
     face_part = (np.asarray(mesh.triangles_center)[:, 0] > 0).astype(np.int64)
@@ -421,7 +421,7 @@ def test_an_existing_file_is_replaced_whole_and_no_temporary_is_left(tmp_path):
 
 
 def test_failure_while_writing_leaves_the_old_file(tmp_path, monkeypatch):
-    import engine.record as record
+    import handover.engine.record as record
 
     result, ctx, _ = synthetic_plan()
     path = tmp_path / "plan.rrd"
@@ -465,14 +465,14 @@ def test_recording_does_not_import_rerun_with_the_engine():
 
 @pytest.fixture(scope="module")
 def kb():
-    from engine.loader import load_kb
+    from handover.engine.loader import load_kb
 
     return load_kb(None)
 
 
 def _real(kb, tmp_path: Path, obj: str, mode: str, scene: str):
-    from engine.planners import plan
-    from engine.query import Query
+    from handover.engine.planners import plan
+    from handover.engine.query import Query
 
     result, ctx = plan(kb, Query(object=obj, mode=mode, scene=scene))
     path = tmp_path / f"{obj}-{mode}.rrd"

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 import yaml
 
-from engine.cli.app import main
-from engine.loader import builtin_kb_dir, load_kb
+from handover.engine.cli.app import main
+from handover.engine.loader import builtin_kb_dir, load_kb
 
 HANDOVER = Path(sys.executable).parent / "handover"
 KB = load_kb()

@@ -13,9 +13,9 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from engine.errors import KBError
-from engine.loader import builtin_kb_dir, load_kb
-from engine.schema import DOCUMENT_KINDS
+from handover.engine.errors import KBError
+from handover.engine.loader import builtin_kb_dir, load_kb
+from handover.engine.schema import DOCUMENT_KINDS
 
 FOLDERS = sorted(DOCUMENT_KINDS)
 FIELD_NAMES = sorted(

@@ -69,15 +69,15 @@ from hypothesis import event as _hypothesis_event
 from hypothesis import strategies as st
 from hypothesis.control import currently_in_test_context
 
-from engine.cli.app import main
-from engine.errors import EXIT_BAD_MESH, EXIT_INFEASIBLE, EXIT_INVALID_KB, EXIT_OK
-from engine.loader import builtin_kb_dir, load_kb
-from engine.planners import plan
-from engine.presentation import ISOTROPY
-from engine.query import Query
-from engine.schema import SceneSpec
-from geometry.frames import rotation_from_euler_deg
-from geometry.mesh import MeshError
+from handover.engine.cli.app import main
+from handover.engine.errors import EXIT_BAD_MESH, EXIT_INFEASIBLE, EXIT_INVALID_KB, EXIT_OK
+from handover.engine.loader import builtin_kb_dir, load_kb
+from handover.engine.planners import plan
+from handover.engine.presentation import ISOTROPY
+from handover.engine.query import Query
+from handover.engine.schema import SceneSpec
+from handover.geometry.frames import rotation_from_euler_deg
+from handover.geometry.mesh import MeshError
 
 FUZZ = settings(
     max_examples=int(os.environ.get("HANDOVER_FUZZ_EXAMPLES", "200")),

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from geometry import mesh as gm
-from geometry.antipodal import antipodal_sites, deduplicate, sample_surface
-from geometry.frames import transform_from
-from geometry.quality import ContactPairs, cone_angles
+from handover.geometry import mesh as gm
+from handover.geometry.antipodal import antipodal_sites, deduplicate, sample_surface
+from handover.geometry.frames import transform_from
+from handover.geometry.quality import ContactPairs, cone_angles
 
 OPEN = dict(min_opening=0.0, max_opening=0.085, friction=0.5)
 

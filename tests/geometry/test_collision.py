@@ -12,15 +12,15 @@ from hypothesis import strategies as st
 from numpy.testing import assert_array_equal
 from scipy.spatial.transform import Rotation
 
-from geometry.collision import (
+from handover.geometry.collision import (
     BoxWorld,
     ObjectCollider,
     bare_fcl_loop_seconds,
     boxes_overlap,
     grippers_collide,
 )
-from geometry.gripper import Gripper
-from geometry.mesh import MeshError
+from handover.geometry.gripper import Gripper
+from handover.geometry.mesh import MeshError
 
 G = Gripper.default()
 EYE = np.eye(3)

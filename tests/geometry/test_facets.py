@@ -8,9 +8,9 @@ import shapely
 import trimesh
 from numpy.testing import assert_allclose
 
-from geometry import mesh as gm
-from geometry.facets import facet_sites, overlap_site_points, planar_facets
-from geometry.frames import transform_from
+from handover.geometry import mesh as gm
+from handover.geometry.facets import facet_sites, overlap_site_points, planar_facets
+from handover.geometry.frames import transform_from
 
 PAD = 0.022
 PARAMS = dict(

@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from geometry.frames import (
+from handover.geometry.frames import (
     frame_from_o_a,
     invert_transform,
     perpendicular,

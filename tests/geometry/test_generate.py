@@ -8,23 +8,23 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from geometry import mesh as gm
-from geometry.candidates import SOURCE_ANTIPODAL, SOURCE_FACET, CandidateSet
-from geometry.collision import ObjectCollider
-from geometry.frames import (
+from handover.geometry import mesh as gm
+from handover.geometry.candidates import SOURCE_ANTIPODAL, SOURCE_FACET, CandidateSet
+from handover.geometry.collision import ObjectCollider
+from handover.geometry.frames import (
     rotation_about_axis,
     transform_from,
     transform_points,
     transform_vectors,
 )
-from geometry.generate import (
+from handover.geometry.generate import (
     contact_offsets,
     generate_candidates,
     generate_with_stats,
     min_overlap_area,
     roll_angles,
 )
-from geometry.gripper import Gripper
+from handover.geometry.gripper import Gripper
 
 GRIPPER = Gripper.default()
 

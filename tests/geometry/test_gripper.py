@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from geometry.gripper import PART_NAMES, Gripper, check_poses
+from handover.geometry.gripper import PART_NAMES, Gripper, check_poses
 
 G = Gripper.default()
 

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from geometry.collision import BoxWorld
-from geometry.gripper import Gripper
-from geometry.hand import HumanHand
+from handover.geometry.collision import BoxWorld
+from handover.geometry.gripper import Gripper
+from handover.geometry.hand import HumanHand
 
 HAND = HumanHand.default()
 GRIPPER = Gripper.default()

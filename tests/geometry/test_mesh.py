@@ -9,9 +9,9 @@ import pytest
 import trimesh
 from numpy.testing import assert_allclose
 
-from geometry import mesh as gm
-from geometry.frames import rotation_about_axis, transform_from
-from geometry.mesh import MeshError, MeshWarning
+from handover.geometry import mesh as gm
+from handover.geometry.frames import rotation_about_axis, transform_from
+from handover.geometry.mesh import MeshError, MeshWarning
 
 
 def _polygon_area(n: int, r: float) -> float:

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from geometry.quality import (
+from handover.geometry.quality import (
     ContactPairs,
     antipodal_quality,
     com_distance,
