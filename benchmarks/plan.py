@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from handover.engine.graspdb import GraspDB, cached_candidates  # noqa: E402
 from handover.engine.loader import load_kb  # noqa: E402
-from handover.engine.planners import plan  # noqa: E402
+from handover.engine.planner import plan  # noqa: E402
 from handover.engine.query import Query  # noqa: E402
 
 RADIUS = 0.015  # m: a 3 cm ball; a larger one is too deep for 2 cm of finger past the contacts
@@ -60,7 +60,7 @@ def bench_objects(kb, modes: list[str], runs: int) -> None:
                     t_cold, _, _ = timed(cold, runs)
                     warm_db = GraspDB(Path(tmp) / "warm")
                     plan(kb, query, db=warm_db)
-                    t_warm, _, (result, _) = timed(lambda q=query, d=warm_db: plan(kb, q, db=d),
+                    t_warm, _, planned = timed(lambda q=query, d=warm_db: plan(kb, q, db=d),
                                                    runs)  # fmt: skip
                 except Exception as e:  # noqa: BLE001 - a benchmark reports and goes on
                     print(f"{oid:<13} {mode:<5} failed: {type(e).__name__}: {e}")
@@ -68,6 +68,7 @@ def bench_objects(kb, modes: list[str], runs: int) -> None:
             if mode == "h1g1":
                 worst["cold"] = max(worst["cold"], t_cold)
                 worst["warm"] = max(worst["warm"], t_warm)
+            result = planned.result
             label = (result.mode or "-") if result.feasible else "none"
             print(f"{oid:<13} {mode:<5} {t_cold:7.3f} {t_warm:7.3f} {t_cold / t_warm:6.1f}x  "
                   f"{label:<6} {result.candidates.get('grasps', 0):>6}")  # fmt: skip

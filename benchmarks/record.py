@@ -31,14 +31,14 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
 
 import numpy as np  # noqa: E402
 
+from handover.engine.attempt import Attempt, Hands, Phase  # noqa: E402
 from handover.engine.compiler import CompiledRule  # noqa: E402
 from handover.engine.context import PlanContext  # noqa: E402
 from handover.engine.evaluate import Decision  # noqa: E402
-from handover.engine.planners import Attempt  # noqa: E402
 from handover.engine.presentation import ReceiverRegion, ReceiverSites, presentation_rotations  # noqa: E402
 from handover.engine.record import write_recording  # noqa: E402
 from handover.engine.result import PlanResult  # noqa: E402
-from handover.engine.schema import Rule  # noqa: E402
+from handover.engine.schema import parse_rule  # noqa: E402
 from handover.geometry.candidates import SOURCE_ANTIPODAL, CandidateSet  # noqa: E402
 from handover.geometry.frames import perpendicular, unit  # noqa: E402
 from handover.geometry.gripper import Gripper  # noqa: E402
@@ -47,20 +47,22 @@ from handover.geometry.mesh import PartMesh, capsule  # noqa: E402
 
 K = 24
 HARD = [
-    Rule(id="no_sharp", kind="contact", who="giver", forbid_tags=["sharp"], why="-"),
-    Rule(id="tip_away", kind="axis", axis="tip", toward="toward_receiver", min_deg=100, why="-"),
-    Rule(id="task", kind="task_present", why="-"),
-    Rule(id="quality_floor", kind="quality", min_quality=0.05, why="-"),
-    Rule(id="torque", kind="torque", max_nm=1.5, why="-"),
-    Rule(id="giver_half", kind="giver_side", max_fraction=0.5, why="-"),
-    Rule(id="approach", kind="approach", max_deg=100, why="-"),
-    Rule(id="apart", kind="clearance", min_m=0.06, why="-"),
-    Rule(id="collision_free", kind="collision", against=["scene", "receiver_hand"], why="-"),
+    parse_rule(dict(id="no_sharp", kind="contact", who="giver", forbid_tags=["sharp"], why="-")),
+    parse_rule(dict(id="tip_away", kind="axis", axis="tip", toward="toward_receiver",
+                    min_deg=100, why="-")),
+    parse_rule(dict(id="task", kind="task_present", why="-")),
+    parse_rule(dict(id="quality_floor", kind="quality", min_quality=0.05, why="-")),
+    parse_rule(dict(id="torque", kind="torque", max_nm=1.5, why="-")),
+    parse_rule(dict(id="giver_half", kind="giver_side", max_fraction=0.5, why="-")),
+    parse_rule(dict(id="approach", kind="approach", max_deg=100, why="-")),
+    parse_rule(dict(id="apart", kind="clearance", min_m=0.06, why="-")),
+    parse_rule(dict(id="collision_free", kind="collision", against=["scene", "receiver_hand"],
+                    why="-")),
 ]  # fmt: skip
 SOFT = [
-    Rule(id="q", kind="quality", hard=False, min_quality=0.5, why="-"),
-    Rule(id="handle_first", kind="axis", hard=False, axis="tip", toward="toward_receiver",
-         min_deg=90, why="-"),
+    parse_rule(dict(id="q", kind="quality", hard=False, min_quality=0.5, why="-")),
+    parse_rule(dict(id="handle_first", kind="axis", hard=False, axis="tip",
+                    toward="toward_receiver", min_deg=90, why="-")),
 ]  # fmt: skip
 
 
@@ -104,8 +106,7 @@ def synthetic_plan(n: int, seed: int = 0) -> tuple[PlanResult, PlanContext, Atte
         generation={"antipodal": n}, gripper=Gripper.default(),
         hand=HumanHand(palm=(0.08, 0.09, 0.03), finger_length=0.08, finger_thickness=0.02,
                        grip_width=0.08),
-        rotations=rotations, poses=poses, s_range=np.zeros((K, 2)), region=region, sites=sites,
-        initial=initial, scene=None,
+        rotations=rotations, poses=poses, initial=initial, scene=None,
         scene_box_list=[("table", np.array([0.8, 1.2, 0.05]), table)], facts=None,
     )  # fmt: skip
     gi = np.repeat(np.arange(n), K)
@@ -121,8 +122,8 @@ def synthetic_plan(n: int, seed: int = 0) -> tuple[PlanResult, PlanContext, Atte
         kept=kept, score=score, first_fail=np.where(fails.any(1), fails.argmax(1), -1),
         soft_scores=np.repeat(score[:, None], len(SOFT), axis=1),
     )  # fmt: skip
-    attempt = Attempt("H1G1", True, None, None, decision)
-    ctx.cache["attempt"] = attempt
+    hands = Hands(key=("benchmark", 1), region=region, sites=(sites,), s_range=np.zeros((K, 2)))
+    attempt = Attempt("H1G1", True, None, None, decision, Phase("H1G1", hands=hands))
     grasp = {"hand": "right", "id": 0, "pose": cands.poses()[0], "width": 0.03,
              "contacts": contacts[0], "parts": ["handle", "handle"], "score": 1.0,
              "quality": float(cands.quality[0])}  # fmt: skip
@@ -159,12 +160,12 @@ def import_seconds() -> float:
 
 def time_recording(n: int, repeat: int, folder: Path) -> tuple[float, int]:
     """Median seconds of ``write_recording`` and the file's size in bytes."""
-    result, ctx, _ = synthetic_plan(n)
+    result, ctx, attempt = synthetic_plan(n)
     path = folder / f"synthetic-{n}.rrd"
     times = []
     for _ in range(repeat):
         t = time.perf_counter()
-        write_recording(result, ctx, path)
+        write_recording(result, ctx, path, attempt)
         times.append(time.perf_counter() - t)
     return statistics.median(times), path.stat().st_size
 
@@ -174,18 +175,19 @@ def knife(folder: Path) -> str:
     pays rerun's import; this one runs after the synthetic ones, so it does not)."""
     try:
         from handover.engine.loader import load_kb
-        from handover.engine.planners import plan
+        from handover.engine.planner import plan
         from handover.engine.query import Query
 
         kb = load_kb(None)
         t = time.perf_counter()
-        result, ctx = plan(kb, Query(object="knife"))
+        planned = plan(kb, Query(object="knife"))
+        result, ctx = planned.result, planned.context
         t_plan = time.perf_counter() - t
     except Exception as e:  # noqa: BLE001 - a benchmark reports, it does not stop
         return f"knife: not measured ({type(e).__name__}: {e})"
     path = folder / "knife.rrd"
     t = time.perf_counter()
-    write_recording(result, ctx, path)
+    planned.record(path)
     t_rec = time.perf_counter() - t
     return (f"knife ({ctx.n} grasps x {ctx.k} presentations, {result.mode or 'infeasible'}): "
             f"plan {t_plan * 1e3:.0f} ms, recording {t_rec * 1e3:.0f} ms, "

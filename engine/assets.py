@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    import trimesh
+
     from handover.engine.loader import KB
     from handover.engine.schema import GripperSpec, ObjectSpec, Primitive
     from handover.geometry.gripper import Gripper
@@ -22,6 +24,7 @@ __all__ = [
     "primitive_mesh",
     "gripper_from_spec",
     "mesh_file_object",
+    "mesh_object",
     "units_hint",
 ]
 
@@ -80,6 +83,16 @@ def mesh_file_object(path: str | Path, scale: float = 1.0) -> PartMesh:
     from handover.geometry import mesh as gm
 
     return gm.part_mesh_from_regions(gm.load_mesh(path, scale=scale), MESH_FILE_PART, [])
+
+
+def mesh_object(mesh: trimesh.Trimesh, scale: float = 1.0) -> PartMesh:
+    """A mesh given in memory (a robot program's own), validated like a file: one part
+    named ``body``. ``scale`` turns its units into metres."""
+    from handover.geometry import mesh as gm
+
+    vertices = np.asarray(mesh.vertices, dtype=float) * float(scale)
+    clean, _ = gm.validate_mesh(vertices, np.asarray(mesh.faces), where="the given mesh")
+    return gm.part_mesh_from_regions(clean, MESH_FILE_PART, [])
 
 
 def units_hint(part_mesh: PartMesh, scale: float = 1.0) -> str | None:

@@ -333,7 +333,7 @@ def error_rows(unit: Unit, error: BaseException | str) -> list[dict]:
 
 def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: GraspDB | None) -> dict:
     """Plan one query; its row. Any failure becomes the row's ``error``."""
-    from handover.engine.planners import plan
+    from handover.engine.planner import plan
     from handover.engine.query import Query
     from handover.engine.result import to_jsonable
 
@@ -342,7 +342,7 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            result, _ = plan(kb, query, db=db)
+            result = plan(kb, query, db=db).result
         except Exception as e:  # noqa: BLE001 - one failing object must not stop the batch
             messages = sorted({str(w.message) for w in caught})
             return _row(q, content_hash, error=_error_text(e), warnings=json.dumps(messages))
@@ -389,9 +389,8 @@ def _preload() -> None:
     """Import what planning needs, once, before workers fork from this process."""
     import trimesh  # noqa: F401
 
-    import handover.engine.planners  # noqa: F401
-    import handover.engine.regrasp  # noqa: F401
-    import handover.engine.twohand  # noqa: F401
+    import handover.engine.modes  # noqa: F401
+    import handover.engine.planner  # noqa: F401
     import handover.geometry.collision  # noqa: F401
     import handover.geometry.generate  # noqa: F401
 
@@ -414,7 +413,7 @@ def _pool_context():
     if "forkserver" in methods:
         ctx = mp.get_context("forkserver")
         ctx.set_forkserver_preload(
-            ["handover.engine.batch", "handover.engine.planners", "handover.geometry.generate"]
+            ["handover.engine.batch", "handover.engine.planner", "handover.geometry.generate"]
         )
         return ctx
     return mp.get_context("spawn")

@@ -19,16 +19,17 @@ from typing import TYPE_CHECKING
 
 import networkx as nx
 
+from handover.engine.applies import Facts, check
+from handover.engine.attempt import Roles
 from handover.engine.errors import KBError, KBIssue
-from handover.engine.rules import FEATURES, not_applicable_reason, rule_features
-from handover.engine.schema import Applies, Rule
+from handover.engine.kinds import FEATURES
+from handover.engine.schema import RuleBase
 
 if TYPE_CHECKING:
-    from handover.engine.context import ObjectFacts, PlanContext
+    from handover.engine.context import PlanContext
     from handover.engine.loader import KB
-    from handover.engine.query import Situation
 
-__all__ = ["CompiledRule", "ConstraintGraph", "compile", "conditions_hold", "graph_to_dot"]
+__all__ = ["CompiledRule", "ConstraintGraph", "compile", "query_facts", "graph_to_dot"]
 
 
 @dataclass
@@ -39,7 +40,7 @@ class CompiledRule:
     active : it is evaluated. reason : why not, when inactive. cost : of its features.
     """
 
-    rule: Rule
+    rule: RuleBase
     culture: str
     overrides: tuple[str, ...] = ()
     overridden_sources: tuple[str, ...] = ()
@@ -71,6 +72,7 @@ class ConstraintGraph:
     inactive: list[CompiledRule]
     mode: str
     overridden: list[CompiledRule] = field(default_factory=list)
+    kb_order: list[str] = field(default_factory=list)
 
     @property
     def hard(self) -> list[CompiledRule]:
@@ -80,6 +82,40 @@ class ConstraintGraph:
     def soft(self) -> list[CompiledRule]:
         return [c for c in self.order if not c.rule.hard]
 
+    def roles(self, task_tags: tuple[str, ...] = ()) -> Roles:
+        """Which parts the people may hold, from the active contact rules: the receiver
+        should hold a part tagged as the task says (``task_tags``), else as the receiver
+        contact rules require; hard contact rules forbid tags to the receiver or the giver."""
+        want: set[str] = set(task_tags)
+        receiver_forbid: set[str] = set()
+        giver_forbid: set[str] = set()
+        for c in self.order:
+            rule = c.rule
+            if rule.kind != "contact":
+                continue
+            if rule.who == "receiver":
+                if rule.hard:
+                    receiver_forbid.update(rule.forbid_tags)
+                if not task_tags:
+                    want.update(rule.require_tags)
+            elif rule.hard:
+                giver_forbid.update(rule.forbid_tags)
+        return Roles(frozenset(want), frozenset(receiver_forbid), frozenset(giver_forbid))
+
+    def mode_rules(self) -> tuple[CompiledRule | None, CompiledRule | None]:
+        """The active mode rule that requires a mode (the first hard one in KB order) and
+        the one that prefers one (the highest-weighted soft one; ties by KB order)."""
+        modes = [c for c in self.order if c.rule.kind == "mode"]
+        modes.sort(key=lambda c: self.position(c.id))
+        required = next((c for c in modes if c.rule.hard), None)
+        soft = [c for c in modes if not c.rule.hard]
+        preferred = max(soft, key=lambda c: c.rule.weight, default=None)  # first of ties
+        return required, preferred
+
+    def position(self, rule_id: str) -> int:
+        """The rule's index in KB order (base culture first)."""
+        return self.kb_order.index(rule_id)
+
     def by_id(self, rule_id: str) -> CompiledRule:
         for c in self.order + self.inactive + self.overridden:
             if c.id == rule_id:
@@ -87,47 +123,12 @@ class ConstraintGraph:
         raise KeyError(rule_id)
 
 
-def conditions_hold(
-    applies: Applies, facts: ObjectFacts, situation: Situation, mode: str
-) -> tuple[bool, str]:
-    """Whether a rule's ``applies`` conditions hold; the second item says which failed (or
-    why they hold, for the trace)."""
-    checks: list[tuple[bool, str]] = []
-    if applies.object_tags_any:
-        hit = facts.tags.intersection(applies.object_tags_any)
-        checks.append((bool(hit), f"object tagged {'/'.join(applies.object_tags_any)}"))
-    if applies.object_tags_none:
-        hit = facts.tags.intersection(applies.object_tags_none)
-        checks.append((not hit, f"object not tagged {'/'.join(applies.object_tags_none)}"))
-    if applies.receiver_roles:
-        role = situation.receiver.role
-        checks.append((role in applies.receiver_roles,
-                       f"receiver role in {'/'.join(applies.receiver_roles)} (is {role})"))
-    if applies.tasks:
-        checks.append((situation.task_id in applies.tasks,
-                       f"task in {'/'.join(applies.tasks)} (is {situation.task_id})"))
-    if applies.modes:
-        checks.append((mode in applies.modes, f"mode in {'/'.join(applies.modes)} (is {mode})"))
-    if applies.min_mass is not None:
-        checks.append((facts.mass >= applies.min_mass,
-                       f"mass >= {applies.min_mass:g} kg (is {facts.mass:g})"))
-    if applies.min_size is not None:
-        checks.append((facts.size >= applies.min_size,
-                       f"size >= {applies.min_size:g} m (is {facts.size:.3f})"))
-    if applies.exceeds_payload is not None:
-        exceeds = facts.mass > facts.payload
-        checks.append((exceeds == applies.exceeds_payload,
-                       f"mass {facts.mass:g} kg {'>' if exceeds else '<='} payload "
-                       f"{facts.payload:g} kg"))
-    if applies.exceeds_opening is not None:
-        exceeds = facts.min_width > facts.max_opening
-        checks.append((exceeds == applies.exceeds_opening,
-                       f"thinnest extent {facts.min_width:.3f} m "
-                       f"{'>' if exceeds else '<='} opening {facts.max_opening:g} m"))
-    failed = [text for ok, text in checks if not ok]
-    if failed:
-        return False, "condition not met: " + "; ".join(failed)
-    return True, "; ".join(text for _, text in checks) or "always"
+def query_facts(ctx: PlanContext, mode: str) -> Facts:
+    """What a rule's ``applies`` is judged on for this query in ``mode``."""
+    f, s = ctx.facts, ctx.situation
+    return Facts(tags=f.tags, mass=f.mass, size=f.size, min_width=f.min_width,
+                 payload=f.payload, max_opening=f.max_opening, role=s.receiver.role,
+                 task=s.task_id, mode=mode)
 
 
 def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  # noqa: A001
@@ -138,8 +139,8 @@ def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  #
     """
     from handover.engine.etiquette import resolve_culture
 
-    situation = ctx.situation
-    resolved = resolve_culture(kb, situation.query.culture)
+    resolved = resolve_culture(kb, ctx.situation.query.culture)
+    facts = query_facts(ctx, mode)
     graph = nx.DiGraph()
     for name, (cost, varies, text) in FEATURES.items():
         graph.add_node(f"feature:{name}", kind="feature", cost=cost, varies=varies, text=text)
@@ -148,12 +149,12 @@ def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  #
     overridden: list[CompiledRule] = []
     for rr in resolved:
         chain = list(_override_chain(rr))
-        features = tuple(rule_features(rr.rule))
+        features = tuple(rr.rule.features())
         cost = max((FEATURES[f][0] for f in features), default=0.0)
-        holds, why = conditions_hold(rr.rule.applies, ctx.facts, situation, mode)
+        holds, why = check(rr.rule.applies, facts)
         reason = None if holds else why
         if holds:
-            reason = not_applicable_reason(rr.rule, ctx)
+            reason = rr.rule.not_applicable(ctx)
         item = CompiledRule(
             rule=rr.rule,
             culture=rr.culture,
@@ -203,7 +204,7 @@ def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  #
     order = sorted(active, key=lambda c: (not c.rule.hard, c.cost, position[c.id]))
     inactive = [c for c in compiled if not c.active]
     return ConstraintGraph(graph=graph, order=order, inactive=inactive, mode=mode,
-                           overridden=overridden)
+                           overridden=overridden, kb_order=[c.id for c in compiled])
 
 
 def _override_chain(rr) -> list:

@@ -3,7 +3,7 @@
 A :class:`PlanContext` holds the object's mesh with parts, its geometric grasp candidates
 (rows ``i``), the presentations (``k``) with the receiver's predicted site in each, the
 object's initial pose in the scene, and the models of gripper, human hand and scene.
-Rules read features of rows ``(i, k)``; see :mod:`engine.features`.
+Rules read features of rows ``(i, k)``; see :mod:`handover.engine.features`.
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from handover.engine.attempt import Hands, Roles
 from handover.engine.presentation import (
-    ReceiverRegion,
-    ReceiverSites,
     handover_poses,
     predict_receiver_sites,
+    predict_two_hand_sites,
     presentation_rotations,
     receiver_region,
 )
@@ -31,8 +31,6 @@ if TYPE_CHECKING:
     from handover.geometry.mesh import PartMesh
 
 __all__ = ["ObjectFacts", "PlanContext", "build_context", "initial_pose", "scene_boxes"]
-
-GRAVITY = 9.81
 
 
 @dataclass(frozen=True)
@@ -53,14 +51,16 @@ class ObjectFacts:
 
 @dataclass
 class PlanContext:
-    """The evaluated world of one query (see module docstring).
+    """The evaluated world of one query (see module docstring). Immutable in meaning: what
+    a rule decides depends on the context and the attempt's
+    :class:`~handover.engine.attempt.Phase`; ``memo`` only holds pure functions of the
+    context (gripper poses, the scene collision of a grasp at pick-up, hand boxes keyed by
+    the hands' identity), computed on first use.
 
     rotations : (K, 3, 3) object -> world at the handover; poses : (K, 4, 4).
     initial : (4, 4) object -> world at pick-up.
-    s_range : (K, 2) m. Extent of the giver's graspable region (parts the robot may hold)
-        along robot->receiver in each presentation (object frame projection), for the
-        giver-side rule.
     part_tags : tags of each part index of ``part_mesh``.
+    warnings : what the preparation found worth telling (units of a mesh file).
     """
 
     situation: Situation
@@ -72,14 +72,13 @@ class PlanContext:
     hand: HumanHand
     rotations: np.ndarray
     poses: np.ndarray
-    s_range: np.ndarray
-    region: ReceiverRegion
-    sites: ReceiverSites
     initial: np.ndarray
     scene: BoxWorld
     scene_box_list: list
     facts: ObjectFacts
-    cache: dict[str, Any] = field(default_factory=dict)
+    collider: Any = None
+    warnings: list[str] = field(default_factory=list)
+    memo: dict[str, Any] = field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -89,32 +88,61 @@ class PlanContext:
     def k(self) -> int:
         return len(self.rotations)
 
-    def receiver_sites(self) -> list[ReceiverSites]:
-        """The receiver's hands in use: ``sites`` alone, or the two hands a two-handed
-        handover of a large object sets in ``cache["receiver_sites"]``."""
-        return self.cache.get("receiver_sites") or [self.sites]
-
     def gripper_poses(self) -> np.ndarray:
         """(N, 4, 4): the candidates' gripper poses in the object frame (computed once)."""
-        if "poses" not in self.cache:
-            self.cache["poses"] = self.candidates.poses()
-        return self.cache["poses"]
+        if "poses" not in self.memo:
+            self.memo["poses"] = self.candidates.poses()
+        return self.memo["poses"]
 
     def gripper_boxes(self) -> PosedBoxes:
         """The gripper's boxes at every candidate, object frame (posed once)."""
-        if "gripper_boxes" not in self.cache:
-            self.cache["gripper_boxes"] = self.gripper.posed_boxes(
+        if "gripper_boxes" not in self.memo:
+            self.memo["gripper_boxes"] = self.gripper.posed_boxes(
                 self.gripper_poses(), self.candidates.width
             )
-        return self.cache["gripper_boxes"]
+        return self.memo["gripper_boxes"]
 
     def d_obj(self) -> np.ndarray:
         """(K, 3): robot->receiver direction in the object frame, per presentation."""
-        if "d_obj" not in self.cache:
-            self.cache["d_obj"] = np.einsum(
-                "kji,j->ki", self.rotations, self.situation.toward
-            )
-        return self.cache["d_obj"]
+        if "d_obj" not in self.memo:
+            self.memo["d_obj"] = np.einsum("kji,j->ki", self.rotations, self.situation.toward)
+        return self.memo["d_obj"]
+
+    def hands(self, roles: Roles, count: int = 1) -> Hands:
+        """Where the receiver's ``count`` hands (1 or 2) go in every presentation, given
+        which parts the people may hold (memoised by ``(roles, count)``)."""
+        memo = self.memo.setdefault("hands", {})
+        key = (roles, count)
+        if key not in memo:
+            memo[key] = _hands(self, roles, count)
+        return memo[key]
+
+
+def _hands(ctx: PlanContext, roles: Roles, count: int) -> Hands:
+    """See :meth:`PlanContext.hands`. The giver's graspable region (parts the robot may
+    hold) gives ``s_range``, whose robot-side half the ``giver_side`` rule measures (seed
+    3.1: "the half of the graspable region near the robot")."""
+    mesh = ctx.part_mesh.mesh
+    centroids = np.asarray(mesh.triangles_center)
+    face_part = np.asarray(ctx.part_mesh.face_part)
+    graspable = np.array([not (t & roles.giver_forbid) for t in ctx.part_tags] or [True],
+                         dtype=bool)
+    giver_faces = graspable[face_part] if graspable.any() else np.ones(len(face_part), bool)
+    proj = centroids[giver_faces] @ ctx.d_obj().T  # (F', K)
+    s_range = np.stack([proj.min(axis=0), proj.max(axis=0)], axis=1)
+    region = receiver_region(centroids, face_part, ctx.part_tags, set(roles.want),
+                             set(roles.receiver_forbid))
+    s = ctx.situation
+    if count == 2:
+        sites = tuple(predict_two_hand_sites(region, ctx.rotations, s.toward,
+                                             s.hand.grip_width))
+    else:
+        sites = (predict_receiver_sites(
+            region, ctx.rotations, s.toward, grip_width=s.hand.grip_width,
+            where=s.task.receiver_site if s.task is not None else "middle",
+            finger_thickness=s.hand.finger_thickness,
+        ),)
+    return Hands(key=(roles, count), region=region, sites=sites, s_range=s_range)
 
 
 def _rotation_deg(angles) -> np.ndarray:
@@ -165,48 +193,15 @@ def build_context(
     generation: dict[str, Any],
     gripper: Gripper,
     hand: HumanHand,
-    receiver_tags: set[str],
-    receiver_forbid: set[str],
-    giver_forbid: set[str] = frozenset(),
 ) -> PlanContext:
-    """Compute presentations, receiver sites, initial pose and scene for one query.
-
-    receiver_tags : the receiver should hold a part with one of these tags (from the task or
-        the culture's receiver contact rules); receiver_forbid : never one with these.
-    giver_forbid : the robot never holds a part with these; the rest is the giver's
-        graspable region, whose robot-side half the ``giver_side`` rule measures (seed 3.1:
-        "the half of the graspable region near the robot").
-    """
+    """Compute presentations, initial pose, scene and the object's facts for one query.
+    Where the receiver's hands go depends on the rules of each mode: see
+    :meth:`PlanContext.hands`."""
     from handover.geometry.collision import BoxWorld
 
-    mesh = part_mesh.mesh
-    vertices = np.asarray(mesh.vertices, dtype=float)
+    vertices = np.asarray(part_mesh.mesh.vertices, dtype=float)
     rotations = presentation_rotations(situation.toward)
     poses = handover_poses(vertices, rotations, situation.handover_point)
-    d_obj = np.einsum("kji,j->ki", rotations, situation.toward)
-    centroids = np.asarray(mesh.triangles_center)
-    face_part = np.asarray(part_mesh.face_part)
-    graspable = np.array([not (t & giver_forbid) for t in part_tags] or [True], dtype=bool)
-    giver_faces = graspable[face_part] if graspable.any() else np.ones(len(face_part), bool)
-    proj = centroids[giver_faces] @ d_obj.T  # (F', K)
-    s_range = np.stack([proj.min(axis=0), proj.max(axis=0)], axis=1)
-
-    region = receiver_region(
-        centroids,
-        face_part,
-        part_tags,
-        receiver_tags,
-        receiver_forbid,
-    )
-    task = situation.task
-    sites = predict_receiver_sites(
-        region,
-        rotations,
-        situation.toward,
-        grip_width=situation.hand.grip_width,
-        where=task.receiver_site if task is not None else "middle",
-        finger_thickness=situation.hand.finger_thickness,
-    )
     boxes = scene_boxes(situation)
     extents = _obb_extents(vertices)
     tags = set(situation.obj.tags).union(*part_tags) if part_tags else set(situation.obj.tags)
@@ -228,14 +223,10 @@ def build_context(
         hand=hand,
         rotations=rotations,
         poses=poses,
-        s_range=s_range,
-        region=region,
-        sites=sites,
         initial=initial_pose(situation, vertices),
         scene=BoxWorld(boxes),
         scene_box_list=boxes,
         facts=facts,
-        cache={"d_obj": d_obj},
     )
 
 

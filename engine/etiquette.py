@@ -19,8 +19,9 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+from handover.engine.applies import Applies, Facts, check
 from handover.engine.errors import KBError, KBIssue
-from handover.engine.schema import Culture, ObjectSpec, Primitive, Rule
+from handover.engine.schema import Culture, ObjectSpec, Primitive, RuleBase
 
 if TYPE_CHECKING:
     from handover.engine.loader import KB
@@ -34,8 +35,7 @@ __all__ = [
     "object_tags",
     "object_extents",
     "object_size",
-    "describe_rule",
-    "describe_applies",
+    "object_facts",
 ]
 
 
@@ -48,7 +48,7 @@ class ResolvedRule:
     overrides : the rules it replaced, each with its own ``overrides`` (the whole chain)
     """
 
-    rule: Rule
+    rule: RuleBase
     culture: str
     overrides: tuple[ResolvedRule, ...] = ()
 
@@ -144,9 +144,9 @@ def _apply_culture(
 ) -> list[ResolvedRule]:
     """``culture``'s rules applied on top of ``base`` (the extended cultures' rules)."""
     replacement: dict[int, ResolvedRule] = {}  # base position -> the rule taking it
-    taken: dict[int, Rule] = {}  # base position -> the rule of this culture overriding it
+    taken: dict[int, RuleBase] = {}  # base position -> the rule of this culture overriding it
     appended: list[ResolvedRule] = []
-    own: dict[str, Rule] = {}  # ids written in this culture so far
+    own: dict[str, RuleBase] = {}  # ids written in this culture so far
     base_ids = {rr.rule.id for rr in base}
     for rule in culture.rules:
         hit = [i for i, rr in enumerate(base) if rr.rule.id in rule.overrides and i not in taken]
@@ -213,7 +213,7 @@ def _safety_in(old: ResolvedRule) -> ResolvedRule | None:
 
 
 def _check_safety(
-    kb: KB, rule: Rule, replaced: tuple[ResolvedRule, ...], problems: list[KBIssue]
+    kb: KB, rule: RuleBase, replaced: tuple[ResolvedRule, ...], problems: list[KBIssue]
 ) -> None:
     for old in replaced:
         safe = _safety_in(old)
@@ -323,103 +323,21 @@ def object_size(obj: ObjectSpec) -> float | None:
     return max(h - lo for lo, h in zip(*ext, strict=True))
 
 
-def applies_to_object(rule: Rule, obj: ObjectSpec) -> bool | None:
-    """Whether the object-dependent conditions of ``rule`` hold for ``obj``.
-
-    Checks ``object_tags_any``, ``object_tags_none``, ``min_mass`` and ``min_size`` (the
-    box around the primitives). Returns None when only the geometry of a mesh could tell
-    (``min_size`` on a mesh object). The receiver, task, mode, payload and opening conditions
-    are not evaluated here (they depend on the query): a rule with them "can apply".
-    """
-    a = rule.applies
-    tags = object_tags(obj)
-    if a.object_tags_any and not tags.intersection(a.object_tags_any):
-        return False
-    if a.object_tags_none and tags.intersection(a.object_tags_none):
-        return False
-    if a.min_mass is not None and obj.mass < a.min_mass:
-        return False
-    if a.min_size is not None:
-        size = object_size(obj)
-        if size is None:
-            return None
-        if size < a.min_size:
-            return False
-    return True
+OBJECT_CONDITIONS = ("object_tags_any", "object_tags_none", "min_mass", "min_size")
+"""The ``applies`` fields the object alone decides."""
 
 
-# ---------------------------------------------------------------- words
+def object_facts(obj: ObjectSpec) -> Facts:
+    """What the object alone tells a rule's conditions (no query: the rest unknown)."""
+    return Facts(tags=frozenset(object_tags(obj)), mass=obj.mass, size=object_size(obj))
 
 
-def _deg(x: float) -> str:
-    return f"{x:g} deg"
+def applies_to_object(rule: RuleBase, obj: ObjectSpec) -> bool | None:
+    """Whether the object-dependent conditions of ``rule`` (:data:`OBJECT_CONDITIONS`) hold
+    for ``obj``, judged by :func:`handover.engine.applies.check`. None when only the
+    geometry of a mesh could tell (``min_size`` on a mesh object). The receiver, task, mode,
+    payload and opening conditions depend on the query and are not judged here: a rule with
+    them "can apply"."""
+    only = Applies(**{f: getattr(rule.applies, f) for f in OBJECT_CONDITIONS})
+    return check(only, object_facts(obj))[0]
 
-
-def describe_rule(rule: Rule) -> str:
-    """What ``rule`` asks, in a few words (for listings and traces)."""
-    k = rule.kind
-    if k == "contact":
-        said = []
-        if rule.forbid_tags:
-            verb = "never holds" if rule.hard else "avoids holding"
-            said.append(f"{rule.who} {verb} a part tagged {'/'.join(rule.forbid_tags)}")
-        if rule.require_tags:
-            verb = "holds" if rule.hard else "prefers to hold"
-            said.append(f"{rule.who} {verb} a part tagged {'/'.join(rule.require_tags)}")
-        return "; ".join(said)
-    if k == "axis":
-        bounds = []
-        if rule.min_deg is not None:
-            bounds.append(f"at least {_deg(rule.min_deg)}")
-        if rule.max_deg is not None:
-            bounds.append(f"at most {_deg(rule.max_deg)}")
-        return f"axis '{rule.axis}' {' and '.join(bounds)} from {rule.toward}"
-    if k == "task_present":
-        cone = f" (default cone {_deg(rule.max_deg)})" if rule.max_deg is not None else ""
-        return f"the task's axes point where it says and the receiver gets its part{cone}"
-    if k == "clearance":
-        return f"giver's grasp at least {rule.min_m:g} m from the receiver's hand"
-    if k == "giver_side":
-        return f"giver holds the object within the robot-side {rule.max_fraction:g} of its length"
-    if k == "approach":
-        return f"gripper approaches within {_deg(rule.max_deg or 0)} of robot-to-receiver"
-    if k == "mode":
-        return f"handover mode {rule.mode} {'required' if rule.hard else 'preferred'}"
-    if k == "quality":
-        return f"grasp quality at least {rule.min_quality:g}"
-    if k == "torque":
-        return f"torque of the object's weight about the grasp at most {rule.max_nm:g} N m"
-    if k == "collision":
-        return f"no collision with {', '.join(rule.against)}"
-    return k
-
-
-def describe_applies(applies) -> str:
-    """When a rule applies, in words ("always" for no condition)."""
-    a = applies
-    said = []
-    if a.object_tags_any:
-        said.append(f"object tagged {'/'.join(a.object_tags_any)}")
-    if a.object_tags_none:
-        said.append(f"object not tagged {'/'.join(a.object_tags_none)}")
-    if a.receiver_roles:
-        said.append(f"receiver is {'/'.join(a.receiver_roles)}")
-    if a.tasks:
-        said.append(f"task is {'/'.join(a.tasks)}")
-    if a.modes:
-        said.append(f"mode is {'/'.join(a.modes)}")
-    if a.min_mass is not None:
-        said.append(f"mass at least {a.min_mass:g} kg")
-    if a.min_size is not None:
-        said.append(f"size at least {a.min_size:g} m")
-    if a.exceeds_payload is not None:
-        said.append(
-            ("mass exceeds" if a.exceeds_payload else "mass within") + " one hand's payload"
-        )
-    if a.exceeds_opening is not None:
-        said.append(
-            "no single gripper opening spans it"
-            if a.exceeds_opening
-            else "a single gripper opening spans it"
-        )
-    return "; ".join(said) or "always"

@@ -12,15 +12,22 @@ deterministic.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from handover.engine.compiler import CompiledRule, ConstraintGraph
-from handover.engine.context import PlanContext
-from handover.engine.rules import Outcome, collision_targets, evaluate_rule
+from handover.engine.features import collision_targets
+from handover.engine.kinds import Outcome
 
-__all__ = ["Decision", "evaluate", "infeasible_reason", "trace_row", "ROW_LIMIT"]
+if TYPE_CHECKING:
+    from handover.engine.attempt import Phase
+    from handover.engine.context import PlanContext
+
+__all__ = [
+    "Decision", "evaluate", "evaluate_rule", "infeasible_reason", "trace_row", "ROW_LIMIT",
+]
 
 # Rows beyond this are a sign of a mis-set generator; the error says how to fix it.
 ROW_LIMIT = 5_000_000
@@ -104,15 +111,25 @@ def infeasible_reason(decision: Decision, mode: str) -> str:
     )
 
 
-def evaluate(cg: ConstraintGraph, ctx: PlanContext) -> Decision:
-    """Build the decision table of ``cg`` over all rows of ``ctx``."""
+def evaluate_rule(c: CompiledRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
+                  pk: np.ndarray) -> Outcome:
+    """Evaluate one compiled rule on rows ``(gi, pk)`` (both (R,) int) in ``phase``."""
+    gi = np.asarray(gi, dtype=np.int64)
+    pk = np.asarray(pk, dtype=np.int64)
+    return c.rule.evaluate(ctx, phase, gi, pk)
+
+
+def evaluate(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
+    """Build the decision table of ``cg`` over all rows of ``ctx``, every rule judged in
+    ``phase``."""
     n, k = ctx.n, ctx.k
     if n * k > ROW_LIMIT:
         from handover.engine.errors import UsageError
 
         raise UsageError(
             f"{n} grasp candidates x {k} presentations = {n * k} rows is more than "
-            f"{ROW_LIMIT}; raise the roll step (--roll-step-deg) or simplify the mesh"
+            f"{ROW_LIMIT}; simplify the mesh or give the gripper a larger roll_step_deg in "
+            "its KB file"
         )
     gi = np.repeat(np.arange(n, dtype=np.int64), k)
     pk = np.tile(np.arange(k, dtype=np.int64), n)
@@ -126,7 +143,7 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext) -> Decision:
     for h, c in enumerate(hard):
         if is_collision[h]:
             continue
-        out = evaluate_rule(c.rule, ctx, gi, pk)
+        out = evaluate_rule(c, ctx, phase, gi, pk)
         fails[:, h] = ~out.passed
         checked[:, h] = True
         measured[c.id] = out.measured
@@ -136,7 +153,7 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext) -> Decision:
             continue
         idx = np.flatnonzero(alive)
         if len(idx):
-            out = evaluate_rule(c.rule, ctx, gi[idx], pk[idx])
+            out = evaluate_rule(c, ctx, phase, gi[idx], pk[idx])
             fails[idx, h] = ~out.passed
             checked[idx, h] = True
         alive &= ~fails[:, h]
@@ -152,7 +169,7 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext) -> Decision:
         total_w = sum(c.rule.weight for c in soft)
         acc = np.zeros(len(kept_idx))
         for s, c in enumerate(soft):
-            out = evaluate_rule(c.rule, ctx, gi[kept_idx], pk[kept_idx])
+            out = evaluate_rule(c, ctx, phase, gi[kept_idx], pk[kept_idx])
             soft_scores[kept_idx, s] = out.score
             acc += c.rule.weight * out.score
         score[kept_idx] = acc / total_w if total_w > 0 else 1.0
@@ -162,16 +179,23 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext) -> Decision:
     )  # fmt: skip
 
 
-def trace_row(cg: ConstraintGraph, ctx: PlanContext, grasp: int, presentation: int) -> list[dict]:
-    """Every rule's outcome on one row, active rules first in evaluation order, then the
-    inactive ones with their reason. Each entry: rule, kind, hard, status (pass | fail |
-    scored | not_applicable), measured, unit, threshold, score, weight, why, source,
-    culture, overrides, safety, note."""
+def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,
+              presentation: int, rules: list[CompiledRule] | None = None,
+              note: str | None = None) -> list[dict]:
+    """Every rule's outcome on one row in ``phase``. With ``rules``, only those are judged
+    and the other active rules are listed as not applicable with ``note``. Active rules
+    come first in evaluation order, then the inactive ones with their reason. Each entry:
+    rule, kind, hard, status (pass | fail | scored | not_applicable), measured, unit,
+    threshold, score, weight, why, source, culture, overrides, safety, note."""
     gi = np.array([grasp])
     pk = np.array([presentation])
     entries = []
+    judged = None if rules is None else {c.id for c in rules}
     for c in cg.order:
-        out: Outcome = evaluate_rule(c.rule, ctx, gi, pk)
+        if judged is not None and c.id not in judged:
+            entries.append(_entry(replace(c, reason=note), "not_applicable", None, None))
+            continue
+        out: Outcome = evaluate_rule(c, ctx, phase, gi, pk)
         passed = bool(out.passed[0])
         if c.rule.hard:
             status = "pass" if passed else "fail"

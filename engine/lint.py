@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING
 
 from handover.engine.errors import KBIssue
 from handover.engine.etiquette import _resolve, _rotation, applies_to_object, object_tags
-from handover.engine.schema import KBModel, ObjectSpec, Rule
+from handover.engine.schema import KBModel, ObjectSpec, RuleBase
 
 if TYPE_CHECKING:
     from handover.engine.loader import KB
@@ -175,12 +175,12 @@ def lint_mesh_path(
 # ---------------------------------------------------------------- cultures and rules
 
 
-def _rule_tags(rule: Rule) -> Iterator[tuple[str, tuple[str | int, ...]]]:
+def _rule_tags(rule: RuleBase) -> Iterator[tuple[str, tuple[str | int, ...]]]:
     for field in ("object_tags_any", "object_tags_none"):
         for k, tag in enumerate(getattr(rule.applies, field)):
             yield tag, ("applies", field, k)
     for field in ("forbid_tags", "require_tags"):
-        for k, tag in enumerate(getattr(rule, field)):
+        for k, tag in enumerate(getattr(rule, field, ())):  # the kinds that name tags
             yield tag, (field, k)
 
 

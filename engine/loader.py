@@ -307,12 +307,17 @@ def _unwrap(tp: Any) -> list[Any]:
     return [tp]
 
 
-def _model_at(model: type[BaseModel], path: YamlPath) -> type[BaseModel] | None:
-    """The model class describing the mapping at ``path`` of a ``model`` document."""
+def _model_at(
+    model: type[BaseModel], path: YamlPath, data: Any = None
+) -> type[BaseModel] | None:
+    """The model class describing the mapping at ``path`` of a ``model`` document. Where a
+    union of models (a rule of some kind) is met, ``data`` (the document) picks the one its
+    ``kind`` names."""
     current: Any = model
+    node = data
     for seg in path:
         nxt = None
-        for tp in _unwrap(current):
+        for tp in _discriminated(_unwrap(current), node):
             if isinstance(tp, type) and issubclass(tp, BaseModel):
                 if isinstance(seg, str) and seg in tp.model_fields:
                     nxt = tp.model_fields[seg].annotation
@@ -328,10 +333,32 @@ def _model_at(model: type[BaseModel], path: YamlPath) -> type[BaseModel] | None:
         if nxt is None:
             return None
         current = nxt
-    for tp in _unwrap(current):
+        node = _child(node, seg)
+    for tp in _discriminated(_unwrap(current), node):
         if isinstance(tp, type) and issubclass(tp, BaseModel):
             return tp
     return None
+
+
+def _child(node: Any, seg: str | int) -> Any:
+    if isinstance(node, dict):
+        return node.get(seg)
+    if isinstance(node, list) and isinstance(seg, int) and 0 <= seg < len(node):
+        return node[seg]
+    return None
+
+
+def _discriminated(types: list[Any], node: Any) -> list[Any]:
+    """The model of ``types`` whose ``kind`` literal is the ``kind`` of the mapping ``node``
+    (a discriminated union), else ``types`` as they are."""
+    kind = node.get("kind") if isinstance(node, dict) else None
+    if kind is None or len(types) < 2:
+        return types
+    for tp in types:
+        if isinstance(tp, type) and issubclass(tp, BaseModel) and "kind" in tp.model_fields \
+                and tp.model_fields["kind"].default == kind:
+            return [tp]
+    return types
 
 
 def _data_path(data: Any, loc: tuple) -> tuple[YamlPath, bool]:
@@ -342,10 +369,15 @@ def _data_path(data: Any, loc: tuple) -> tuple[YamlPath, bool]:
     path: list[str | int] = []
     current = data
     is_key = False
+    entered = True  # nothing of ``current`` consumed yet
     for seg in loc:
         if seg == "[key]":
             is_key = True
             continue
+        if entered and isinstance(current, dict) and seg == current.get("kind"):
+            entered = False  # the tag of a discriminated union (a rule's kind), not a key
+            continue
+        entered = True
         if isinstance(current, dict) and isinstance(seg, str) and seg in current:
             path.append(seg)
             current = current[seg]
@@ -399,7 +431,7 @@ def _pydantic_issues(
             where = marks.key(path)
             key = path[-1] if path else "?"
             msg = f"unknown field '{key}'"
-            owner = _model_at(model, path[:-1])
+            owner = _model_at(model, path[:-1], data)
             if owner is not None:
                 allowed = [f for f in owner.model_fields if f != "source"]
                 close = difflib.get_close_matches(str(key), allowed, n=1)
@@ -444,7 +476,7 @@ def _walk_models(
             continue
         ann = model.model_fields[key].annotation
         for sub_path, sub in _children(value, ann, (*path, key)):
-            inner = _model_at(model, (*sub_path[len(path) :],))
+            inner = _model_at(model, (*sub_path[len(path) :],), data)
             if inner is not None:
                 yield from _walk_models(sub, inner, sub_path)
 

@@ -26,7 +26,7 @@ plan the presentation whose rows got furthest. Each grasp is coloured by the out
 row in that presentation (class ids, labelled by the annotation context on
 ``world/handover/candidates``): generated, alive (passed so far), kept, chosen, or rejected
 by its first failing hard rule (class ``CLASS_RULE_BASE + h``, ``h`` the rule's index in the
-decision's hard rules), in the fixed colour of the rule's kind (:data:`KIND_COLOURS`).
+decision's hard rules), in the fixed colour of the rule's kind (declared by the kind).
 Positions are logged once at stage 0; each later stage logs only the colours and class ids
 (rerun shows the latest value of each field), so a stage costs two small log calls.
 
@@ -70,9 +70,9 @@ from handover.engine.errors import UsageError
 from handover.engine.files import atomic_path, write_error
 
 if TYPE_CHECKING:
+    from handover.engine.attempt import Attempt
     from handover.engine.context import PlanContext
     from handover.engine.evaluate import Decision
-    from handover.engine.planners import Attempt
     from handover.engine.result import PlanResult
 
 __all__ = [
@@ -83,7 +83,6 @@ __all__ = [
     "STAGES",
     "TIMELINE",
     "APPLICATION_ID",
-    "KIND_COLOURS",
     "OUTCOME_COLOURS",
     "CLASS_GENERATED",
     "CLASS_ALIVE",
@@ -136,21 +135,6 @@ OUTCOME_COLOURS: dict[str, tuple[int, int, int]] = {
 }
 """RGB of the outcomes that are not rejections."""
 
-KIND_COLOURS: dict[str, tuple[int, int, int]] = {
-    "contact": (230, 60, 60),
-    "axis": (240, 130, 40),
-    "task_present": (190, 80, 200),
-    "clearance": (245, 110, 180),
-    "giver_side": (150, 100, 60),
-    "approach": (0, 170, 170),
-    "mode": (90, 90, 90),
-    "quality": (140, 140, 30),
-    "torque": (120, 80, 210),
-    "collision": (130, 0, 0),
-}
-"""RGB of a candidate rejected by a hard rule of each kind (every kind of
-:data:`engine.schema.RULE_KINDS` has one)."""
-
 OTHER_KIND_COLOUR = (255, 0, 255)
 SECOND_HAND_COLOUR = (0, 200, 255)
 RECEIVER_HAND_COLOUR = (225, 175, 130)
@@ -183,7 +167,12 @@ def _hex(rgb: tuple[int, int, int]) -> str:
 
 
 def _kind_colour(kind: str) -> tuple[int, int, int]:
-    return KIND_COLOURS.get(kind, OTHER_KIND_COLOUR)
+    """RGB of a candidate rejected by a hard rule of ``kind`` (each kind declares its own
+    in :mod:`handover.engine.kinds`)."""
+    from handover.engine.kinds import KINDS
+
+    cls = KINDS.get(kind)
+    return cls.colour if cls is not None else OTHER_KIND_COLOUR
 
 
 # ---------------------------------------------------------------- outcomes (pure numpy)
@@ -644,28 +633,25 @@ def write_recording(
 ) -> None:
     """Write the plan ``result`` with its context ``ctx`` as a rerun recording at ``path``.
 
-    attempt : the planner's attempt with its decision table (default
-        ``ctx.cache["attempt"]``, which :func:`engine.planners.build_result` sets). Without
-        one, only stage 0 (and stage 4 for a feasible plan) can be recorded.
+    attempt : the planner's attempt with its decision table and phase (``Plan.attempt``).
+        Without one, only stage 0 (and stage 4 for a feasible plan) can be recorded.
     Written to a temporary file in the same folder, then renamed over ``path``.
     Raises UsageError when ``path`` is a folder or cannot be written.
     """
     path = Path(path)
     if path.is_dir():
         raise UsageError(f"--rrd {path}: is a folder, give a file name")
-    if attempt is None:
-        attempt = ctx.cache.get("attempt")
-    decision = getattr(attempt, "decision", None)
     try:
         with atomic_path(path) as tmp:
-            _write(result, ctx, decision, tmp)
+            _write(result, ctx, attempt, tmp)
     except OSError as e:
         raise write_error("--rrd", path, e) from None
 
 
-def _write(result: PlanResult, ctx: PlanContext, decision: Decision | None, tmp: Path) -> None:
+def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: Path) -> None:
     import rerun as rr
 
+    decision = attempt.decision if attempt is not None else None
     n = len(ctx.candidates)
     if decision is not None and decision.n_rows and int(decision.gi.max()) >= n:
         decision = None  # a table over something else than these candidates
@@ -733,9 +719,11 @@ def _write(result: PlanResult, ctx: PlanContext, decision: Decision | None, tmp:
             origins=np.repeat(origin[None], len(vec), axis=0), vectors=0.6 * size * vec,
             labels=list(axes), colors=[AXIS_COLOURS.get(a, OTHER_AXIS_COLOUR) for a in axes]),
             static=True)  # fmt: skip
-    from handover.engine.rules import receiver_hand_boxes
+    from handover.engine.features import receiver_hand_boxes
 
-    names, centres, half, quats = _boxes_arrays(receiver_hand_boxes(ctx, k))
+    phase = attempt.phase if attempt is not None else None
+    hand_boxes = receiver_hand_boxes(ctx, phase.hands, k) if phase is not None else []
+    names, centres, half, quats = _boxes_arrays(hand_boxes)
     if names:
         rec.log("world/receiver/hands", rr.Boxes3D(
             centers=centres, half_sizes=half, quaternions=quats, colors=RECEIVER_HAND_COLOUR,

@@ -81,10 +81,16 @@ class PlanResult:
     scene: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
+    @property
+    def outcome(self) -> str:
+        """``handover`` (a plan) or ``infeasible`` (nothing works; ``reason`` says why)."""
+        return "handover" if self.feasible else "infeasible"
+
     def to_dict(self) -> dict:
         out = {
             "object": self.object,
             "query": self.query,
+            "outcome": self.outcome,
             "mode": self.mode,
             "feasible": self.feasible,
             "reason": self.reason,

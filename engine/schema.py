@@ -2,8 +2,8 @@
 
 Every model forbids unknown keys. Units are metres, kilograms and radians, except fields
 whose name ends in ``_deg`` (degrees, for people editing YAML). Rules are data drawn from a
-fixed catalogue of kinds (see ``RULE_KINDS``); conditions are structured fields, never
-expressions.
+fixed catalogue of kinds (``RULE_KINDS``, one module each in
+:mod:`handover.engine.kinds`); conditions are structured fields, never expressions.
 
 Each loaded item gets ``source`` (file, line, col) filled in by :mod:`engine.loader`, so
 lint errors and traces point into the YAML.
@@ -21,10 +21,25 @@ Kinds of KB document, one per file, told apart by their folder:
 
 from __future__ import annotations
 
-import math
-from typing import Annotated, Literal, get_args
+from typing import Annotated, Literal, Union
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, TypeAdapter, field_validator, model_validator
+
+from handover.engine.applies import Applies
+from handover.engine.kbmodel import (
+    DIRECTIONS,
+    Direction,
+    Finite,
+    FiniteVec3,
+    Id,
+    KBModel,
+    NonNegative,
+    Positive,
+    Source,
+    Tag,
+    nonzero,
+)
+from handover.engine.kinds import KINDS, RuleBase
 
 __all__ = [
     "Source",
@@ -38,6 +53,8 @@ __all__ = [
     "ObjectSpec",
     "Applies",
     "Rule",
+    "RuleBase",
+    "parse_rule",
     "RULE_KINDS",
     "DIRECTIONS",
     "Culture",
@@ -52,43 +69,6 @@ __all__ = [
     "SceneSpec",
     "DOCUMENT_KINDS",
 ]
-
-Vec3 = tuple[float, float, float]
-Id = Annotated[str, Field(pattern=r"^[a-z][a-z0-9_\-]*$", max_length=64)]
-Tag = Annotated[str, Field(pattern=r"^[a-z][a-z0-9_\-]*$", max_length=64)]
-Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
-NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
-Finite = Annotated[float, Field(allow_inf_nan=False)]
-FiniteVec3 = tuple[Finite, Finite, Finite]
-
-
-class Source(BaseModel):
-    """Where an item was written: ``file`` relative to the KB root, 1-based ``line``/``col``,
-    and ``path``, the keys and list indices leading to the item inside its file (``("rules",
-    3)`` for a culture's fourth rule)."""
-
-    model_config = ConfigDict(frozen=True)
-    file: str = "<memory>"
-    line: int = 0
-    col: int = 0
-    path: tuple[str | int, ...] = ()
-
-    def __str__(self) -> str:
-        return f"{self.file}:{self.line}"
-
-
-class KBModel(BaseModel):
-    """Base of every KB model: unknown keys are errors; ``source`` is filled by the loader."""
-
-    model_config = ConfigDict(extra="forbid", validate_default=True)
-    source: Source = Field(default_factory=Source, exclude=True, repr=False)
-
-
-def _nonzero(v: tuple[float, float, float]) -> tuple[float, float, float]:
-    if math.sqrt(sum(c * c for c in v)) < 1e-9:
-        raise ValueError("an axis must not be the zero vector")
-    return v
-
 
 # ---------------------------------------------------------------- objects
 
@@ -167,21 +147,7 @@ class Part(KBModel):
     why: str = ""
 
 
-# Named directions of the receiver frame, used by axis rules and task presentations.
-# toward_receiver: horizontal, from the robot to the receiver; away_from_receiver: its
-# opposite; up/down: world z; receiver_left/right: the receiver's own left/right;
-# receiver_dominant/nondominant: the side of the receiver's dominant hand or the other.
-Direction = Literal[
-    "toward_receiver",
-    "away_from_receiver",
-    "up",
-    "down",
-    "receiver_left",
-    "receiver_right",
-    "receiver_dominant",
-    "receiver_nondominant",
-]
-DIRECTIONS: tuple[str, ...] = get_args(Direction)
+
 
 
 class PresentAxis(KBModel):
@@ -223,10 +189,10 @@ class ObjectSpec(KBModel):
 
     @field_validator("axes")
     @classmethod
-    def _axes_nonzero(cls, v: dict[str, tuple[float, float, float]]):
+    def _axesnonzero(cls, v: dict[str, tuple[float, float, float]]):
         for name, axis in v.items():
             try:
-                _nonzero(axis)
+                nonzero(axis)
             except ValueError as e:
                 raise ValueError(f"axis '{name}': {e}") from None
         return v
@@ -235,157 +201,17 @@ class ObjectSpec(KBModel):
 # ---------------------------------------------------------------- rules
 
 
-class Applies(KBModel):
-    """When a rule applies. Every field given must hold; an empty ``Applies`` always holds.
-
-    object_tags_any: the object, or one of its parts, carries one of these tags.
-    object_tags_none: neither the object nor any part carries any of these tags.
-    receiver_roles: the receiver's role is one of these.
-    tasks: the query's task is one of these.
-    modes: the handover mode under evaluation is one of these.
-    min_mass: the object's mass is at least this (kg).
-    min_size: the object's largest bounding-box extent is at least this (m).
-    exceeds_payload: the object's mass exceeds one robot hand's payload.
-    exceeds_opening: the object cannot be grasped across any single gripper opening.
-    """
-
-    object_tags_any: list[Tag] = []
-    object_tags_none: list[Tag] = []
-    receiver_roles: list[Literal["adult", "elder", "child", "superior"]] = []
-    tasks: list[Id] = []
-    modes: list[Literal["H1G1", "H2G2", "H2G1"]] = []
-    min_mass: NonNegative | None = None
-    min_size: NonNegative | None = None
-    exceeds_payload: bool | None = None
-    exceeds_opening: bool | None = None
+Rule = Annotated[Union[tuple(KINDS.values())], Field(discriminator="kind")]  # noqa: UP007
+"""A rule of a culture: one of the registered kinds (:mod:`handover.engine.kinds`), told
+apart by its ``kind``; only the fields of its kind may be set."""
+RULE_KINDS: tuple[str, ...] = tuple(KINDS)
+_RULE_ADAPTER = TypeAdapter(Rule)
 
 
-RULE_KINDS = (
-    "contact",  # giver's contacts / receiver's site on or off tagged parts
-    "axis",  # angle between an object axis and a receiver-frame direction
-    "task_present",  # the query task's `present` entries (axis cones) and receiver part
-    "clearance",  # distance between the giver's grasp and the receiver's site
-    "giver_side",  # giver grasp on the robot's share of the object along robot->receiver
-    "approach",  # giver approach `a` against the robot->receiver direction
-    "mode",  # a handover mode required or preferred
-    "quality",  # grasp quality (antipodal/epsilon)
-    "torque",  # torque of the object's weight about the grasp axis
-    "collision",  # gripper against object, scene, receiver's hands, other gripper
-)
-
-
-class Rule(KBModel):
-    """One rule of a culture. Only the fields of its ``kind`` may be set.
-
-    Common fields: ``id``, ``kind``, ``hard`` (filter) or soft (adds ``weight`` x score in
-    [0, 1] to a candidate's score), ``why`` (shown in traces), ``safety`` (overriding it needs
-    ``override_safety``), ``applies`` (conditions), ``overrides`` (ids of rules of the extended
-    cultures this rule replaces), ``override_safety`` (the reason, required when an
-    overridden rule is a safety rule).
-
-    kind-specific fields:
-
-    contact       who (giver|receiver), forbid_tags, require_tags (any of)
-    axis          axis, toward, min_deg / max_deg (angle bounds, degrees)
-    task_present  max_deg (default cone when a task entry gives none is its own)
-    clearance     min_m
-    giver_side    max_fraction (0.5: the seed's half near the robot)
-    approach      max_deg (angle between `a` and robot->receiver)
-    mode          mode (H1G1|H2G2|H2G1); hard = required, soft = preferred
-    quality       min_quality
-    torque        max_nm
-    collision     against (object, scene, receiver_hand, other_gripper)
-    """
-
-    id: Id
-    kind: Literal[
-        "contact",
-        "axis",
-        "task_present",
-        "clearance",
-        "giver_side",
-        "approach",
-        "mode",
-        "quality",
-        "torque",
-        "collision",
-    ]
-    hard: bool = True
-    weight: NonNegative = 1.0
-    why: str
-    safety: bool = False
-    applies: Applies = Field(default_factory=Applies)
-    overrides: list[Id] = []
-    override_safety: str | None = None
-    # contact
-    who: Literal["giver", "receiver"] | None = None
-    forbid_tags: list[Tag] = []
-    require_tags: list[Tag] = []
-    # axis
-    axis: Id | None = None
-    toward: Direction | None = None
-    min_deg: Annotated[float, Field(ge=0, le=180)] | None = None
-    max_deg: Annotated[float, Field(ge=0, le=180)] | None = None
-    # clearance
-    min_m: NonNegative | None = None
-    # giver_side
-    max_fraction: Annotated[float, Field(gt=0, le=1)] | None = None
-    # mode
-    mode: Literal["H1G1", "H2G2", "H2G1"] | None = None
-    # quality
-    min_quality: NonNegative | None = None
-    # torque
-    max_nm: NonNegative | None = None
-    # collision
-    against: list[Literal["object", "scene", "receiver_hand", "other_gripper"]] = []
-
-    @model_validator(mode="after")
-    def _fields_of_kind(self) -> Rule:
-        allowed = {
-            "contact": {"who", "forbid_tags", "require_tags"},
-            "axis": {"axis", "toward", "min_deg", "max_deg"},
-            "task_present": {"max_deg"},
-            "clearance": {"min_m"},
-            "giver_side": {"max_fraction"},
-            "approach": {"max_deg"},
-            "mode": {"mode"},
-            "quality": {"min_quality"},
-            "torque": {"max_nm"},
-            "collision": {"against"},
-        }
-        required = {
-            "contact": {"who"},
-            "axis": {"axis", "toward"},
-            "clearance": {"min_m"},
-            "giver_side": {"max_fraction"},
-            "approach": {"max_deg"},
-            "mode": {"mode"},
-            "quality": {"min_quality"},
-            "torque": {"max_nm"},
-            "collision": {"against"},
-        }
-        specific = set().union(*allowed.values())
-        given = {f for f in specific if f in self.model_fields_set}
-        stray = given - allowed[self.kind]
-        if stray:
-            raise ValueError(
-                f"a '{self.kind}' rule does not take {', '.join(sorted(stray))}"
-                f" (it takes {', '.join(sorted(allowed[self.kind])) or 'no extra field'})"
-            )
-        missing = required.get(self.kind, set()) - given
-        if missing:
-            raise ValueError(f"a '{self.kind}' rule needs {', '.join(sorted(missing))}")
-        if self.kind == "contact" and not (self.forbid_tags or self.require_tags):
-            raise ValueError("a 'contact' rule needs forbid_tags or require_tags")
-        if self.kind == "axis" and self.min_deg is None and self.max_deg is None:
-            raise ValueError("an 'axis' rule needs min_deg or max_deg")
-        if (
-            self.min_deg is not None
-            and self.max_deg is not None
-            and self.min_deg > self.max_deg
-        ):
-            raise ValueError("min_deg must not exceed max_deg")
-        return self
+def parse_rule(data: dict) -> RuleBase:
+    """A rule from a mapping (as a culture file writes it); raises pydantic's
+    ValidationError when it is not a valid rule of its kind."""
+    return _RULE_ADAPTER.validate_python(data)
 
 
 class Culture(KBModel):
@@ -396,7 +222,7 @@ class Culture(KBModel):
     name: str
     extends: Id | None = None
     why: str = ""
-    rules: list[Rule] = []
+    rules: list[Rule] = []  # type: ignore[valid-type]
 
 
 # ---------------------------------------------------------------- people, robot, scene
@@ -505,7 +331,7 @@ class ReceiverPlacement(KBModel):
     @field_validator("facing")
     @classmethod
     def _facing(cls, v: tuple[float, float, float]):
-        return _nonzero(v)
+        return nonzero(v)
 
 
 class ObjectPlacement(KBModel):

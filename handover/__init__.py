@@ -1,6 +1,29 @@
 """handover-grasp: knowledge-base driven grasp planning for robots handing objects to people.
 
+>>> from handover import Planner
+>>> Planner().plan("knife").mode
+'H1G1'
+
 The installed package holds ``handover.engine`` (knowledge meets geometry), ``handover.geometry``
 (meshes, grasp candidates, collision; knows nothing of the knowledge base) and ``handover.kb``
-(the built-in knowledge base, YAML).
+(the built-in knowledge base, YAML). ``Planner`` and ``Plan`` are the Python facade.
 """
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+__all__ = ["Planner", "Plan", "RobotGrasp", "HumanGrasp"]
+
+if TYPE_CHECKING:
+    from handover.engine.planner import HumanGrasp, Plan, Planner, RobotGrasp
+
+
+def __getattr__(name: str):
+    # Lazy: `import handover.engine.cli` (the command's start-up) does not pay for the
+    # planner's imports.
+    if name in __all__:
+        from handover.engine import planner
+
+        return getattr(planner, name)
+    raise AttributeError(f"module 'handover' has no attribute {name!r}")

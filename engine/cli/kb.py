@@ -241,7 +241,8 @@ _ATTR = {
 
 
 def _rule_json(rr: ResolvedRule, obj: ObjectSpec | None = None) -> dict[str, Any]:
-    from handover.engine.etiquette import applies_to_object, describe_applies, describe_rule
+    from handover.engine.applies import describe as describe_applies
+    from handover.engine.etiquette import applies_to_object
 
     rule = rr.rule
     out: dict[str, Any] = {
@@ -251,7 +252,7 @@ def _rule_json(rr: ResolvedRule, obj: ObjectSpec | None = None) -> dict[str, Any
         "hard": rule.hard,
         "weight": rule.weight,
         "safety": rule.safety,
-        "says": describe_rule(rule),
+        "says": rule.describe(),
         "when": describe_applies(rule.applies),
         "why": " ".join(rule.why.split()),
         "source": str(rule.source),
@@ -316,7 +317,8 @@ def _object_json(kb: KB, obj: ObjectSpec, culture: str) -> dict[str, Any]:
 def _not_applicable(rule, obj: ObjectSpec) -> str | None:
     """Why ``rule`` cannot bear on ``obj`` (None when it can): its object conditions fail,
     it forbids tags the object does not carry, or it is about an axis the object lacks."""
-    from handover.engine.etiquette import applies_to_object, describe_applies, object_tags
+    from handover.engine.applies import describe as describe_applies
+    from handover.engine.etiquette import applies_to_object, object_tags
 
     if applies_to_object(rule, obj) is False:
         return f"needs {describe_applies(rule.applies)}"

@@ -71,16 +71,15 @@ def plan(
     from handover.engine.errors import EXIT_INFEASIBLE
     from handover.engine.graspdb import open_db
     from handover.engine.loader import load_kb
-    from handover.engine.planners import plan as run_plan
+    from handover.engine.planner import plan as run_plan
 
     kb = load_kb(state.kb_dir)
     query = _query(object_, task, receiver, culture, scene, mode, gripper, mesh_scale)
-    result, ctx = run_plan(kb, query, why_not=tuple(why_not), db=open_db(db, disabled=no_db))
+    planned = run_plan(kb, query, why_not=tuple(why_not), db=open_db(db, disabled=no_db))
+    result = planned.result
     data = result.to_dict()
     if rrd is not None:
-        from handover.engine.record import write_recording
-
-        write_recording(result, ctx, rrd)
+        planned.record(rrd)
     text = result.to_json()
     if output is not None:
         try:
@@ -113,7 +112,7 @@ def explain_graph(
 
     from handover.engine.compiler import compile, graph_to_dot
     from handover.engine.loader import load_kb
-    from handover.engine.planners import prepare
+    from handover.engine.prepare import prepare
     from handover.engine.trace import render_graph
 
     kb = load_kb(state.kb_dir)
@@ -123,7 +122,6 @@ def explain_graph(
         from handover.engine.errors import UsageError
 
         raise UsageError(f"unknown mode '{mode}' for explain-graph: choose H1G1, H2G2 or H2G1")
-    ctx.cache["mode"] = mode
     cg = compile(kb, ctx, mode)
     if dot:
         typer.echo(graph_to_dot(cg), nl=False)

@@ -8,20 +8,19 @@ from handover.engine.errors import UsageError
 from handover.engine.etiquette import (
     applies_to_object,
     culture_chain,
-    describe_rule,
     object_extents,
     object_size,
     object_tags,
     resolve_culture,
 )
 from handover.engine.loader import load_kb
-from handover.engine.schema import Applies, ObjectSpec, Rule
+from handover.engine.schema import Applies, ObjectSpec, RuleBase, parse_rule
 
 
-def rule(rid: str, **fields) -> Rule:
+def rule(rid: str, **fields) -> RuleBase:
     fields.setdefault("kind", "quality")
     fields.setdefault("min_quality", 0.1)
-    return Rule(id=rid, why="test", **fields)
+    return parse_rule(dict(id=rid, why="test", **fields))
 
 
 # ---------------------------------------------------------------- the built-in cultures
@@ -215,12 +214,12 @@ def test_mesh_size_depends_on_geometry():
 
 def test_describe_rule_says_what_it_asks(builtin_kb):
     rules = {r.id: r for r in builtin_kb.culture("common").rules}
-    assert describe_rule(rules["receiver_avoids_sharp"]) == (
+    assert rules["receiver_avoids_sharp"].describe() == (
         "receiver never holds a part tagged sharp"
     )
-    assert describe_rule(rules["giver_avoids_sharp"]) == (
+    assert rules["giver_avoids_sharp"].describe() == (
         "giver never holds a part tagged sharp"
     )
-    assert describe_rule(rules["sharp_tip_away"]) == (
+    assert rules["sharp_tip_away"].describe() == (
         "axis 'tip' at least 100 deg from toward_receiver"
     )

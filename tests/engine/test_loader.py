@@ -154,7 +154,7 @@ def test_nan_and_inf_are_errors(make_kb, value):
     assert "finite" in issue.message
 
 
-def test_model_validator_errors_point_at_the_mapping(make_kb):
+def test_a_field_of_another_rule_kind_points_at_the_field(make_kb):
     text = """\
         id: common
         name: Common
@@ -167,10 +167,24 @@ def test_model_validator_errors_point_at_the_mapping(make_kb):
             why: x
         """
     issue = only_error(make_kb({"etiquette/common.yaml": text}))
+    assert issue.line == 8  # the stray field itself
+    assert issue.message.startswith("rules[0]: unknown field 'axis'; ContactRule takes: ")
+    assert "who, forbid_tags, require_tags" in issue.message
+
+
+def test_a_rule_kind_s_own_validator_points_at_the_rule(make_kb):
+    text = """\
+        id: common
+        name: Common
+        rules:
+          - id: no_sharp
+            kind: contact
+            who: receiver
+            why: x
+        """
+    issue = only_error(make_kb({"etiquette/common.yaml": text}))
     assert issue.line == 4
-    assert issue.message == (
-        "rules[0]: a 'contact' rule does not take axis (it takes forbid_tags, require_tags, who)"
-    )
+    assert issue.message == "rules[0]: a 'contact' rule needs forbid_tags or require_tags"
 
 
 def test_bad_id_and_yaml_booleans_are_explained(make_kb):

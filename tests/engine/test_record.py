@@ -9,17 +9,18 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from handover.engine.attempt import Attempt, Hands, Phase
 from handover.engine.compiler import CompiledRule
 from handover.engine.context import PlanContext
 from handover.engine.errors import UsageError
 from handover.engine.evaluate import Decision
-from handover.engine.planners import Attempt
 from handover.engine.presentation import ReceiverRegion, ReceiverSites
 from handover.engine.record import (
     CLASS_ALIVE,
@@ -29,29 +30,29 @@ from handover.engine.record import (
     CLASS_RULE_BASE,
     ENTITY_CENTRES,
     ENTITY_LOG,
-    KIND_COLOURS,
     OUTCOME_COLOURS,
     read_recording,
     stage_classes,
     write_recording,
 )
 from handover.engine.result import PlanResult
-from handover.engine.schema import RULE_KINDS, Rule
+from handover.engine.kinds import KINDS
+from handover.engine.schema import RULE_KINDS, parse_rule
 from handover.geometry.candidates import SOURCE_FACET, CandidateSet
 from handover.geometry.gripper import Gripper
 from handover.geometry.hand import HumanHand
 
 N, K = 6, 2
 HARD = [
-    Rule(id="giver_no_blade", kind="contact", who="giver", forbid_tags=["blade"],
-         why="The robot holds the handle."),
-    Rule(id="tip_away", kind="axis", axis="tip", toward="toward_receiver", min_deg=90,
-         why="The tip never points at the receiver."),
-    Rule(id="gripper_free", kind="collision", against=["scene", "receiver_hand"],
-         why="The gripper touches nothing but the object."),
+    parse_rule(dict(id="giver_no_blade", kind="contact", who="giver", forbid_tags=["blade"],
+         why="The robot holds the handle.")),
+    parse_rule(dict(id="tip_away", kind="axis", axis="tip", toward="toward_receiver", min_deg=90,
+         why="The tip never points at the receiver.")),
+    parse_rule(dict(id="gripper_free", kind="collision", against=["scene", "receiver_hand"],
+         why="The gripper touches nothing but the object.")),
 ]  # fmt: skip
-SOFT = [Rule(id="good_grip", kind="quality", hard=False, weight=1.0, min_quality=0.0,
-             why="Firm grasps are better.")]  # fmt: skip
+SOFT = [parse_rule(dict(id="good_grip", kind="quality", hard=False, weight=1.0, min_quality=0.0,
+             why="Firm grasps are better."))]  # fmt: skip
 
 
 def rgb(colour: tuple[int, int, int]) -> int:
@@ -128,15 +129,17 @@ def _context(cands: CandidateSet) -> PlanContext:
         obj=SimpleNamespace(id="bar", axes={"tip": (1.0, 0.0, 0.0), "up": (0.0, 0.0, 1.0)}),
         toward=np.array([1.0, 0.0, 0.0]),
     )
-    return PlanContext(
+    ctx = PlanContext(
         situation=situation, part_mesh=part_mesh, part_tags=[{"handle"}, {"blade", "sharp"}],
         candidates=cands, generation={"facet_pairs": 3}, gripper=Gripper.default(),
         hand=HumanHand(palm=(0.08, 0.09, 0.03), finger_length=0.08, finger_thickness=0.02,
                        grip_width=0.08),
-        rotations=rotations, poses=poses, s_range=np.zeros((K, 2)), region=region, sites=sites,
-        initial=initial, scene=None, scene_box_list=[("table", np.array([0.8, 1.2, 0.05]), table)],
+        rotations=rotations, poses=poses, initial=initial, scene=None,
+        scene_box_list=[("table", np.array([0.8, 1.2, 0.05]), table)],
         facts=None,
     )  # fmt: skip
+    hands = Hands(key=("test", 1), region=region, sites=(sites,), s_range=np.zeros((K, 2)))
+    return ctx, hands
 
 
 def _grasp(cands: CandidateSet, i: int, hand: str, score: float, stage: str | None = None):
@@ -171,12 +174,12 @@ def _trace(grasp: int, hand: str, stage: str | None = None) -> list[dict]:
 def synthetic_plan(feasible: bool = True, h2g2: bool = False):
     """(result, ctx, attempt) of the hand-made plan described in :func:`_decision`."""
     cands = _candidates()
-    ctx = _context(cands)
+    ctx, hands = _context(cands)
     decision = _decision(feasible)
-    attempt = Attempt("H2G2" if h2g2 else "H1G1", feasible,
+    mode = "H2G2" if h2g2 else "H1G1"
+    attempt = Attempt(mode, feasible,
                       None if feasible else "H1G1: no candidate passes every hard rule",
-                      None, decision)  # fmt: skip
-    ctx.cache["attempt"] = attempt
+                      None, decision, Phase(mode, hands=hands))  # fmt: skip
     grasps, trace, regrasp = [], [], None
     if feasible and not h2g2:
         grasps = [_grasp(cands, 0, "right", 0.9)]
@@ -251,6 +254,9 @@ def test_stage_classes_follow_the_decision_table():
     assert stage_classes(decision, N, 1)[1].tolist() == [axis] * N
 
 
+KIND_COLOURS = {name: kind.colour for name, kind in KINDS.items()}
+
+
 def test_every_rule_kind_has_its_own_colour():
     assert set(KIND_COLOURS) == set(RULE_KINDS)
     colours = list(KIND_COLOURS.values()) + list(OUTCOME_COLOURS.values())
@@ -262,9 +268,9 @@ def test_every_rule_kind_has_its_own_colour():
 
 @pytest.fixture(scope="module")
 def feasible_rrd(tmp_path_factory) -> Path:
-    result, ctx, _ = synthetic_plan(feasible=True)
+    result, ctx, attempt = synthetic_plan(feasible=True)
     path = tmp_path_factory.mktemp("rrd") / "bar.rrd"
-    write_recording(result, ctx, path)
+    write_recording(result, ctx, path, attempt)
     return path
 
 
@@ -353,9 +359,9 @@ def test_blueprint_and_rerun_verify(feasible_rrd):
 
 
 def test_infeasible_plan_records_up_to_the_last_stage_with_candidates(tmp_path):
-    result, ctx, _ = synthetic_plan(feasible=False)
+    result, ctx, attempt = synthetic_plan(feasible=False)
     path = tmp_path / "none.rrd"
-    write_recording(result, ctx, path)
+    write_recording(result, ctx, path, attempt)
     summary = read_recording(path)
     stages = {s["stage"]: s for s in summary["stages"]}
     # Rows pass the cheap rules (stage 2 runs) but every one collides: no stage 3 or 4.
@@ -372,24 +378,24 @@ def test_plan_without_any_candidate_records_stage_0_and_the_reason(tmp_path):
     result, ctx, attempt = synthetic_plan(feasible=False)
     ctx.candidates = CandidateSet.empty(["handle", "blade"])
     empty = np.zeros(0, dtype=np.int64)
-    attempt.decision = Decision(
+    attempt = replace(attempt, decision=Decision(
         gi=empty, pk=empty, hard=attempt.decision.hard, soft=attempt.decision.soft,
         fails=np.zeros((0, 3), dtype=bool), checked=np.zeros((0, 3), dtype=bool),
         kept=np.zeros(0, dtype=bool), score=np.zeros(0), first_fail=empty,
         soft_scores=np.zeros((0, 1)),
-    )  # fmt: skip
+    ))  # fmt: skip
     result.reason = "H1G1: the object has no geometric grasp for this gripper"
     path = tmp_path / "empty.rrd"
-    write_recording(result, ctx, path)
+    write_recording(result, ctx, path, attempt)
     summary = read_recording(path)
     assert [(s["stage"], s["candidates"]) for s in summary["stages"]] == [(0, 0)]
     assert result.reason in summary["documents"][-1]["text"]
 
 
 def test_h2g2_plan_adds_pick_midair_and_handover(tmp_path):
-    result, ctx, _ = synthetic_plan(feasible=True, h2g2=True)
+    result, ctx, attempt = synthetic_plan(feasible=True, h2g2=True)
     path = tmp_path / "h2g2.rrd"
-    write_recording(result, ctx, path)
+    write_recording(result, ctx, path, attempt)
     summary = read_recording(path)
     assert [s["stage"] for s in summary["stages"]] == list(range(8))
     cols = read_columns(path)
@@ -409,10 +415,10 @@ def test_h2g2_plan_adds_pick_midair_and_handover(tmp_path):
 
 
 def test_an_existing_file_is_replaced_whole_and_no_temporary_is_left(tmp_path):
-    result, ctx, _ = synthetic_plan()
+    result, ctx, attempt = synthetic_plan()
     path = tmp_path / "plan.rrd"
     path.write_text("old")
-    write_recording(result, ctx, path)
+    write_recording(result, ctx, path, attempt)
     assert read_recording(path)["stages"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.rrd"]
     plain = tmp_path / "plain"
@@ -423,7 +429,7 @@ def test_an_existing_file_is_replaced_whole_and_no_temporary_is_left(tmp_path):
 def test_failure_while_writing_leaves_the_old_file(tmp_path, monkeypatch):
     import handover.engine.record as record
 
-    result, ctx, _ = synthetic_plan()
+    result, ctx, attempt = synthetic_plan()
     path = tmp_path / "plan.rrd"
     path.write_text("old")
 
@@ -432,15 +438,15 @@ def test_failure_while_writing_leaves_the_old_file(tmp_path, monkeypatch):
 
     monkeypatch.setattr(record, "_write", boom)
     with pytest.raises(RuntimeError):
-        write_recording(result, ctx, path)
+        write_recording(result, ctx, path, attempt)
     assert path.read_text() == "old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["plan.rrd"]
 
 
 def test_folder_as_target_is_a_usage_error(tmp_path):
-    result, ctx, _ = synthetic_plan()
+    result, ctx, attempt = synthetic_plan()
     with pytest.raises(UsageError, match="folder"):
-        write_recording(result, ctx, tmp_path)
+        write_recording(result, ctx, tmp_path, attempt)
 
 
 @pytest.mark.parametrize("content", [None, "not a recording\n", ""])
@@ -453,7 +459,7 @@ def test_reading_a_missing_or_foreign_file_is_a_usage_error(tmp_path, content):
 
 
 def test_recording_does_not_import_rerun_with_the_engine():
-    code = ("import sys, engine.record, engine.planners, engine.cli; "
+    code = ("import sys, handover.engine.record, handover.engine.planner, handover.engine.cli; "
             "print('rerun' in sys.modules)")  # fmt: skip
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=60)  # fmt: skip
@@ -471,13 +477,13 @@ def kb():
 
 
 def _real(kb, tmp_path: Path, obj: str, mode: str, scene: str):
-    from handover.engine.planners import plan
+    from handover.engine.planner import plan
     from handover.engine.query import Query
 
-    result, ctx = plan(kb, Query(object=obj, mode=mode, scene=scene))
+    planned = plan(kb, Query(object=obj, mode=mode, scene=scene))
     path = tmp_path / f"{obj}-{mode}.rrd"
-    write_recording(result, ctx, path)
-    return result, ctx, path
+    planned.record(path)
+    return planned.result, planned.context, path
 
 
 def _labels(cols: dict) -> dict[int, str]:

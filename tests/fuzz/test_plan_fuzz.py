@@ -72,7 +72,7 @@ from hypothesis.control import currently_in_test_context
 from handover.engine.cli.app import main
 from handover.engine.errors import EXIT_BAD_MESH, EXIT_INFEASIBLE, EXIT_INVALID_KB, EXIT_OK
 from handover.engine.loader import builtin_kb_dir, load_kb
-from handover.engine.planners import plan
+from handover.engine.planner import plan
 from handover.engine.presentation import ISOTROPY
 from handover.engine.query import Query
 from handover.engine.schema import SceneSpec
@@ -232,10 +232,10 @@ def canonical(poses: np.ndarray) -> np.ndarray:
     return np.hstack([poses[:, :3, 3], poses[:, :3, 2], o * sign[:, None]])
 
 
-def kept_rows(ctx) -> tuple[np.ndarray, np.ndarray]:
+def kept_rows(planned) -> tuple[np.ndarray, np.ndarray]:
     """Every kept row as (world pose at pick-up, world pose at handover, score): (M, 19),
     and the rows' keys of the best score (the candidates a plan may choose)."""
-    decision = ctx.cache["attempt"].decision
+    ctx, decision = planned.context, planned.attempt.decision
     if decision is None or not decision.kept.any():
         return np.zeros((0, 19)), np.zeros((0, 19))
     rows = np.flatnonzero(decision.kept)
@@ -258,7 +258,7 @@ def same_set(a: np.ndarray, b: np.ndarray, tol: float = 1e-7) -> bool:
 
 
 def plan_quietly(kb, path: Path, scene_id: str):
-    """``(result, ctx)``, or the MeshError that refused the mesh."""
+    """The :class:`~handover.engine.planner.Plan`, or the MeshError that refused the mesh."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # not watertight, etc.: not the point here
         try:
@@ -285,8 +285,9 @@ def check_invariance(tmp_path: Path, vertices, faces, transform) -> None:
         assert type(a) is type(b), (a, b)
         event("mesh refused")
         return
-    (result_a, ctx_a), (result_b, ctx_b) = a, b
-    points = ctx_a.region.points - ctx_a.region.points.mean(axis=0)
+    result_a, ctx_a, result_b, ctx_b = a.result, a.context, b.result, b.context
+    region = a.attempt.phase.hands.region
+    points = region.points - region.points.mean(axis=0)
     spread = np.linalg.svd(points, compute_uv=False) if len(points) > 2 else np.ones(3)
     # Whether the region has a long axis, and a plane, is the shape's to say, except right at
     # the threshold, where rounding may say it differently in each frame.
@@ -299,8 +300,8 @@ def check_invariance(tmp_path: Path, vertices, faces, transform) -> None:
     assert (result_a.feasible, result_a.mode) == (result_b.feasible, result_b.mode)
     for key in ("generated", "grasps", "kept", "rejected_by"):
         assert result_a.candidates[key] == result_b.candidates[key], key
-    kept_a, best_a = kept_rows(ctx_a)
-    kept_b, best_b = kept_rows(ctx_b)
+    kept_a, best_a = kept_rows(a)
+    kept_b, best_b = kept_rows(b)
     event(f"{result_a.mode or 'infeasible'}, {'no' if not ctx_a.n else 'some'} candidates")
     assert same_set(kept_a, kept_b), f"{len(kept_a)} vs {len(kept_b)} kept rows differ"
     assert same_set(best_a, best_b)

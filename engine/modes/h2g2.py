@@ -15,21 +15,22 @@ itself, grasps it there with its second hand, and hands it over with the second 
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import CompiledRule, compile
-from handover.engine.context import PlanContext
-from handover.engine.evaluate import _entry, evaluate, infeasible_reason
-from handover.engine.rules import evaluate_rule
+from handover.engine.evaluate import evaluate, evaluate_rule, infeasible_reason
+from handover.engine.modes.common import hand_at, receiver_roles, register
 
 if TYPE_CHECKING:
+    from handover.engine.context import PlanContext
     from handover.engine.loader import KB
-    from handover.engine.planners import Attempt
 
-__all__ = ["plan_h2g2", "first_rules", "first_trace", "midair_pose", "MIDAIR_BACKOFF"]
+__all__ = ["plan_h2g2", "first_rules", "midair_pose", "MIDAIR_BACKOFF", "FIRST_NOTE"]
+
+FIRST_NOTE = "applies to the handover grasp only (function and etiquette)"
 
 # The midair pose is the handover pose moved this far back toward the robot (m).
 MIDAIR_BACKOFF = 0.2
@@ -56,18 +57,10 @@ def midair_pose(ctx: PlanContext, k: int) -> np.ndarray:
     return pose
 
 
-def _first_phase(ctx: PlanContext) -> dict:
-    return {"pickup": True, "receiver_present": False, "mode": "H2G2"}
-
-
-def _second_phase(ctx: PlanContext) -> dict:
-    return {"pickup": False, "receiver_present": True, "mode": "H2G2"}
-
-
-def _feasible_firsts(ctx: PlanContext, rules: list[CompiledRule]) -> tuple[np.ndarray, dict]:
+def _feasible_firsts(ctx: PlanContext, rules: list[CompiledRule],
+                     phase: Phase) -> tuple[np.ndarray, dict]:
     """Indices of candidates that pass every first-phase rule (ordered by quality desc, then
     index) and the count each rule removed (first failure in order)."""
-    ctx.cache.update(_first_phase(ctx))
     alive = np.ones(ctx.n, dtype=bool)
     removed: dict[str, int] = {}
     gi = np.arange(ctx.n)
@@ -76,7 +69,7 @@ def _feasible_firsts(ctx: PlanContext, rules: list[CompiledRule]) -> tuple[np.nd
         idx = np.flatnonzero(alive)
         if not len(idx):
             break
-        out = evaluate_rule(c.rule, ctx, gi[idx], pk[idx])
+        out = evaluate_rule(c, ctx, phase, gi[idx], pk[idx])
         bad = idx[~out.passed]
         if len(bad):
             removed[c.id] = int(len(bad))
@@ -86,44 +79,29 @@ def _feasible_firsts(ctx: PlanContext, rules: list[CompiledRule]) -> tuple[np.nd
     return idx[order], removed
 
 
-def first_trace(ctx: PlanContext, rules: list[CompiledRule], all_rules: list[CompiledRule],
-                grasp: int) -> list[dict]:
-    """The trace of a first grasp: its first-phase rules, the others marked not applicable."""
-    ctx.cache.update(_first_phase(ctx))
-    entries = []
-    ids = {c.id for c in rules}
-    for c in all_rules:
-        if c.id in ids:
-            out = evaluate_rule(c.rule, ctx, np.array([grasp]), np.array([0]))
-            status = "pass" if bool(out.passed[0]) else "fail"
-            entries.append(_entry(c, status, out, bool(out.passed[0])))
-        else:
-            note = "applies to the handover grasp only (function and etiquette)"
-            entries.append(_entry(replace(c, reason=note), "not_applicable", None, None))
-    return entries
-
-
+@register("H2G2")
 def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a midair regrasp; see the module docstring."""
-    from handover.engine.planners import Attempt
     from handover.geometry.collision import grippers_collide
 
-    ctx.cache.update(_second_phase(ctx))
     cg = compile(kb, ctx, "H2G2")
-    decision = evaluate(cg, ctx)
-    firsts_rules = first_rules(cg.hard)
-    firsts, first_removed = _feasible_firsts(ctx, firsts_rules)
-    ctx.cache.update(_second_phase(ctx))
+    # The second hand hands over: it never takes the object off the table. The first picks
+    # it while the receiver's hands are not there yet.
+    second = Phase("H2G2", hands=ctx.hands(receiver_roles(cg, ctx)), pickup=False,
+                   receiver_present=True)
+    first = second.but(pickup=True, receiver_present=False)
+    decision = evaluate(cg, ctx, second)
+    firsts, first_removed = _feasible_firsts(ctx, first_rules(cg.hard), first)
     extra = {"first_rejected_by": first_removed, "first_feasible": int(len(firsts))}
     ranking = decision.ranking()
     if len(ranking) == 0:
         return Attempt("H2G2", False, infeasible_reason(decision, "H2G2") + " (second hand)", cg,
-                       decision, extra=extra)
+                       decision, second, extra=extra)
     if len(firsts) == 0:
         why = ", ".join(f"{k} ({v})" for k, v in first_removed.items()) or "no candidates"
         return Attempt("H2G2", False,
                        f"H2G2: no grasp can pick the object at its initial pose: {why}",
-                       cg, decision, extra=extra)
+                       cg, decision, second, extra=extra)
     poses = ctx.gripper_poses()
     widths = ctx.candidates.width
     pool = ranking[:SECOND_POOL]
@@ -141,22 +119,16 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
         rule = other.id if other is not None else "gripper-gripper collision"
         return Attempt("H2G2", False,
                        f"H2G2: every first grasp collides with the best {len(pool)} second "
-                       f"grasps at the midair pose ({rule})", cg, decision, extra=extra)
+                       f"grasps at the midair pose ({rule})", cg, decision, second, extra=extra)
     m = int(col[0])
     f = int(firsts[int(np.argmax(free[:, m]))])
     row = int(pool[m])
     i2, k = int(decision.gi[row]), int(decision.pk[row])
-    first_hand = _robot_hand_initial(ctx, f)
+    first_hand = hand_at(ctx.initial, ctx.candidates.centre[f])
     second_hand = "left" if first_hand == "right" else "right"
     extra.update(first=f, first_hand=first_hand, midair=midair_pose(ctx, k),
                  rows_skipped=m)
-    ctx.cache["partner"] = (f, i2)
-    return Attempt("H2G2", True, None, cg, decision,
-                   [(first_hand, f, k), (second_hand, i2, k)],
+    chosen = (Chosen(first_hand, f, k, first.but(other_grasp=i2), stage="pick"),
+              Chosen(second_hand, i2, k, second.but(other_grasp=f)))
+    return Attempt("H2G2", True, None, cg, decision, second, chosen,
                    float(decision.score[row]), extra=extra)
-
-
-def _robot_hand_initial(ctx: PlanContext, i: int) -> str:
-    """The hand nearer the grasp at pick-up: left if it lies on the robot's left (+y)."""
-    centre = ctx.initial[:3, :3] @ ctx.candidates.centre[i] + ctx.initial[:3, 3]
-    return "left" if centre[1] > 1e-9 else "right"

@@ -24,15 +24,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import ConstraintGraph, compile
-from handover.engine.context import PlanContext
 from handover.engine.evaluate import evaluate, infeasible_reason
-from handover.engine.presentation import predict_two_hand_sites
-from handover.engine.rules import collision_scene
+from handover.engine.features import collision_scene
+from handover.engine.modes.common import receiver_roles, register
 
 if TYPE_CHECKING:
+    from handover.engine.context import PlanContext
     from handover.engine.loader import KB
-    from handover.engine.planners import Attempt
 
 __all__ = ["plan_h2g1", "receiver_hand_count", "SIDE_BAND", "BALANCE_WEIGHT"]
 
@@ -48,11 +48,8 @@ def receiver_hand_count(cg: ConstraintGraph) -> tuple[int, str]:
     """How many hands the receiver uses, and why: two when an active mode rule asking for
     H2G1 is about the object's mass or size (the large-object case), else one (etiquette)."""
     for c in cg.order:
-        a = c.rule.applies
-        if c.rule.kind == "mode" and c.rule.mode == "H2G1":
-            if a.exceeds_payload or a.exceeds_opening or a.min_mass is not None \
-                    or a.min_size is not None:
-                return 2, f"{c.id} ({c.source}): a large or heavy object takes two hands"
+        if c.rule.kind == "mode" and c.rule.mode == "H2G1" and c.rule.applies.is_about_load():
+            return 2, f"{c.id} ({c.source}): a large or heavy object takes two hands"
     for c in cg.order:
         if c.rule.kind == "mode" and c.rule.mode == "H2G1":
             return 1, f"{c.id} ({c.source}): etiquette; the receiver takes it in one hand"
@@ -69,29 +66,26 @@ def _palm_centres(ctx: PlanContext) -> np.ndarray:
     return poses[:, :3, 3] - back * poses[:, :3, 2]
 
 
+@register("H2G1")
 def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a two-handed handover; see the module docstring."""
-    from handover.engine.planners import Attempt
     from handover.geometry.collision import grippers_collide
 
-    # Rows are judged at the presentation; pick-up is a property of the pair (below).
-    ctx.cache.update({"pickup": False, "receiver_present": True, "mode": "H2G1"})
     cg = compile(kb, ctx, "H2G1")
     hands, hands_why = receiver_hand_count(cg)
-    if hands == 2:
-        ctx.cache["receiver_sites"] = predict_two_hand_sites(
-            ctx.region, ctx.rotations, ctx.situation.toward, ctx.situation.hand.grip_width)
-        ctx.cache["hands_variant"] = "two"
-    decision = evaluate(cg, ctx)
+    # Rows are judged at the presentation; pick-up is a property of the pair (below).
+    phase = Phase("H2G1", hands=ctx.hands(receiver_roles(cg, ctx), hands), pickup=False,
+                  receiver_present=True)
+    decision = evaluate(cg, ctx, phase)
     extra = {"receiver_hands": hands, "receiver_hands_why": hands_why}
     facts = ctx.facts
     if facts.mass / 2.0 > facts.payload:
         return Attempt("H2G1", False,
                        f"H2G1: half the mass ({facts.mass / 2:g} kg) exceeds one hand's payload "
-                       f"({facts.payload:g} kg)", cg, decision, extra=extra)
+                       f"({facts.payload:g} kg)", cg, decision, phase, extra=extra)
     ranking = decision.ranking()
     if len(ranking) == 0:
-        return Attempt("H2G1", False, infeasible_reason(decision, "H2G1"), cg, decision,
+        return Attempt("H2G1", False, infeasible_reason(decision, "H2G1"), cg, decision, phase,
                        extra=extra)
 
     up = np.array([0.0, 0.0, 1.0])
@@ -145,13 +139,16 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
         return Attempt("H2G1", False,
                        f"H2G1: no pair of grasps at the far left and far right ({checked} pairs "
                        f"checked, {colliding} with colliding grippers, {unpickable} that "
-                       f"{lift} cannot take from the table)", cg, decision, extra=extra)
+                       f"{lift} cannot take from the table)", cg, decision, phase, extra=extra)
     score, i_left, i_right, k, off = best
     picks = ~collision_scene(ctx, np.array([i_left, i_right]))
     extra["balance_offset_m"] = off
     extra["pickup_hands"] = [h for h, ok in zip(("left", "right"), picks, strict=True) if ok]
     if not both_pick:  # one hand lifts it; the other joins at the presentation
         extra["pickup_hands"] = extra["pickup_hands"][:1]
-    ctx.cache["partner"] = (i_left, i_right)
-    return Attempt("H2G1", True, None, cg, decision,
-                   [("left", i_left, k), ("right", i_right, k)], score, extra=extra)
+    lifts = extra["pickup_hands"]
+    chosen = (
+        Chosen("left", i_left, k, phase.but(pickup="left" in lifts, other_grasp=i_right)),
+        Chosen("right", i_right, k, phase.but(pickup="right" in lifts, other_grasp=i_left)),
+    )
+    return Attempt("H2G1", True, None, cg, decision, phase, chosen, score, extra=extra)

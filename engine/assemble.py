@@ -1,0 +1,210 @@
+"""Assemble the result of a plan: the chosen attempt's grasps in the object and the world,
+the receiver's predicted grasps, the trace, the candidates' fate, and ``--why-not`` answers.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from handover.engine.errors import UsageError
+from handover.engine.evaluate import trace_row
+from handover.engine.result import PlanResult
+
+if TYPE_CHECKING:
+    from handover.engine.attempt import Attempt, Hands
+    from handover.engine.compiler import ConstraintGraph
+    from handover.engine.context import PlanContext
+    from handover.engine.presentation import ReceiverSites
+    from handover.engine.schema import GripperSpec
+
+__all__ = ["build_result", "grasp_record", "human_record"]
+
+
+def _gripper_meshes(spec: GripperSpec) -> dict:
+    """``{"meshes": {palm, finger, scale}}`` for a gripper given as mesh files (the files as
+    the KB names them), else nothing: the result says which collision model was used."""
+    if spec.meshes is None:
+        return {}
+    return {"meshes": spec.meshes.model_dump()}
+
+
+def grasp_record(ctx: PlanContext, hand: str, i: int, k: int, score: float | None) -> dict:
+    """A robot grasp as the JSON result describes it (object frame and world)."""
+    c = ctx.candidates
+    pose = ctx.gripper_poses()[i]
+    return {
+        "hand": hand,
+        "id": i,
+        "pose": pose,
+        "pose_world": ctx.poses[k] @ pose,
+        "width": float(c.width[i]),
+        "contacts": c.contacts[i],
+        "parts": [c.part_names[p] for p in c.parts[i]],
+        "score": score,
+        "quality": float(c.quality[i]),
+        "roll_deg": float(np.degrees(c.roll[i])),
+    }
+
+
+def human_record(ctx: PlanContext, k: int, hand: str, hands: Hands,
+                 sites: ReceiverSites) -> dict | None:
+    """A receiver's predicted grasp (seed's C) in presentation ``k``: one hand's ``sites`` of
+    ``hands``."""
+    if not sites.valid[k]:
+        return None
+    site = sites.site[k]
+    from handover.engine.features import hand_model
+
+    return {
+        "hand": hand,
+        "position": site,
+        "position_world": ctx.poses[k, :3, :3] @ site + ctx.poses[k, :3, 3],
+        "part": ctx.part_mesh.part_names[int(sites.part[k])],
+        "model": [{"name": name, "extents": ext, "pose": pose}
+                  for name, ext, pose in hand_model(ctx, hands, sites, k)],
+    }
+
+
+def _presentation(ctx: PlanContext, k: int) -> dict:
+    axes = {
+        name: ctx.rotations[k] @ (np.asarray(v, dtype=float) / np.linalg.norm(v))
+        for name, v in ctx.situation.obj.axes.items()
+    }
+    return {"index": k, "rotation": ctx.rotations[k], "axes_world": axes}
+
+
+def _rule_list(cg: ConstraintGraph) -> list[dict]:
+    out = []
+    for c in cg.order + cg.inactive:
+        out.append({
+            "rule": c.id, "kind": c.rule.kind, "hard": c.rule.hard, "active": c.active,
+            "reason": c.reason, "source": c.source, "culture": c.culture,
+            "overrides": list(c.overrides), "features": list(c.features),
+        })  # fmt: skip
+    return out
+
+
+def _why_not(attempt: Attempt, ctx: PlanContext, grasp: int) -> dict:
+    """Why a candidate grasp lost: its rules in the chosen presentation (or the first one),
+    and the presentations in which it passes every hard rule."""
+    if not 0 <= grasp < ctx.n:
+        raise UsageError(f"--why-not {grasp}: candidate ids run from 0 to {ctx.n - 1}")
+    d = attempt.decision
+    k = attempt.chosen[0].presentation if attempt.chosen else 0
+    rows = np.flatnonzero(d.gi == grasp)
+    feasible_in = [int(d.pk[r]) for r in rows if d.kept[r]]
+    trace = trace_row(attempt.graph, ctx, attempt.phase, grasp, k)
+    failed = [e["rule"] for e in trace if e["status"] == "fail"]
+    row = int(rows[k]) if len(rows) > k else None
+    if failed:
+        verdict = f"in the chosen presentation it fails {', '.join(failed)}"
+    elif row is not None and d.kept[row]:
+        best = attempt.score if attempt.score is not None else float("nan")
+        verdict = f"it passes every hard rule but scores {d.score[row]:.3f} < {best:.3f}"
+    else:
+        verdict = "it passes every rule"
+    return {"grasp": grasp, "presentation": k, "verdict": verdict,
+            "feasible_presentations": feasible_in, "trace": trace}
+
+
+def build_result(
+    ctx: PlanContext, attempt: Attempt, tried: list[Attempt], mode_reason: str,
+    why_not: tuple[int, ...] = (),
+) -> PlanResult:
+    """Assemble the JSON-able result of the chosen attempt."""
+    s = ctx.situation
+    k = attempt.chosen[-1].presentation if attempt.chosen else 0
+    robot_grasps = [grasp_record(ctx, c.hand, c.grasp, c.presentation, attempt.score)
+                    for c in attempt.chosen]
+    human: list[dict] = []
+    trace: list[dict] = []
+    regrasp = None
+    if attempt.feasible:
+        if attempt.mode == "H2G2":
+            first, second = robot_grasps
+            first["stage"], second["stage"] = "pick", "handover"
+            first["pose_world"] = ctx.initial @ first["pose"]
+            midair = attempt.extra["midair"]
+            regrasp = {"first": first | {"pose_midair": midair @ first["pose"]},
+                       "midair_pose": midair, "second": second}
+        hands = attempt.phase.hands
+        names = [s.receiver.dominant_hand] if len(hands.sites) == 1 else ["right", "left"]
+        for sites_h, hand_name in zip(hands.sites, names, strict=True):
+            rec = human_record(ctx, k, hand_name, hands, sites_h)
+            if rec is not None:
+                human.append(rec)
+        trace = attempt.extra["trace"]
+    d = attempt.decision
+    candidates = {
+        "generated": int(d.n_rows) if d is not None else 0,
+        "grasps": ctx.n,
+        "presentations": ctx.k,
+        "kept": int(d.kept.sum()) if d is not None else 0,
+        "rejected_by": d.rejected_by() if d is not None else {},
+        "generation": ctx.generation,
+    }
+    for key in ("first_rejected_by", "first_feasible", "pairs_checked", "pairs_colliding",
+                "pairs_not_liftable", "receiver_hands", "receiver_hands_why",
+                "balance_offset_m", "pickup_hands"):
+        if key in attempt.extra:
+            candidates[key] = attempt.extra[key]
+    if d is not None and not attempt.feasible:
+        candidates["blocking_sets"] = [
+            {"rules": list(ids), "candidates": n} for ids, n in d.blocking_sets()
+        ]
+    alternatives = []
+    if d is not None:  # the next best distinct grasps, each in its best presentation
+        chosen_ids = {c.grasp for c in attempt.chosen}
+        for r in d.ranking():
+            if len(alternatives) == 5:
+                break
+            if int(d.gi[r]) in chosen_ids:
+                continue
+            chosen_ids.add(int(d.gi[r]))
+            alternatives.append({"grasp": int(d.gi[r]), "presentation": int(d.pk[r]),
+                                 "score": float(d.score[r])})
+    g = ctx.gripper
+    query = s.query.as_dict() | {"task": s.task_id, "gripper": s.gripper.id}
+    result = PlanResult(
+        object=s.obj.id,
+        query=query,
+        mode=attempt.mode if attempt.feasible else None,
+        feasible=attempt.feasible,
+        reason=attempt.reason if not attempt.feasible else None,
+        object_pose=ctx.poses[k] if attempt.feasible else None,
+        receiver={"position": s.receiver_position, "facing": s.receiver_facing,
+                  "hand_height": s.receiver.hand_height, "role": s.receiver.role,
+                  "dominant_hand": s.receiver.dominant_hand},
+        robot_grasps=robot_grasps,
+        human_grasps=human,
+        gripper={"id": s.gripper.id, "max_width": g.max_opening, "min_width": g.min_opening,
+                 "finger_depth": g.finger_length / 2.0, "finger_length": g.finger_length,
+                 "finger_width": g.finger_width, "finger_thickness": g.finger_thickness,
+                 "palm": list(g.palm), "friction": g.friction, "clearance": g.clearance,
+                 **_gripper_meshes(s.gripper)},
+        candidates=candidates,
+        trace=trace,
+        regrasp=regrasp,
+        initial_pose=ctx.initial,
+        modes_tried=[{"mode": a.mode, "feasible": a.feasible, "reason": a.reason}
+                     for a in tried],
+        mode_reason=mode_reason,
+        presentation=_presentation(ctx, k) if attempt.feasible else None,
+        alternatives=alternatives,
+        rules=_rule_list(attempt.graph) if attempt.graph is not None else [],
+        scene={"id": s.scene.id, "boxes": [
+            {"id": name, "extents": ext, "pose": pose} for name, ext, pose in ctx.scene_box_list
+        ]},
+    )
+    if attempt.graph is not None and attempt.decision is not None:
+        result.why_not = [_why_not(attempt, ctx, gid) for gid in why_not]
+    result.warnings.extend(ctx.warnings)
+    for c in attempt.graph.order if attempt.graph is not None else []:
+        if c.overridden_safety:
+            result.warnings.append(
+                f"safety rule {', '.join(c.overridden_safety)} overridden by {c.id} "
+                f"({c.source}): {c.rule.override_safety}"
+            )
+    return result

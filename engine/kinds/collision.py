@@ -1,0 +1,57 @@
+"""``collision``: the gripper against the scene at pick-up, the receiver's hands at the
+handover, and the robot's other gripper."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Literal
+
+import numpy as np
+from pydantic import Field
+
+from handover.engine.kinds.base import Outcome, RuleBase, register
+
+if TYPE_CHECKING:
+    from handover.engine.attempt import Phase
+    from handover.engine.context import PlanContext
+
+Target = Literal["scene", "receiver_hand", "other_gripper"]
+
+
+@register
+class CollisionRule(RuleBase):
+    """against: the targets checked (scene, receiver_hand, other_gripper). The gripper
+    against the object itself is settled when candidates are generated."""
+
+    kind: Literal["collision"] = "collision"
+    against: list[Target] = Field(min_length=1)
+
+    colour = (130, 0, 0)
+    summary = "gripper against scene, receiver's hands, other gripper"
+
+    def features(self) -> list[str]:
+        return [f"collision_{t}" for t in self.against]
+
+    def describe(self) -> str:
+        return f"no collision with {', '.join(self.against)}"
+
+    def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
+                 pk: np.ndarray) -> Outcome:
+        from handover.engine import features as f
+
+        mask = np.zeros(len(gi), dtype=np.int64)
+        checked = []
+        for target in self.against:
+            hit = None
+            if target == "scene" and phase.pickup:
+                hit = f.collision_scene(ctx, gi)  # the scene is met at pick-up
+            elif target == "receiver_hand" and phase.receiver_present:
+                hit = f.collision_receiver_hand(ctx, phase.hands, gi, pk)
+            elif target == "other_gripper" and phase.other_grasp is not None:
+                hit = f.collision_other_gripper(ctx, phase.other_grasp, gi)
+            if hit is not None:
+                checked.append(target)
+                mask |= np.where(hit, f.COLLISION_BITS[target], 0)
+        ok = mask == 0
+        return Outcome(ok, mask.astype(float), ok.astype(float),
+                       "no collision with " + ", ".join(checked or ["nothing checked here"]),
+                       "collides")

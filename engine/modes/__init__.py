@@ -1,0 +1,118 @@
+"""The handover modes, one module each (H1G1, H2G2, H2G1), and the choice among them.
+
+Each mode planner is a function ``(kb, ctx) -> Attempt`` registered in
+:data:`~handover.engine.modes.common.PLANNERS`. An attempt is a value: it never changes the
+context, so trying H2G1 first and H1G1 next gives H1G1 the same result as forcing it.
+
+Every feasible attempt is checked before it is accepted: the trace of each chosen grasp,
+judged in the phase the planner chose it in, must pass every hard rule; otherwise the attempt
+is turned infeasible with the failing rule named. A plan whose own trace says a hard rule
+failed is never reported as feasible.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+from handover.engine.attempt import Attempt
+from handover.engine.compiler import compile
+from handover.engine.evaluate import trace_row
+from handover.engine.modes import h1g1, h2g1, h2g2  # noqa: F401  (register the planners)
+from handover.engine.modes.common import PLANNERS
+from handover.engine.modes.h2g2 import FIRST_NOTE, first_rules
+
+if TYPE_CHECKING:
+    from handover.engine.context import PlanContext
+    from handover.engine.loader import KB
+
+__all__ = ["PLANNERS", "choose", "attempt_mode", "chosen_traces", "required_mode"]
+
+
+def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
+    """The trace of every chosen grasp, each judged in its own phase (H2G2's first grasp by
+    its pick-up rules only)."""
+    trace: list[dict] = []
+    cg = attempt.graph
+    for c in attempt.chosen:
+        if c.stage == "pick":
+            entries = trace_row(cg, ctx, c.phase, c.grasp, 0, rules=first_rules(cg.hard),
+                                note=FIRST_NOTE)
+        else:
+            entries = trace_row(cg, ctx, c.phase, c.grasp, c.presentation)
+        trace.extend({"grasp": c.grasp, "hand": c.hand, "stage": c.stage, **e}
+                     for e in entries)
+    return trace
+
+
+def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
+    """Run one mode's planner and check its answer: a feasible attempt keeps its chosen
+    grasps only if each passes every hard rule in its trace (``extra["trace"]``)."""
+    attempt = PLANNERS[mode](kb, ctx)
+    if not attempt.feasible:
+        return attempt
+    trace = chosen_traces(ctx, attempt)
+    failed = [e for e in trace if e["hard"] and e["status"] == "fail"]
+    if failed:
+        names = ", ".join(f"{e['rule']} ({e['hand']} hand, grasp {e['grasp']})" for e in failed)
+        return attempt.rejected(f"{mode}: the chosen grasps fail hard rules in their own "
+                                f"trace: {names}")
+    return replace(attempt, extra=attempt.extra | {"trace": trace})
+
+
+def required_mode(kb: KB, ctx: PlanContext) -> tuple[str | None, str, str | None, str]:
+    """The mode the KB requires (the first active hard mode rule) and the one it prefers
+    (the highest-weighted active soft mode rule), each with the rule that says so, for this
+    query. Returns (required, why, preferred, why)."""
+    cg = compile(kb, ctx, "H1G1")
+    required, preferred = cg.mode_rules()
+
+    def said(c) -> str:
+        return f"rule {c.id} ({c.source}) asks for {c.rule.mode}: {c.rule.why}"
+
+    return (required.rule.mode if required else None, said(required) if required else "",
+            preferred.rule.mode if preferred else None, said(preferred) if preferred else "")
+
+
+def choose(kb: KB, ctx: PlanContext, asked: str) -> tuple[Attempt, list[Attempt], str]:
+    """Try the modes ``asked`` for (``auto``, or one forced mode) and return the attempt to
+    report, every attempt tried (in the catalogue's order) and why that mode.
+
+    auto: a mode a hard rule requires is the only one tried (the others are reported as
+    ruled out by that rule); otherwise H1G1, then H2G2, then H2G1, the mode a soft rule
+    prefers first."""
+    asked = asked.lower()
+    if asked != "auto":
+        mode = asked.upper()
+        attempt = attempt_mode(kb, ctx, mode)
+        return attempt, [attempt], f"forced by --mode {asked}"
+
+    required, req_why, preferred, pref_why = required_mode(kb, ctx)
+    tried: list[Attempt] = []
+    if required is not None:
+        order = [required]
+        tried += [Attempt(m, False, f"{m}: not tried, {req_why}")
+                  for m in PLANNERS if m != required]
+    else:
+        order = list(PLANNERS)
+        if preferred is not None:
+            order.remove(preferred)
+            order.insert(0, preferred)
+    rank = {m: n for n, m in enumerate(PLANNERS)}
+    for mode in order:
+        attempt = attempt_mode(kb, ctx, mode)
+        tried.append(attempt)
+        if attempt.feasible:
+            if required is not None:
+                why = req_why
+            elif preferred == mode:
+                why = pref_why
+            elif mode == "H1G1":
+                why = "one hand, one grasp is tried first and is feasible"
+            else:
+                why = f"{mode} tried because " + "; ".join(
+                    a.reason or "" for a in tried if not a.feasible and a.mode != mode)
+            return attempt, tried, why
+    last = tried[-1]
+    tried.sort(key=lambda a: rank[a.mode])
+    return last, tried, "no mode is feasible"

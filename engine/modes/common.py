@@ -1,0 +1,43 @@
+"""What the mode planners share: their registry, and the roles read from a compiled graph."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from handover.engine.attempt import Attempt, Roles
+    from handover.engine.compiler import ConstraintGraph
+    from handover.engine.context import PlanContext
+    from handover.engine.loader import KB
+
+__all__ = ["PLANNERS", "register", "receiver_roles", "hand_at"]
+
+Planner = Callable[["KB", "PlanContext"], "Attempt"]
+PLANNERS: dict[str, Planner] = {}
+"""Mode name -> planner, in the order auto mode tries them (H1G1, H2G2, H2G1)."""
+
+
+def register(mode: str) -> Callable[[Planner], Planner]:
+    """Decorator: register a mode planner under ``mode``."""
+
+    def add(fn: Planner) -> Planner:
+        PLANNERS[mode] = fn
+        return fn
+
+    return add
+
+
+def receiver_roles(cg: ConstraintGraph, ctx: PlanContext) -> Roles:
+    """The roles of ``cg``'s active contact rules, the query's task first."""
+    task = ctx.situation.task
+    return cg.roles(tuple(task.receiver_tags) if task is not None else ())
+
+
+def hand_at(pose: np.ndarray, centre: np.ndarray) -> str:
+    """The robot hand nearer a grasp centre (object frame) with the object at ``pose``
+    (4, 4): left if it lies on the robot's left (+y)."""
+    world = pose[:3, :3] @ centre + pose[:3, 3]
+    return "left" if world[1] > 1e-9 else "right"

@@ -1,0 +1,33 @@
+"""H1G1: one hand, one grasp (seed 3.1). The robot picks the object at its initial pose and
+hands it over with the same grasp; every hard rule filters, soft rules score, the best row
+wins."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from handover.engine.attempt import Attempt, Chosen, Phase
+from handover.engine.compiler import compile
+from handover.engine.evaluate import evaluate, infeasible_reason
+from handover.engine.modes.common import hand_at, receiver_roles, register
+
+if TYPE_CHECKING:
+    from handover.engine.context import PlanContext
+    from handover.engine.loader import KB
+
+
+@register("H1G1")
+def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
+    """Plan a one-hand handover; see the module docstring."""
+    cg = compile(kb, ctx, "H1G1")
+    phase = Phase("H1G1", hands=ctx.hands(receiver_roles(cg, ctx)), pickup=True,
+                  receiver_present=True)
+    decision = evaluate(cg, ctx, phase)
+    ranking = decision.ranking()
+    if len(ranking) == 0:
+        return Attempt("H1G1", False, infeasible_reason(decision, "H1G1"), cg, decision, phase)
+    best = int(ranking[0])
+    i, k = int(decision.gi[best]), int(decision.pk[best])
+    hand = hand_at(ctx.poses[k], ctx.candidates.centre[i])
+    return Attempt("H1G1", True, None, cg, decision, phase, (Chosen(hand, i, k, phase),),
+                   float(decision.score[best]))
