@@ -21,6 +21,7 @@ from handover.engine.compiler import CompiledRule
 from handover.engine.context import PlanContext
 from handover.engine.errors import UsageError
 from handover.engine.evaluate import Decision
+from handover.engine.kinds import KINDS
 from handover.engine.presentation import ReceiverRegion, ReceiverSites
 from handover.engine.record import (
     CLASS_ALIVE,
@@ -36,7 +37,6 @@ from handover.engine.record import (
     write_recording,
 )
 from handover.engine.result import PlanResult
-from handover.engine.kinds import KINDS
 from handover.engine.schema import RULE_KINDS, parse_rule
 from handover.geometry.candidates import SOURCE_FACET, CandidateSet
 from handover.geometry.gripper import Gripper
