@@ -24,6 +24,7 @@ class ApproachRule(RuleBase):
 
     colour = (0, 170, 170)
     summary = "giver approach `a` against the robot->receiver direction"
+    example = {"max_deg": 100}
 
     def describe(self) -> str:
         return f"gripper approaches within {self.max_deg:g} deg of robot-to-receiver"

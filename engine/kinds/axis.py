@@ -30,6 +30,7 @@ class AxisRule(RuleBase):
 
     colour = (240, 130, 40)
     summary = "angle between an object axis and a receiver-frame direction"
+    example = {"axis": "tip", "toward": "toward_receiver", "min_deg": 100}
 
     @model_validator(mode="after")
     def _bounds(self) -> AxisRule:

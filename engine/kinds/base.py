@@ -3,8 +3,9 @@ registry that serves validation (the schema's discriminated union), evaluation, 
 and colour from one declaration per kind.
 
 A kind is one class: a pydantic model (its YAML fields) decorated with :func:`register`,
-with ``features``, ``evaluate`` and ``describe``, and the class variable ``colour`` (RGB of a
-candidate it rejects, in recordings). A new kind is one module in this package.
+with ``features``, ``evaluate`` and ``describe``, and the class variables ``colour`` (RGB of a
+candidate it rejects, in recordings), ``summary`` (one line for the catalogue) and
+``example`` (its fields in a minimal valid rule). A new kind is one module in this package.
 """
 
 from __future__ import annotations
@@ -87,6 +88,8 @@ class RuleBase(KBModel):
 
     colour: ClassVar[tuple[int, int, int]] = (128, 128, 128)
     summary: ClassVar[str] = ""
+    example: ClassVar[dict] = {}
+    """The kind's own fields of a minimal valid rule (documentation and tests)."""
 
     def features(self) -> list[str]:
         """The features this rule reads (edges feature -> rule in the constraint graph)."""

@@ -24,6 +24,7 @@ class ClearanceRule(RuleBase):
 
     colour = (245, 110, 180)
     summary = "distance between the giver's grasp and the receiver's site"
+    example = {"min_m": 0.05}
 
     def describe(self) -> str:
         return f"giver's grasp at least {self.min_m:g} m from the receiver's hand"

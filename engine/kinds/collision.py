@@ -27,6 +27,7 @@ class CollisionRule(RuleBase):
 
     colour = (130, 0, 0)
     summary = "gripper against scene, receiver's hands, other gripper"
+    example = {"against": ["scene", "receiver_hand"]}
 
     def features(self) -> list[str]:
         return [f"collision_{t}" for t in self.against]

@@ -27,6 +27,7 @@ class ContactRule(RuleBase):
 
     colour = (230, 60, 60)
     summary = "giver's contacts / receiver's site on or off tagged parts"
+    example = {"who": "giver", "forbid_tags": ["sharp"]}
 
     @model_validator(mode="after")
     def _some_tags(self) -> ContactRule:

@@ -25,6 +25,7 @@ class GiverSideRule(RuleBase):
 
     colour = (150, 100, 60)
     summary = "giver grasp on the robot's share of the object along robot->receiver"
+    example = {"max_fraction": 0.5}
 
     def describe(self) -> str:
         return f"giver holds the object within the robot-side {self.max_fraction:g} of its length"

@@ -26,6 +26,7 @@ class ModeRule(RuleBase):
 
     colour = (90, 90, 90)
     summary = "a handover mode required or preferred"
+    example = {"mode": "H2G1"}
 
     def describe(self) -> str:
         return f"handover mode {self.mode} {'required' if self.hard else 'preferred'}"

@@ -23,6 +23,7 @@ class QualityRule(RuleBase):
 
     colour = (140, 140, 30)
     summary = "grasp quality (antipodal/epsilon)"
+    example = {"min_quality": 0.2}
 
     def describe(self) -> str:
         return f"grasp quality at least {self.min_quality:g}"

@@ -24,6 +24,7 @@ class TaskPresentRule(RuleBase):
 
     colour = (190, 80, 200)
     summary = "the query task's `present` entries (axis cones) and receiver part"
+    example = {"max_deg": 45}
 
     def features(self) -> list[str]:
         return ["axis_angles"]

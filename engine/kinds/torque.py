@@ -26,6 +26,7 @@ class TorqueRule(RuleBase):
 
     colour = (120, 80, 210)
     summary = "torque of the object's weight about the grasp axis"
+    example = {"max_nm": 1.0}
 
     def describe(self) -> str:
         return f"torque of the object's weight about the grasp at most {self.max_nm:g} N m"
