@@ -349,6 +349,22 @@ class RobotModel:
             box_extents=np.array(box_ext, dtype=float).reshape(-1, 3),
         )
 
+    def chain_shapes(self, chain: Chain, *, moving_only: bool = True) -> LinkShapes:
+        """The collision shapes of ``chain.links`` (indexed like ``Kinematics.link_poses``);
+        with ``moving_only`` the links that do not move with a joint (the base, a torso, an
+        arm's mount) keep no shapes, so that an arm is not found touching its own body."""
+        shapes = self.shapes(chain.links)
+        if not moving_only:
+            return shapes
+        moving = chain.link_joint >= 0
+        keep_c, keep_b = moving[shapes.cap_link], moving[shapes.box_link]
+        return LinkShapes(
+            shapes.links,
+            shapes.cap_link[keep_c], shapes.cap_a[keep_c], shapes.cap_b[keep_c],
+            shapes.cap_radius[keep_c],
+            shapes.box_link[keep_b], shapes.box_pose[keep_b], shapes.box_extents[keep_b],
+        )  # fmt: skip
+
     def _mesh_box(self, mesh, link: str) -> tuple[np.ndarray, np.ndarray]:
         """(pose (4, 4), extents (3,)) of the axis-aligned box around a collision mesh."""
         import trimesh
