@@ -214,16 +214,19 @@ class Kinematics:
         rots, origins = self._frames(q, np.float64)
         tip = self._apply(rots[-1], origins[-1], self._tip, np.float64)
         n = q.shape[0]
-        jac = np.zeros((n, 6, self.dof))
-        p_tip = tip[:, :3, 3]
+        jac = np.zeros((self.dof, 6, n))  # component-major, transposed once at the end
+        p_tip = tip[:, :3, 3].T
         for i in range(self.dof):
-            z = rots[i][2].T
+            z = rots[i][2]  # (3, n): the joint axis in the base frame
             if self.prismatic[i]:
-                jac[:, :3, i] = z
+                jac[i, :3] = z
             else:
-                jac[:, :3, i] = np.cross(z, p_tip - origins[i].T)
-                jac[:, 3:, i] = z
-        return tip, jac
+                d = p_tip - origins[i]
+                jac[i, 0] = z[1] * d[2] - z[2] * d[1]
+                jac[i, 1] = z[2] * d[0] - z[0] * d[2]
+                jac[i, 2] = z[0] * d[1] - z[1] * d[0]
+                jac[i, 3:] = z
+        return tip, jac.transpose(2, 1, 0)
 
     # ------------------------------------------------------------------ inverse kinematics
 
@@ -334,7 +337,11 @@ class Kinematics:
             active, qa, jac = active[keep], qa[keep], jac[keep]
             e_pos, r, rt, pe = e_pos[keep], r[keep], rt[keep], pe[keep]
             # Orientation error: 0.5 * sum_i r_i x rt_i (axis * sin(angle) for small angles).
-            e_rot = 0.5 * np.cross(r, rt, axisa=1, axisb=1, axisc=1).sum(axis=2)
+            e_rot = 0.5 * (
+                np.cross(r[:, :, 0], rt[:, :, 0])
+                + np.cross(r[:, :, 1], rt[:, :, 1])
+                + np.cross(r[:, :, 2], rt[:, :, 2])
+            )
             scale = np.minimum(1.0, 0.2 / np.maximum(pe, 1e-12))  # at most 0.2 m per step
             err = np.concatenate([e_pos * scale[:, None], e_rot], axis=1)
             # Damping shrinks with the error (Levenberg-Marquardt-like): strong far from the
