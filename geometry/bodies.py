@@ -69,8 +69,9 @@ def _finite(x: object, shape: tuple[int | None, ...], what: str) -> np.ndarray:
         arr = np.asarray(x, dtype=float)
     except (TypeError, ValueError):
         raise BodyError(f"{what} must be numbers, got {x!r}") from None
-    if arr.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, arr.shape,
-                                                                            strict=True)):
+    if arr.ndim != len(shape) or any(
+        s is not None and s != n for s, n in zip(shape, arr.shape, strict=True)
+    ):
         want = "(" + ", ".join("n" if s is None else str(s) for s in shape) + ")"
         raise BodyError(f"{what} must have shape {want}, got {arr.shape}")
     if not np.isfinite(arr).all():
@@ -137,9 +138,7 @@ class Body:
     # -- construction -------------------------------------------------------------------
 
     @classmethod
-    def from_primitives(
-        cls, capsules: Sequence[Capsule] = (), boxes: Sequence[Box] = ()
-    ) -> Body:
+    def from_primitives(cls, capsules: Sequence[Capsule] = (), boxes: Sequence[Box] = ()) -> Body:
         """A body from lists: capsules ``(name, p0 (3,), p1 (3,), radius)`` and boxes
         ``(name, extents (3,), pose (4, 4))``, m, in one frame."""
         caps, bxs = list(capsules), list(boxes)
@@ -300,9 +299,10 @@ class Body:
         mg, m = _margin(margin), self.n_capsules
         reach = rad[:, None] + mg
         out = np.zeros((len(a0), len(self)), dtype=bool)
-        out[:, :m] = segment_segment_distances(
-            a0[:, None], a1[:, None], self.p0, self.p1
-        ) <= reach + self.radius
+        out[:, :m] = (
+            segment_segment_distances(a0[:, None], a1[:, None], self.p0, self.p1)
+            <= reach + self.radius
+        )
         out[:, m:] = segment_box_distances(
             a0[:, None], a1[:, None], self.poses[:, :3, 3], self.poses[:, :3, :3],
             0.5 * self.extents,
@@ -357,13 +357,20 @@ class Body:
 
         near = np.zeros_like(out)
         if m:
-            near[:, :m] = segment_box_distances(
-                to_mesh(self.p0), to_mesh(self.p1), centre, np.eye(3), half
-            ) <= self.radius + mg
+            near[:, :m] = (
+                segment_box_distances(to_mesh(self.p0), to_mesh(self.p1), centre, np.eye(3), half)
+                <= self.radius + mg
+            )
         if len(self) > m:
             box_rot = np.einsum("kij,bjl->kbil", inv_r, self.poses[:, :3, :3])
-            near[:, m:] = boxes_overlap(to_mesh(self.poses[:, :3, 3]), box_rot,
-                                        self.extents + 2 * mg, centre, np.eye(3), 2 * half)
+            near[:, m:] = boxes_overlap(
+                to_mesh(self.poses[:, :3, 3]),
+                box_rot,
+                self.extents + 2 * mg,
+                centre,
+                np.eye(3),
+                2 * half,
+            )
         rows, cols = np.nonzero(near)
         if len(rows) == 0:
             return out

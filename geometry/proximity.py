@@ -27,9 +27,7 @@ def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
 
 
-def point_segment_distances(
-    points: np.ndarray, p0: np.ndarray, p1: np.ndarray
-) -> np.ndarray:
+def point_segment_distances(points: np.ndarray, p0: np.ndarray, p1: np.ndarray) -> np.ndarray:
     """Distance from points to segments.
 
     points, p0, p1 : (..., 3) float, m, broadcast against each other (a segment may have

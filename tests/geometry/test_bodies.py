@@ -10,6 +10,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy.spatial.transform import Rotation
 
 from handover.geometry.bodies import Body, BodyError, concatenate, first_hit, robot_body
+from handover.geometry.frames import transform_from
 from handover.geometry.gripper import Gripper
 from handover.geometry.proximity import segment_box_distances
 
@@ -36,8 +37,14 @@ def test_points_hit_hand_cases():
            [5, 5, 5]]  # fmt: skip
     assert_array_equal(
         body.points_hit(pts),
-        [[True, False], [False, False], [True, False], [False, True], [False, False],
-         [False, False]],  # fmt: skip
+        [
+            [True, False],
+            [False, False],
+            [True, False],
+            [False, True],
+            [False, False],
+            [False, False],
+        ],  # fmt: skip
     )
     # A margin of 0.02 takes in the two points 0.01 outside.
     assert body.points_hit(pts, margin=0.02)[[1, 4]].any(axis=1).all()
@@ -98,14 +105,19 @@ def test_box_mesh_at_many_poses_matches_closed_form():
     # the two boxes overlap. 400 random poses around the body.
     body = Body.from_primitives(
         [("arm", [-0.2, 0, 0], [0.2, 0.05, 0.1], 0.05)],
-        [("plate", [0.3, 0.2, 0.02], _pose(Rotation.from_euler("z", 30, degrees=True)
-                                           .as_matrix(), (0, 0.3, 0)))],  # fmt: skip
+        [
+            (
+                "plate",
+                [0.3, 0.2, 0.02],
+                _pose(Rotation.from_euler("z", 30, degrees=True).as_matrix(), (0, 0.3, 0)),
+            )
+        ],  # fmt: skip
     )
     ext = np.array([0.3, 0.08, 0.02])
     mesh = trimesh.creation.box(ext)
     rng = np.random.default_rng(3)
     rots = Rotation.random(400, random_state=4).as_matrix()
-    poses = np.array([_pose(r, t) for r, t in zip(rots, rng.uniform(-0.25, 0.4, (400, 3)))])
+    poses = transform_from(rots, rng.uniform(-0.25, 0.4, (400, 3)))
     hits = body.mesh_hits(mesh, poses)
     d_cap = segment_box_distances(body.p0[0], body.p1[0], poses[:, :3, 3], rots, ext / 2)
     sure = np.abs(d_cap - 0.05) > 1e-6
@@ -173,8 +185,7 @@ def test_posed_gripper_hits_match_its_boxes():
     body = _arm_and_block()
     rng = np.random.default_rng(7)
     rots = Rotation.random(300, random_state=8).as_matrix()
-    poses = np.array([_pose(r, t) for r, t in zip(rots, rng.uniform(-0.2, 1.2, (300, 3)) *
-                                                  [1, 0.2, 1] + [0, 0, 0.5])])  # fmt: skip
+    poses = transform_from(rots, rng.uniform(-0.2, 1.2, (300, 3)) * [1, 0.2, 1] + [0, 0, 0.5])
     posed = gripper.posed_boxes(poses, 0.03)
     per_part = [body.boxes_hit(posed.centres[:, k], posed.rotations, posed.extents[k])
                 for k in range(3)]  # fmt: skip
