@@ -44,6 +44,8 @@ from handover.geometry.proximity import (
 if TYPE_CHECKING:
     import trimesh
 
+    from handover.geometry.collision import ObjectCollider
+
 __all__ = [
     "BodyError",
     "Body",
@@ -317,93 +319,22 @@ class Body:
         return mid, rad
 
     def mesh_hits(
-        self, mesh: trimesh.Trimesh, poses: np.ndarray, *, margin: float = 0.0
+        self, mesh: trimesh.Trimesh | ObjectCollider, poses: np.ndarray, *, margin: float = 0.0
     ) -> np.ndarray:
-        """(K, P) bool: which primitives the mesh touches at each of K poses.
+        """(K, P) bool: which primitives the mesh touches at each of K poses (see
+        :func:`geometry.body_mesh.mesh_hits`)."""
+        from handover.geometry.body_mesh import mesh_hits
 
-        mesh : trimesh.Trimesh in its own frame (m), watertight for the containment test.
-        poses : (K, 4, 4) the mesh's poses in the body's frame. margin : m; capsules grow by
-        exactly ``margin``, boxes by ``margin`` per side.
+        return mesh_hits(self, mesh, poses, margin=margin)
 
-        Exact for the surfaces: a face crossing a primitive is a hit even if every vertex is
-        outside (python-fcl, mesh BVH against ``fcl.Capsule``/``fcl.Box``, which are solids,
-        so a mesh wholly inside a primitive is a hit too). A primitive wholly inside the mesh
-        crosses no face; it is found by testing one point of it (a capsule end, a box
-        centre) against the mesh (``mesh.contains``). Only (pose, primitive) pairs that pass
-        a numpy broad phase (the capsule's segment or the box against the mesh's bounding
-        box, in the mesh frame) reach fcl.
-        """
-        from handover.geometry.mesh import MeshError
+    def mesh_clearances(
+        self, mesh: trimesh.Trimesh | ObjectCollider, pose: np.ndarray
+    ) -> np.ndarray:
+        """(P,) float, m: the mesh's distance at ``pose`` to each primitive (see
+        :func:`geometry.body_mesh.mesh_clearances`)."""
+        from handover.geometry.body_mesh import mesh_clearances
 
-        vertices = np.asarray(getattr(mesh, "vertices", np.zeros((0, 3))), dtype=float)
-        faces = np.asarray(getattr(mesh, "faces", np.zeros((0, 3))))
-        if len(vertices) == 0 or len(faces) == 0 or not np.isfinite(vertices).all():
-            raise MeshError("mesh_hits needs a mesh with finite vertices and faces")
-        ps = _finite(poses, (None, 4, 4), "poses") if np.ndim(poses) == 3 else _finite(
-            poses, (4, 4), "poses")[None]  # fmt: skip
-        _rigid(ps, "poses")
-        mg = _margin(margin)
-        m = self.n_capsules
-        out = np.zeros((len(ps), len(self)), dtype=bool)
-        if len(ps) == 0 or len(self) == 0:
-            return out
-        lo, hi = vertices.min(axis=0), vertices.max(axis=0)
-        centre, half = 0.5 * (lo + hi), 0.5 * (hi - lo) + 1e-9
-        inv_r = np.swapaxes(ps[:, :3, :3], 1, 2)  # (K, 3, 3): world -> mesh
-        inv_t = -np.einsum("kij,kj->ki", inv_r, ps[:, :3, 3])
-
-        def to_mesh(x: np.ndarray) -> np.ndarray:  # (P', 3) world -> (K, P', 3) mesh frame
-            return np.einsum("kij,pj->kpi", inv_r, x) + inv_t[:, None]
-
-        near = np.zeros_like(out)
-        if m:
-            near[:, :m] = (
-                segment_box_distances(to_mesh(self.p0), to_mesh(self.p1), centre, np.eye(3), half)
-                <= self.radius + mg
-            )
-        if len(self) > m:
-            box_rot = np.einsum("kij,bjl->kbil", inv_r, self.poses[:, :3, :3])
-            near[:, m:] = boxes_overlap(
-                to_mesh(self.poses[:, :3, 3]),
-                box_rot,
-                self.extents + 2 * mg,
-                centre,
-                np.eye(3),
-                2 * half,
-            )
-        rows, cols = np.nonzero(near)
-        if len(rows) == 0:
-            return out
-        out[rows, cols] = _fcl_pairs(self, vertices, faces, ps, rows, cols, mg)
-        # Containment: a primitive inside the mesh without crossing it.
-        free = ~out[rows, cols]
-        if free.any():
-            r, c = rows[free], cols[free]
-            probe = np.concatenate([self.p0, self.poses[:, :3, 3]])[c]
-            local = np.einsum("kij,kj->ki", inv_r[r], probe) + inv_t[r]
-            boxed = (np.abs(local - centre) <= half).all(axis=1)
-            if boxed.any():
-                inside = np.zeros(len(r), dtype=bool)
-                inside[boxed] = mesh.contains(local[boxed])
-                out[r[inside], c[inside]] = True
-        return out
-
-    def mesh_clearances(self, mesh: trimesh.Trimesh, pose: np.ndarray) -> np.ndarray:
-        """(P,) float, m: the distance from the mesh at ``pose`` (4, 4) to each primitive
-        (python-fcl ``distance``; 0 where they touch or cross). For the trace of one chosen
-        pose, not for screening many."""
-        import fcl
-
-        from handover.geometry.collision import _bvh_object
-
-        pose = _rigid(_finite(pose, (4, 4), "pose")[None], "pose")[0]
-        obj = _bvh_object(np.asarray(mesh.vertices, float), np.asarray(mesh.faces))
-        obj.setTransform(fcl.Transform(pose[:3, :3], pose[:3, 3]))
-        out = np.empty(len(self))
-        request = fcl.DistanceRequest()
-        for j, prim in enumerate(_fcl_primitives(self, 0.0)):
-            out[j] = max(0.0, fcl.distance(prim, obj, request, fcl.DistanceResult()))
-        return out
+        return mesh_clearances(self, mesh, pose)
 
 
 def _margin(margin: float) -> float:
@@ -411,61 +342,6 @@ def _margin(margin: float) -> float:
     if not np.isfinite(value) or value < 0:
         raise BodyError(f"margin must be a finite number >= 0, got {margin}")
     return value
-
-
-def _fcl_primitives(body: Body, margin: float) -> list:
-    """One ``fcl.CollisionObject`` per primitive, placed in the body's frame."""
-    import fcl
-
-    out = []
-    for p0, p1, rad in zip(body.p0, body.p1, body.radius, strict=True):
-        axis = p1 - p0
-        length = float(np.linalg.norm(axis))
-        if length < 1e-12:
-            geom, rot = fcl.Sphere(float(rad) + margin), np.eye(3)
-        else:
-            from handover.geometry.frames import perpendicular
-
-            z = axis / length
-            x = perpendicular(z)
-            rot = np.stack([x, np.cross(z, x), z], axis=1)
-            geom = fcl.Capsule(float(rad) + margin, length)
-        out.append(fcl.CollisionObject(geom, fcl.Transform(rot, 0.5 * (p0 + p1))))
-    for ext, pose in zip(body.extents, body.poses, strict=True):
-        geom = fcl.Box(*(float(v) + 2 * margin for v in ext))
-        out.append(fcl.CollisionObject(geom, fcl.Transform(pose[:3, :3], pose[:3, 3])))
-    return out
-
-
-def _fcl_pairs(
-    body: Body,
-    vertices: np.ndarray,
-    faces: np.ndarray,
-    poses: np.ndarray,
-    rows: np.ndarray,
-    cols: np.ndarray,
-    margin: float,
-) -> np.ndarray:
-    """(len(rows),) bool: fcl collision of the mesh at ``poses[rows]`` with primitive
-    ``cols`` (rows sorted, so each pose's transform is set once)."""
-    import fcl
-
-    from handover.geometry.collision import _bvh_object
-
-    obj = _bvh_object(vertices, faces)
-    prims = _fcl_primitives(body, margin)
-    request = fcl.CollisionRequest()
-    make, collide, place = fcl.Transform, fcl.collide, obj.setTransform
-    rot = np.ascontiguousarray(poses[:, :3, :3])
-    pos = np.ascontiguousarray(poses[:, :3, 3])
-    hit = np.zeros(len(rows), dtype=bool)
-    last = -1
-    for n, (i, j) in enumerate(zip(rows.tolist(), cols.tolist(), strict=True)):
-        if i != last:
-            place(make(rot[i], pos[i]))
-            last = i
-        hit[n] = collide(prims[j], obj, request) > 0
-    return hit
 
 
 def robot_body(

@@ -127,31 +127,38 @@ def segment_box_distances(
     p0, p1, centres, rotations, half = (
         np.asarray(x, dtype=float) for x in (p0, p1, centres, rotations, half)
     )
-    a = _to_box(p0, centres, rotations)
-    d = np.einsum("...ji,...j->...i", rotations, p1 - p0)
-    shape = np.broadcast_shapes(a.shape, d.shape, half.shape)
-    a, d, h = (np.broadcast_to(x, shape) for x in (a, d, half))
-    moving = np.abs(d) > 1e-15
-    safe_d = np.where(moving, d, 1.0)
-    # Breakpoints: where each coordinate crosses -h_i and +h_i (ignored if it never moves).
-    cross = np.concatenate(
-        [np.where(moving, (-h - a) / safe_d, 0.0), np.where(moving, (h - a) / safe_d, 0.0)],
-        axis=-1,
-    )
-    ends = np.zeros(shape[:-1] + (2,))
-    ends[..., 1] = 1.0
-    knots = np.sort(np.concatenate([ends, np.clip(cross, 0.0, 1.0)], axis=-1), axis=-1)  # (.., 8)
-    lo, hi = knots[..., :-1], knots[..., 1:]  # 7 pieces
+    # Component-major: one (...) array per coordinate, candidates stacked on a new axis 0, so
+    # every operation runs over whole batch-length vectors.
+    w, v = p0 - centres, p1 - p0
+    shape = np.broadcast_shapes(w.shape[:-1], v.shape[:-1], rotations.shape[:-2], half.shape[:-1])
+    rot = rotations
+    a = [np.broadcast_to(_dot(rot[..., :, i], w), shape) for i in range(3)]
+    d = [np.broadcast_to(_dot(rot[..., :, i], v), shape) for i in range(3)]
+    h = [np.broadcast_to(half[..., i], shape) for i in range(3)]
+    knots = [np.zeros(shape), np.ones(shape)]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i in range(3):
+            # Where each coordinate crosses -h_i and +h_i (no crossing if it never moves).
+            moving = np.abs(d[i]) > 1e-15
+            for bound in (-h[i], h[i]):
+                knots.append(np.where(moving, np.clip((bound - a[i]) / d[i], 0.0, 1.0), 0.0))
+    knots = np.sort(np.stack(knots), axis=0)  # (8, ...)
+    lo, hi = knots[:-1], knots[1:]  # the 7 pieces
     mid = 0.5 * (lo + hi)
-    pm = a[..., None, :] + mid[..., None] * d[..., None, :]  # (..., 7, 3)
-    above, below = pm > h[..., None, :], pm < -h[..., None, :]
-    alpha = np.where(above, a[..., None, :] - h[..., None, :], a[..., None, :] + h[..., None, :])
-    active = above | below
-    dd = np.where(active, d[..., None, :], 0.0)
-    num = -(dd * alpha).sum(axis=-1)
-    den = (dd * dd).sum(axis=-1)
-    t_star = np.clip(np.where(den > _TINY, num / np.maximum(den, _TINY), lo), lo, hi)
-    t_all = np.concatenate([knots, t_star], axis=-1)  # (..., 15)
-    pts = a[..., None, :] + t_all[..., None] * d[..., None, :]
-    excess = np.maximum(np.abs(pts) - h[..., None, :], 0.0)
-    return np.sqrt((excess * excess).sum(axis=-1).min(axis=-1))
+    num = np.zeros(lo.shape)
+    den = np.zeros(lo.shape)
+    for i in range(3):
+        pm = a[i] + mid * d[i]
+        above, below = pm > h[i], pm < -h[i]
+        alpha = np.where(above, a[i] - h[i], a[i] + h[i])
+        di = np.where(above | below, d[i], 0.0)
+        num -= di * alpha
+        den += di * di
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t_star = np.clip(np.where(den > _TINY, num / den, lo), lo, hi)
+    t_all = np.concatenate([knots, t_star])  # (15, ...)
+    f = np.zeros(t_all.shape)
+    for i in range(3):
+        excess = np.maximum(np.abs(a[i] + t_all * d[i]) - h[i], 0.0)
+        f += excess * excess
+    return np.sqrt(f.min(axis=0))

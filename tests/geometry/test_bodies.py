@@ -10,6 +10,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy.spatial.transform import Rotation
 
 from handover.geometry.bodies import Body, BodyError, concatenate, first_hit, robot_body
+from handover.geometry.collision import ObjectCollider
 from handover.geometry.frames import transform_from
 from handover.geometry.gripper import Gripper
 from handover.geometry.proximity import segment_box_distances
@@ -162,6 +163,22 @@ def test_containment_both_ways():
     near = _pose(t=(0.025, 0, 0.01 + 0.05 + 0.03))
     assert not body.mesh_hits(small, near, margin=0.02)[0, 0]
     assert body.mesh_hits(small, near, margin=0.04)[0, 0]
+
+
+def test_object_collider_lends_its_bvh_unchanged():
+    # The engine's ObjectCollider of the object mesh serves the body queries with the same
+    # answers, and still answers its own gripper queries as before (its BVH is not moved).
+    body = _arm_and_block()
+    mesh = trimesh.creation.box([0.3, 0.05, 0.05])
+    collider = ObjectCollider(mesh)
+    rots = Rotation.random(200, random_state=5).as_matrix()
+    poses = transform_from(rots, np.random.default_rng(6).uniform(-0.2, 1.2, (200, 3)))
+    gripper = Gripper.default()
+    grasp = transform_from(np.eye(3), [0.0, 0.0, -0.01])
+    before = collider.gripper_collides(gripper, grasp, 0.05)
+    assert_array_equal(body.mesh_hits(collider, poses), body.mesh_hits(mesh, poses))
+    assert_array_equal(collider.gripper_collides(gripper, grasp, 0.05), before)
+    assert_allclose(body.mesh_clearances(collider, poses[0]), body.mesh_clearances(mesh, poses[0]))
 
 
 def test_mesh_clearances_closed_form():
