@@ -111,9 +111,6 @@ def gripper_from_spec(spec: GripperSpec, kb: KB | None = None) -> Gripper:
     """The geometry model of a KB gripper (lengths in m, tolerances in degrees). A gripper
     with ``meshes`` needs ``kb`` to find its files (relative to its YAML file); a missing or
     bad file raises :class:`geometry.mesh.MeshError`.
-
-    ``max_finger_depth`` has no counterpart in the model: the model's finger depth is half
-    the finger length (the pads are centred on the contacts).
     """
     from handover.geometry import mesh as gm
     from handover.geometry.gripper import Gripper

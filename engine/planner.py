@@ -179,6 +179,7 @@ class Planner:
         scene: str | None = None,
         mode: str = "auto",
         gripper: str | None = None,
+        robot: str | None = None,
         mesh_scale: float = 1.0,
         why_not: tuple[int, ...] = (),
     ) -> Plan:
@@ -193,6 +194,6 @@ class Planner:
             object=str(name), task=task,
             receiver=receiver or DEFAULTS["receiver"], culture=culture or DEFAULTS["culture"],
             scene=scene or DEFAULTS["scene"], mode=mode, gripper=gripper,
-            mesh_scale=mesh_scale,
+            robot=robot or DEFAULTS["robot"], mesh_scale=mesh_scale,
         )
         return plan(self.kb, query, why_not=tuple(why_not), db=self.db, mesh=mesh)

@@ -270,7 +270,6 @@ class GripperSpec(KBModel):
     parallel_tol_deg: Annotated[float, Field(gt=0, le=45)] = 10.0
     min_overlap_area: NonNegative = 0.0
     roll_step_deg: Annotated[float, Field(gt=0, le=180)] = 15.0
-    max_finger_depth: Positive | None = None
     meshes: GripperMeshes | None = None
 
     @model_validator(mode="after")
@@ -295,7 +294,10 @@ class HumanHandSpec(KBModel):
 
 
 class RobotSpec(KBModel):
-    """The robot: its two arms (hands), the payload one hand may carry, its gripper."""
+    """The robot: the hands it has, the payload one hand may carry, its gripper, and its
+    reach: m, the horizontal distance from its base axis (the world z axis through the
+    origin) within which its hands work; the object at pick-up and the handover point must
+    lie within it. A one-handed robot (``hands: [right]``) plans H1G1 only."""
 
     id: Id
     name: str

@@ -15,11 +15,13 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from handover.engine.attempt import Attempt
 from handover.engine.compiler import compile
 from handover.engine.evaluate import trace_row
 from handover.engine.modes import h1g1, h2g1, h2g2  # noqa: F401  (register the planners)
-from handover.engine.modes.common import PLANNERS
+from handover.engine.modes.common import HANDS_NEEDED, PLANNERS
 from handover.engine.modes.h2g2 import FIRST_NOTE, first_rules
 
 if TYPE_CHECKING:
@@ -48,6 +50,13 @@ def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
 def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
     """Run one mode's planner and check its answer: a feasible attempt keeps its chosen
     grasps only if each passes every hard rule in its trace (``extra["trace"]``)."""
+    robot = ctx.situation.robot
+    if len(robot.hands) < HANDS_NEEDED[mode]:
+        return Attempt(mode, False, f"{mode}: needs {HANDS_NEEDED[mode]} robot hands; robot "
+                       f"'{robot.id}' ({robot.source}) has {' and '.join(robot.hands)} only")
+    out_of_reach = beyond_reach(ctx)
+    if out_of_reach:
+        return Attempt(mode, False, f"{mode}: {out_of_reach}")
     attempt = PLANNERS[mode](kb, ctx)
     if not attempt.feasible:
         return attempt
@@ -58,6 +67,20 @@ def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
         return attempt.rejected(f"{mode}: the chosen grasps fail hard rules in their own "
                                 f"trace: {names}")
     return replace(attempt, extra=attempt.extra | {"trace": trace})
+
+
+def beyond_reach(ctx: PlanContext) -> str | None:
+    """What lies beyond the robot's ``reach`` (horizontal distance from its base axis): the
+    object where it is picked up, or the handover point. None when both are within it."""
+    robot = ctx.situation.robot
+    said = []
+    for what, point in (("the object at pick-up", ctx.initial[:3, 3]),
+                        ("the handover point", ctx.situation.handover_point)):
+        distance = float(np.hypot(point[0], point[1]))
+        if distance > robot.reach + 1e-9:
+            said.append(f"{what} is {distance:.2f} m from the robot, beyond its reach of "
+                        f"{robot.reach:g} m ({robot.source})")
+    return "; ".join(said) or None
 
 
 def required_mode(kb: KB, ctx: PlanContext) -> tuple[str | None, str, str | None, str]:

@@ -28,6 +28,6 @@ def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
         return Attempt("H1G1", False, infeasible_reason(decision, "H1G1"), cg, decision, phase)
     best = int(ranking[0])
     i, k = int(decision.gi[best]), int(decision.pk[best])
-    hand = hand_at(ctx.poses[k], ctx.candidates.centre[i])
+    hand = hand_at(ctx.poses[k], ctx.candidates.centre[i], ctx.situation.robot.hands)
     return Attempt("H1G1", True, None, cg, decision, phase, (Chosen(hand, i, k, phase),),
                    float(decision.score[best]))

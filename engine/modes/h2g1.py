@@ -66,7 +66,7 @@ def _palm_centres(ctx: PlanContext) -> np.ndarray:
     return poses[:, :3, 3] - back * poses[:, :3, 2]
 
 
-@register("H2G1")
+@register("H2G1", hands=2)
 def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a two-handed handover; see the module docstring."""
     from handover.geometry.collision import grippers_collide

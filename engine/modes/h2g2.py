@@ -79,7 +79,7 @@ def _feasible_firsts(ctx: PlanContext, rules: list[CompiledRule],
     return idx[order], removed
 
 
-@register("H2G2")
+@register("H2G2", hands=2)
 def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a midair regrasp; see the module docstring."""
     from handover.geometry.collision import grippers_collide

@@ -203,3 +203,57 @@ def test_the_heaviest_soft_mode_rule_wins_and_ties_go_to_kb_order(planner):
     assert culture(("a", "H2G1", 0.6))[2] == "H2G1"
     assert culture(("a", "H2G2", 0.6), ("b", "H2G1", 0.7))[2] == "H2G1"
     assert culture(("a", "H2G2", 0.7), ("b", "H2G1", 0.7))[2] == "H2G2"
+
+
+ONE_HANDED = """\
+id: one_arm
+name: One-armed robot
+hands: [right]
+payload_per_hand: 1.5
+gripper: parallel_jaw
+reach: 0.9
+"""
+
+FAR_RECEIVER = """\
+id: far_receiver
+name: The receiver stands 2.4 m away
+support: {position: [0.55, 0.0, 0.75], size: [0.5, 1.0], thickness: 0.03}
+receiver: {position: [2.4, 0.0, 0.0], facing: [-1.0, 0.0, 0.0]}
+object: {position: [0.33, 0.0]}
+"""
+
+
+@pytest.fixture(scope="module")
+def world_planner(kb_copy) -> Planner:
+    (kb_copy / "robots" / "one_arm.yaml").write_text(ONE_HANDED, encoding="utf-8")
+    (kb_copy / "scenes" / "far_receiver.yaml").write_text(FAR_RECEIVER, encoding="utf-8")
+    return Planner(kb=kb_copy)
+
+
+def test_a_one_handed_robot_plans_one_hand_only(world_planner):
+    knife = world_planner.plan("knife", robot="one_arm")
+    assert knife.mode == "H1G1" and [g.hand for g in knife.robot_grasps] == ["right"]
+    tray = world_planner.plan("tray", robot="one_arm").to_dict()  # needs two hands
+    assert not tray["feasible"]
+    tried = {m["mode"]: m["reason"] for m in tray["modes_tried"]}
+    assert "has right only" in tried["H2G1"] or "not tried" in tried["H2G1"]
+    forced = world_planner.plan("tray", robot="one_arm", mode="h2g1")
+    assert not forced.feasible and "needs 2 robot hands" in forced.reason
+
+
+def test_a_handover_point_beyond_the_robot_s_reach_is_refused_with_the_distance(world_planner):
+    plan = world_planner.plan("knife", scene="far_receiver")
+    assert not plan.feasible
+    # The handover point is halfway to the receiver: 1.2 m, beyond a 0.9 m reach.
+    assert "the handover point is 1.20 m from the robot, beyond its reach of 0.9 m" in plan.reason
+
+
+@pytest.mark.parametrize("args", [("knife",), ("mug", "--receiver", "elder", "--culture",
+                                                 "korean"), ("tray", "--mode", "h1g1")])
+def test_the_facade_s_json_is_the_cli_s_byte_for_byte(capsys, args):
+    code = main(["plan", *args, "--json"])
+    out, err = capsys.readouterr()
+    kwargs = dict(zip((a.lstrip("-") for a in args[1::2]), args[2::2], strict=True))
+    plan = Planner().plan(args[0], **kwargs)
+    assert out == plan.to_json()
+    assert code == (0 if plan.feasible else 4)

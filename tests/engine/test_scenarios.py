@@ -1,8 +1,8 @@
-"""Etiquette scenarios through the CLI's JSON, each asserting what the rule means.
+"""Etiquette scenarios through the Python facade's result, each asserting what the rule means.
 
-Every test runs ``handover plan ... --json`` through the real entry point and reads the
-result the way a user of the JSON contract would: world-frame axes of the presented
-object, the receiver's grasp, the parts the robot touches.
+Every test plans with ``handover.Planner`` (the same result ``handover plan --json`` prints,
+byte for byte) and reads it the way a user of the JSON contract would: world-frame axes of
+the presented object, the receiver's grasp, the parts the robot touches.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
+from handover import Planner
 from handover.engine.cli.app import main
 from handover.engine.loader import builtin_kb_dir, load_kb
 
@@ -24,11 +25,26 @@ HANDOVER = Path(sys.executable).parent / "handover"
 KB = load_kb()
 
 
-def plan(capsys, *args: str, code: int = 0) -> dict:
-    rc = main(["plan", *args, "--json"])
-    out, err = capsys.readouterr()
-    assert rc == code, err
-    return json.loads(out)
+OPTIONS = {"--task": "task", "--receiver": "receiver", "--culture": "culture",
+           "--scene": "scene", "--mode": "mode", "--mesh-scale": "mesh_scale",
+           "--why-not": "why_not", "--kb": "kb"}
+PLANNERS: dict[str | None, Planner] = {}
+
+
+def plan(capsys, obj: str, *args: str, code: int = 0) -> dict:
+    """``Planner(kb).plan(obj, ...)`` with the CLI's option names; ``code`` is the exit
+    code the CLI gives that result (0 feasible, 4 not)."""
+    kwargs: dict = dict(zip((OPTIONS[a] for a in args[::2]), args[1::2], strict=True))
+    kb = kwargs.pop("kb", None)
+    if "mesh_scale" in kwargs:
+        kwargs["mesh_scale"] = float(kwargs["mesh_scale"])
+    if "why_not" in kwargs:
+        kwargs["why_not"] = (int(kwargs["why_not"]),)
+    if kb not in PLANNERS or kb is not None:
+        PLANNERS[kb] = Planner(kb=kb)
+    result = PLANNERS[kb].plan(obj, **kwargs)
+    assert (0 if result.feasible else 4) == code, result.reason
+    return json.loads(result.to_json())
 
 
 def angle_deg(u, v) -> float:
