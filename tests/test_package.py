@@ -38,6 +38,12 @@ def test_the_wheel_holds_exactly_one_top_level_package(wheel):
     dist_info = {t for t in tops if t.endswith(".dist-info")}
     assert tops - dist_info == {"handover"}
     assert "handover/engine/planner.py" in names
+    # every source package of the repository is in the wheel
+    for init in sorted(ROOT.glob("engine/**/__init__.py")) + sorted(ROOT.glob("geometry/**/__init__.py")):
+        rel = init.relative_to(ROOT).as_posix()
+        assert f"handover/{rel}" in names, rel
+    assert "handover/engine/kinds/contact.py" in names
+    assert "handover/engine/modes/h2g1.py" in names
     assert "handover/geometry/collision.py" in names
     assert "handover/kb/etiquette/common.yaml" in names
     assert "handover/kb/schema/etiquette.json" in names
