@@ -32,7 +32,7 @@ from handover.geometry.mesh import MESH_SUFFIXES
 
 if TYPE_CHECKING:
     from handover.engine.graspdb import GraspDB
-    from handover.engine.loader import KB
+    from handover.engine.store import KB
 
 __all__ = [
     "COLUMNS",

@@ -24,7 +24,7 @@ from handover.engine.errors import KBError, KBIssue
 from handover.engine.schema import Culture, ObjectSpec, Primitive, RuleBase
 
 if TYPE_CHECKING:
-    from handover.engine.loader import KB
+    from handover.engine.store import KB
 
 __all__ = [
     "ResolvedRule",

@@ -50,7 +50,7 @@ from handover.engine.etiquette import _resolve, _rotation, applies_to_object, ob
 from handover.engine.schema import KBModel, ObjectSpec, RuleBase
 
 if TYPE_CHECKING:
-    from handover.engine.loader import KB
+    from handover.engine.store import KB
 
 __all__ = ["lint_kb", "lint_object", "lint_cultures", "lint_references", "lint_scene"]
 

@@ -15,7 +15,7 @@ from handover.engine.cli.app import app, state
 from handover.engine.cli.plan import MESH_SCALE_HELP, check_mesh_scale
 
 if TYPE_CHECKING:
-    from handover.engine.loader import KB
+    from handover.engine.store import KB
     from handover.geometry.candidates import CandidateSet
     from handover.geometry.gripper import Gripper
 

@@ -19,8 +19,8 @@ if TYPE_CHECKING:
 
     from handover.engine.errors import KBIssue
     from handover.engine.etiquette import ResolvedRule
-    from handover.engine.loader import KB
     from handover.engine.schema import KBModel, ObjectSpec
+    from handover.engine.store import KB
 
 __all__ = ["validate", "list_kb", "show", "schema"]
 
@@ -513,8 +513,8 @@ def schema(
     regenerate those files with ``handover kb schema -o kb/schema``.
     """
     from handover.engine.files import write_atomic, write_error
-    from handover.engine.loader import document_schema
     from handover.engine.schema import DOCUMENT_KINDS
+    from handover.engine.validate import document_schema
 
     def text(k: str | None) -> str:
         return json.dumps(document_schema(k), indent=2, sort_keys=False, ensure_ascii=False) + "\n"

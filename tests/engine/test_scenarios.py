@@ -18,7 +18,8 @@ import pytest
 import yaml
 
 from handover.engine.cli.app import main
-from handover.engine.loader import builtin_kb_dir, load_kb
+from handover.engine.loader import load_kb
+from handover.engine.store import builtin_kb_dir
 
 HANDOVER = Path(sys.executable).parent / "handover"
 KB = load_kb()
