@@ -1,4 +1,7 @@
 """Grasp sites on pairs of parallel planar facets: the seed's section 3.1, at scale.
+Longer than 500 lines: one pipeline (facets, antiparallel pairs, projected overlaps, site
+points) whose steps share private polygon helpers and are used only through
+:func:`facet_sites`.
 
 The seed tests every pair of faces of a convex polyhedron: nearly antiparallel, closer
 than the gripper's opening, and overlapping enough when projected along their common
