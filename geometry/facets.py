@@ -110,11 +110,6 @@ class FacetSites:
     overlapping_pairs: int
 
 
-def _local_coords(points: np.ndarray, origin: np.ndarray, basis: np.ndarray) -> np.ndarray:
-    """Points (..., 3) into a plane's 2D frame: ``((p - origin) . U, (p - origin) . V)``."""
-    return np.einsum("...j,kj->...k", points - origin, basis)
-
-
 FLAT_DEG = 2.0
 """degrees: a facet group is planar when every face normal is this close to the group's."""
 
