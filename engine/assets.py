@@ -14,8 +14,8 @@ import numpy as np
 if TYPE_CHECKING:
     import trimesh
 
-    from handover.engine.loader import KB
     from handover.engine.schema import GripperSpec, ObjectSpec, Primitive
+    from handover.engine.store import KB
     from handover.geometry.gripper import Gripper
     from handover.geometry.mesh import PartMesh
 

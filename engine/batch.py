@@ -1,4 +1,6 @@
 """Batch planning: every (object x culture x receiver x task) query, one Parquet row each.
+Longer than 500 lines: the three backends (inline, process pool, Ray) must run the one
+function that plans a unit, and the resumable run reads back the rows it writes.
 
 The work is split by object (a :class:`Unit`: one object and its queries), so that an
 object's candidates are generated once (and stored in the grasp database, see
@@ -32,7 +34,7 @@ from handover.geometry.mesh import MESH_SUFFIXES
 
 if TYPE_CHECKING:
     from handover.engine.graspdb import GraspDB
-    from handover.engine.loader import KB
+    from handover.engine.store import KB
 
 __all__ = [
     "COLUMNS",

@@ -22,9 +22,10 @@ from typing import TYPE_CHECKING
 from handover.engine.applies import Applies, Facts, check
 from handover.engine.errors import KBError, KBIssue
 from handover.engine.schema import Culture, ObjectSpec, Primitive, RuleBase
+from handover.geometry.frames import rotation_from_euler_deg
 
 if TYPE_CHECKING:
-    from handover.engine.loader import KB
+    from handover.engine.store import KB
 
 __all__ = [
     "ResolvedRule",
@@ -262,27 +263,9 @@ def object_tags(obj: ObjectSpec) -> set[str]:
     return tags
 
 
-def _rotation(deg: tuple[float, float, float]) -> list[list[float]]:
-    """Rotation matrix of extrinsic x, y, z rotations (degrees): Rz @ Ry @ Rx."""
-    ax, ay, az = (math.radians(d) for d in deg)
-    cx, sx, cy, sy, cz, sz = (
-        math.cos(ax),
-        math.sin(ax),
-        math.cos(ay),
-        math.sin(ay),
-        math.cos(az),
-        math.sin(az),
-    )
-    return [
-        [cz * cy, cz * sy * sx - sz * cx, cz * sy * cx + sz * sx],
-        [sz * cy, sz * sy * sx + cz * cx, sz * sy * cx - cz * sx],
-        [-sy, cy * sx, cy * cx],
-    ]
-
-
 def _half_extents(p: Primitive) -> tuple[float, float, float]:
     """Half extents (m) of the axis-aligned box around the ideal solid of ``p``."""
-    r = _rotation(p.rotation_deg)
+    r = rotation_from_euler_deg(p.rotation_deg).tolist()
     if p.shape == "box":
         hx, hy, hz = (e / 2 for e in p.extents or (0.0, 0.0, 0.0))
         return tuple(abs(r[i][0]) * hx + abs(r[i][1]) * hy + abs(r[i][2]) * hz for i in range(3))

@@ -46,11 +46,12 @@ from pathlib import PurePosixPath, PureWindowsPath
 from typing import TYPE_CHECKING
 
 from handover.engine.errors import KBIssue
-from handover.engine.etiquette import _resolve, _rotation, applies_to_object, object_tags
+from handover.engine.etiquette import _resolve, applies_to_object, object_tags
 from handover.engine.schema import KBModel, ObjectSpec, RuleBase
+from handover.geometry.frames import rotation_from_euler_deg
 
 if TYPE_CHECKING:
-    from handover.engine.loader import KB
+    from handover.engine.store import KB
 
 __all__ = ["lint_kb", "lint_object", "lint_cultures", "lint_references", "lint_scene"]
 
@@ -288,7 +289,7 @@ DEFAULT_OBJECT_XY = (0.5, 0.0)
 def _segment_hits_box(p0, p1, centre, extents, rotation_deg) -> bool:
     """Whether the segment p0-p1 (world, m) meets the box (centre, extents, rotation
     extrinsic x, y, z degrees); a segment that only touches a face does not."""
-    r = _rotation(rotation_deg)
+    r = rotation_from_euler_deg(rotation_deg).tolist()
     local = [
         [sum(r[i][j] * (p[i] - centre[i]) for i in range(3)) for j in range(3)] for p in (p0, p1)
     ]

@@ -1,5 +1,7 @@
 """Collision tests for a parallel-jaw gripper: against the object mesh, against boxes in the
 world (table, obstacles, the receiver's hand), and against a second gripper.
+Longer than 500 lines: the three tests share the box checks, the separating-axis test and
+the pose validation, and are benchmarked together (``benchmarks/collision.py``).
 
 Two engines, each where it is fastest (numbers from ``benchmarks/collision.py``):
 

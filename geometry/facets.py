@@ -1,4 +1,7 @@
 """Grasp sites on pairs of parallel planar facets: the seed's section 3.1, at scale.
+Longer than 500 lines: one pipeline (facets, antiparallel pairs, projected overlaps, site
+points) whose steps share private polygon helpers and are used only through
+:func:`facet_sites`.
 
 The seed tests every pair of faces of a convex polyhedron: nearly antiparallel, closer
 than the gripper's opening, and overlapping enough when projected along their common
@@ -105,11 +108,6 @@ class FacetSites:
     paired_faces: np.ndarray
     candidate_pairs: int
     overlapping_pairs: int
-
-
-def _local_coords(points: np.ndarray, origin: np.ndarray, basis: np.ndarray) -> np.ndarray:
-    """Points (..., 3) into a plane's 2D frame: ``((p - origin) . U, (p - origin) . V)``."""
-    return np.einsum("...j,kj->...k", points - origin, basis)
 
 
 FLAT_DEG = 2.0

@@ -118,7 +118,8 @@ def make_kb(tmp_path: Path) -> Callable[..., Path]:
 @pytest.fixture(scope="session")
 def builtin_kb():
     """The built-in knowledge base, loaded once (do not modify it)."""
-    from handover.engine.loader import builtin_kb_dir, load_kb
+    from handover.engine.loader import load_kb
+    from handover.engine.store import builtin_kb_dir
 
     return load_kb(builtin_kb_dir())
 

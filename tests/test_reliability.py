@@ -34,8 +34,10 @@ from handover.engine.errors import (
     EXIT_USAGE,
     UsageError,
 )
-from handover.engine.loader import builtin_kb_dir, load_yaml_with_marks, validate_document
 from handover.engine.schema import DOCUMENT_KINDS
+from handover.engine.store import builtin_kb_dir
+from handover.engine.validate import validate_document
+from handover.engine.yamlpos import load_yaml_with_marks
 
 HANDOVER = Path(sys.executable).parent / "handover"
 OBJECTS = sorted(p.stem for p in (builtin_kb_dir() / "objects").glob("*.yaml"))

@@ -1,7 +1,8 @@
 """``handover kb ...``: validate, list, show and describe (JSON Schema) the knowledge base.
 
 Every command reads the KB folder of ``--kb`` / ``$HANDOVER_KB`` (default: the built-in one).
-Heavy modules (pydantic models, YAML, rich) are imported inside the commands.
+What is shown is computed by :mod:`handover.engine.kbshow`; this module renders it. Heavy
+modules (pydantic models, YAML, rich) are imported inside the commands.
 """
 
 from __future__ import annotations
@@ -18,9 +19,7 @@ if TYPE_CHECKING:
     from rich.console import Console
 
     from handover.engine.errors import KBIssue
-    from handover.engine.etiquette import ResolvedRule
-    from handover.engine.loader import KB
-    from handover.engine.schema import KBModel, ObjectSpec
+    from handover.engine.store import KB
 
 __all__ = ["validate", "list_kb", "show", "schema"]
 
@@ -67,6 +66,7 @@ def validate(
     Exit code 0 when valid (warnings are printed), 3 with every error as file:line:col.
     """
     from handover.engine.errors import KBError
+    from handover.engine.store import KIND_ATTRS
 
     try:
         kb = _load()
@@ -96,16 +96,7 @@ def validate(
             }
         )
         return
-    nouns = {
-        "objects": "object",
-        "cultures": "culture",
-        "receivers": "receiver",
-        "grippers": "gripper",
-        "hands": "hand",
-        "robots": "robot",
-        "scenes": "scene",
-    }
-    summary = ", ".join(_plural(counts[k], noun) for k, noun in nouns.items())
+    summary = ", ".join(_plural(counts[attr], noun) for attr, noun in KIND_ATTRS.values())
     warn = f" ({_plural(len(kb.warnings), 'warning')})" if kb.warnings else ""
     typer.echo(f"ok: {summary} in {kb.root}{warn}")
     err = _console(stderr=True)
@@ -116,87 +107,14 @@ def validate(
 # ---------------------------------------------------------------- list
 
 
-def _culture_parent(kb: KB, culture_id: str) -> str | None:
-    from handover.engine.etiquette import culture_parent
-
-    return culture_parent(kb.cultures[culture_id])
-
-
-def _listing(kb: KB) -> dict[str, list[dict[str, Any]]]:
-    return {
-        "objects": [
-            {
-                "id": o.id,
-                "name": o.name,
-                "mass": o.mass,
-                "tags": list(o.tags),
-                "parts": list(o.parts),
-                "tasks": list(o.tasks),
-            }
-            for o in kb.objects.values()
-        ],
-        "cultures": [
-            {
-                "id": c.id,
-                "name": c.name,
-                "extends": _culture_parent(kb, c.id),
-                "rules": len(c.rules),
-            }
-            for c in kb.cultures.values()
-        ],
-        "receivers": [
-            {
-                "id": r.id,
-                "name": r.name,
-                "role": r.role,
-                "dominant_hand": r.dominant_hand,
-                "posture": r.posture,
-                "hand_height": r.hand_height,
-                "hand": r.hand,
-            }
-            for r in kb.receivers.values()
-        ],
-        "scenes": [
-            {
-                "id": s.id,
-                "name": s.name,
-                "obstacles": [b.id for b in s.obstacles],
-                "support": s.support is not None,
-            }
-            for s in kb.scenes.values()
-        ],
-        "grippers": [
-            {
-                "id": g.id,
-                "name": g.name,
-                "max_opening": g.max_opening,
-                "finger_length": g.finger_length,
-            }
-            for g in kb.grippers.values()
-        ],
-        "hands": [
-            {"id": h.id, "name": h.name, "grip_width": h.grip_width} for h in kb.hands.values()
-        ],
-        "robots": [
-            {
-                "id": r.id,
-                "name": r.name,
-                "hands": list(r.hands),
-                "payload_per_hand": r.payload_per_hand,
-                "gripper": r.gripper,
-            }
-            for r in kb.robots.values()
-        ],
-    }
-
-
 @kb_app.command("list")
 def list_kb(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """List objects, cultures, receivers, scenes, grippers, hands and robots."""
-    kb = _load()
-    data = _listing(kb)
+    from handover.engine.kbshow import listing
+
+    data = listing(_load())
     if json_out:
         _dump(data)
         return
@@ -228,129 +146,6 @@ def _cell(value: Any) -> str:
 # ---------------------------------------------------------------- show
 
 
-_KINDS = ("object", "culture", "receiver", "scene", "gripper", "hand", "robot")
-_ATTR = {
-    "object": "objects",
-    "culture": "cultures",
-    "receiver": "receivers",
-    "scene": "scenes",
-    "gripper": "grippers",
-    "hand": "hands",
-    "robot": "robots",
-}
-
-
-def _rule_json(rr: ResolvedRule, obj: ObjectSpec | None = None) -> dict[str, Any]:
-    from handover.engine.applies import describe as describe_applies
-    from handover.engine.etiquette import applies_to_object
-
-    rule = rr.rule
-    out: dict[str, Any] = {
-        "id": rule.id,
-        "culture": rr.culture,
-        "kind": rule.kind,
-        "hard": rule.hard,
-        "weight": rule.weight,
-        "safety": rule.safety,
-        "says": rule.describe(),
-        "when": describe_applies(rule.applies),
-        "why": " ".join(rule.why.split()),
-        "source": str(rule.source),
-        "overrides": [
-            {"id": o.rule.id, "culture": o.culture, "source": str(o.rule.source)}
-            for o in rr.chain()
-        ],
-    }
-    if rule.override_safety:
-        out["override_safety"] = " ".join(rule.override_safety.split())
-    if obj is not None:
-        verdict = applies_to_object(rule, obj)
-        out["object_conditions"] = "met" if verdict else "depend on the geometry"
-    return out
-
-
-def _object_json(kb: KB, obj: ObjectSpec, culture: str) -> dict[str, Any]:
-    from handover.engine.etiquette import object_size, resolve_culture
-
-    resolved = resolve_culture(kb, culture)
-    rules, skipped = [], []
-    for rr in resolved:
-        reason = _not_applicable(rr.rule, obj)
-        if reason is None:
-            rules.append(rr)
-        else:
-            skipped.append({"id": rr.rule.id, "source": str(rr.rule.source), "reason": reason})
-    size = object_size(obj)
-    return {
-        "kind": "object",
-        "id": obj.id,
-        "name": obj.name,
-        "mass": obj.mass,
-        "size": None if size is None else round(size, 6),
-        "tags": list(obj.tags),
-        "source": str(obj.source),
-        "geometry": "mesh" if obj.geometry.mesh is not None else "primitives",
-        "parts": [
-            {"name": name, "tags": list(p.tags), "why": " ".join(p.why.split())}
-            for name, p in obj.parts.items()
-        ],
-        "axes": {name: list(v) for name, v in obj.axes.items()},
-        "tasks": [
-            {
-                "id": tid,
-                "receiver_tags": list(t.receiver_tags),
-                "receiver_site": t.receiver_site,
-                "present": [p.model_dump(mode="json") for p in t.present],
-                "why": " ".join(t.why.split()),
-                "source": str(t.source),
-            }
-            for tid, t in obj.tasks.items()
-        ],
-        "default_task": obj.default_task,
-        "culture": culture,
-        "rules_in_culture": len(resolved),
-        "rules": [_rule_json(rr, obj) for rr in rules],
-        "not_applicable": skipped,
-    }
-
-
-def _not_applicable(rule, obj: ObjectSpec) -> str | None:
-    """Why ``rule`` cannot bear on ``obj`` (None when it can): its object conditions fail,
-    it forbids tags the object does not carry, or it is about an axis the object lacks."""
-    from handover.engine.applies import describe as describe_applies
-    from handover.engine.etiquette import applies_to_object, object_tags
-
-    if applies_to_object(rule, obj) is False:
-        return f"needs {describe_applies(rule.applies)}"
-    tags = object_tags(obj)
-    if rule.kind == "contact" and not rule.require_tags and not tags & set(rule.forbid_tags):
-        return f"no part tagged {'/'.join(rule.forbid_tags)}"
-    if rule.kind == "axis" and rule.axis not in obj.axes:
-        return f"no axis '{rule.axis}'"
-    return None
-
-
-def _culture_json(kb: KB, culture_id: str) -> dict[str, Any]:
-    from handover.engine.etiquette import culture_chain, resolve_culture
-
-    c = kb.culture(culture_id)
-    chain, _ = culture_chain(kb, culture_id)
-    return {
-        "kind": "culture",
-        "id": c.id,
-        "name": c.name,
-        "extends": _culture_parent(kb, c.id),
-        "chain": chain,
-        "why": " ".join(c.why.split()),
-        "source": str(c.source),
-        "rules": [_rule_json(rr) for rr in resolve_culture(kb, culture_id)],
-    }
-
-
-def _model_json(kind: str, model: KBModel) -> dict[str, Any]:
-    return {"kind": kind, **model.model_dump(mode="json"), "source": str(model.source)}
-
-
 @kb_app.command()
 def show(
     item_id: str = typer.Argument(..., metavar="ID", help="An object, culture, receiver, ... id."),
@@ -359,7 +154,10 @@ def show(
         "common", "--culture", "-c", help="For an object: the culture whose rules to show."
     ),
     kind: str | None = typer.Option(
-        None, "--kind", help=f"Which kind of item, when an id is ambiguous: {', '.join(_KINDS)}."
+        None,
+        "--kind",
+        help="Which kind of item, when an id is ambiguous: object, culture, receiver, scene, "
+        "gripper, hand or robot.",
     ),
 ) -> None:
     """Show an object (parts, axes, tasks, the culture's rules that can apply) or any item.
@@ -369,33 +167,10 @@ def show(
     file:line and the rules it overrides. Also shows a culture (its resolved rules), a
     receiver, scene, gripper, hand or robot.
     """
-    from handover.engine.errors import UsageError
+    from handover.engine.kbshow import show_item
 
-    kb = _load()
-    if kind is not None and kind not in _KINDS:
-        raise UsageError(f"unknown kind '{kind}' (kinds: {', '.join(_KINDS)})")
-    kinds = [kind] if kind else [k for k in _KINDS if item_id in getattr(kb, _ATTR[k])]
-    if kind and item_id not in getattr(kb, _ATTR[kind]):
-        getattr(kb, kind)(item_id)  # raises UsageError naming the known ids
-    if not kinds:
-        known = {
-            k: sorted(getattr(kb, _ATTR[k])) for k in ("object", "culture", "receiver", "scene")
-        }
-        listing = "; ".join(f"{k}s: {', '.join(v) or 'none'}" for k, v in known.items())
-        raise UsageError(
-            f"no object, culture, receiver, scene, gripper, hand or robot "
-            f"'{item_id}' in the KB ({listing})"
-        )
-    if len(kinds) > 1:
-        raise UsageError(f"'{item_id}' names a {' and a '.join(kinds)}; choose with --kind")
-    which = kinds[0]
-    if which == "object":
-        kb.culture(culture)
-        data = _object_json(kb, kb.object(item_id), culture)
-    elif which == "culture":
-        data = _culture_json(kb, item_id)
-    else:
-        data = _model_json(which, getattr(kb, which)(item_id))
+    data = show_item(_load(), item_id, kind, culture)
+    which = data["kind"]
     if json_out:
         _dump(data)
     elif which == "object":
@@ -513,8 +288,8 @@ def schema(
     regenerate those files with ``handover kb schema -o kb/schema``.
     """
     from handover.engine.files import write_atomic, write_error
-    from handover.engine.loader import document_schema
     from handover.engine.schema import DOCUMENT_KINDS
+    from handover.engine.validate import document_schema
 
     def text(k: str | None) -> str:
         return json.dumps(document_schema(k), indent=2, sort_keys=False, ensure_ascii=False) + "\n"

@@ -8,12 +8,9 @@ from pathlib import Path
 import pytest
 
 from handover.engine.errors import KBError, UsageError
-from handover.engine.loader import (
-    builtin_kb_dir,
-    load_kb,
-    load_yaml_with_marks,
-    resolve_kb_dir,
-)
+from handover.engine.loader import load_kb
+from handover.engine.store import builtin_kb_dir, resolve_kb_dir
+from handover.engine.yamlpos import load_yaml_with_marks
 
 
 def line_of(text: str, needle: str, nth: int = 0) -> int:

@@ -23,7 +23,9 @@ from handover.engine.errors import UsageError
 from handover.engine.evaluate import Decision
 from handover.engine.kinds import KINDS
 from handover.engine.presentation import ReceiverRegion, ReceiverSites
-from handover.engine.record import (
+from handover.engine.record import write_recording
+from handover.engine.recording import read_recording
+from handover.engine.recordstages import (
     CLASS_ALIVE,
     CLASS_CHOSEN,
     CLASS_GENERATED,
@@ -32,9 +34,7 @@ from handover.engine.record import (
     ENTITY_CENTRES,
     ENTITY_LOG,
     OUTCOME_COLOURS,
-    read_recording,
     stage_classes,
-    write_recording,
 )
 from handover.engine.result import PlanResult
 from handover.engine.schema import RULE_KINDS, parse_rule
@@ -459,7 +459,8 @@ def test_reading_a_missing_or_foreign_file_is_a_usage_error(tmp_path, content):
 
 
 def test_recording_does_not_import_rerun_with_the_engine():
-    code = ("import sys, handover.engine.record, handover.engine.planner, handover.engine.cli; "
+    code = ("import sys, handover.engine.record, handover.engine.recording, "
+            "handover.engine.planner, handover.engine.cli; "
             "print('rerun' in sys.modules)")  # fmt: skip
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=60)  # fmt: skip

@@ -71,11 +71,12 @@ from hypothesis.control import currently_in_test_context
 
 from handover.engine.cli.app import main
 from handover.engine.errors import EXIT_BAD_MESH, EXIT_INFEASIBLE, EXIT_INVALID_KB, EXIT_OK
-from handover.engine.loader import builtin_kb_dir, load_kb
+from handover.engine.loader import load_kb
 from handover.engine.planner import plan
 from handover.engine.presentation import ISOTROPY
 from handover.engine.query import Query
 from handover.engine.schema import SceneSpec
+from handover.engine.store import builtin_kb_dir
 from handover.geometry.frames import rotation_from_euler_deg
 from handover.geometry.mesh import MeshError
 
