@@ -1,4 +1,6 @@
 """Robots from URDF files: kinematic chains and links' collision primitives, as plain arrays.
+Longer than 500 lines: checking the XML with its line numbers before yourdfpy reads it (every
+error at file:line) and turning the result into chains and shapes belong together.
 
 :func:`load_urdf` reads a URDF with ``yourdfpy`` (after checking the XML itself, so that every
 error names the file and line) into a :class:`RobotModel`. :meth:`RobotModel.chain` gives the

@@ -39,7 +39,8 @@ def test_the_wheel_holds_exactly_one_top_level_package(wheel):
     assert tops - dist_info == {"handover"}
     assert "handover/engine/planner.py" in names
     # every source package of the repository is in the wheel
-    for init in sorted(ROOT.glob("engine/**/__init__.py")) + sorted(ROOT.glob("geometry/**/__init__.py")):
+    inits = sorted(ROOT.glob("engine/**/__init__.py")) + sorted(ROOT.glob("geometry/**/*.py"))
+    for init in inits:
         rel = init.relative_to(ROOT).as_posix()
         assert f"handover/{rel}" in names, rel
     assert "handover/engine/kinds/contact.py" in names

@@ -19,11 +19,11 @@ from hypothesis import strategies as st
 
 from handover import Planner
 from handover.engine.cli.app import main
-from handover.engine.loader import builtin_kb_dir
 from handover.engine.modes import attempt_mode, choose
 from handover.engine.prepare import prepare
 from handover.engine.query import Query
 from handover.engine.schema import Culture
+from handover.engine.store import builtin_kb_dir
 
 PREFERS_TWO_HANDS = """\
 id: two_hands_please

@@ -10,10 +10,10 @@ import pytest
 
 from handover.engine.attempt import Phase, Roles
 from handover.engine.kinds import FEATURES, KINDS
-from handover.engine.loader import document_schema
 from handover.engine.prepare import prepare
 from handover.engine.query import Query
 from handover.engine.schema import RULE_KINDS, parse_rule
+from handover.engine.validate import document_schema
 
 
 @pytest.fixture(scope="module")
