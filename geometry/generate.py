@@ -77,6 +77,7 @@ class GenerationStats:
     antipodal_samples: int = 0
     antipodal_pairs: int = 0
     antipodal_sites: int = 0
+    antipodal_oblique_sites: int = 0
     antipodal_spacing: float = 0.0
     sites: int = 0
     rolls_per_site: int = 0
@@ -224,6 +225,7 @@ def generate_with_stats(
     stats.antipodal_samples = anti.samples
     stats.antipodal_pairs = anti.pairs
     stats.antipodal_sites = len(anti.sites)
+    stats.antipodal_oblique_sites = len(anti.sites) - anti.normal_sites
     stats.antipodal_spacing = anti.spacing
 
     t = time.perf_counter()
