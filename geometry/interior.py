@@ -137,8 +137,9 @@ def mesh_interior(
 
     mesh : watertight, object frame, m (a hollow cup, a bowl). up : (3,) the direction the
         opening faces (the object's ``up`` axis): when given, only the pieces of hull minus
-        mesh that are closed by a hull face facing within ``max_tilt_deg`` of ``up`` are kept
-        (the inside of a cup, not the gap between its handle and its body).
+        mesh whose boundary on the hull (their lid) faces mostly (more than half its area)
+        within ``max_tilt_deg`` of ``up`` are kept (the inside of a cup, not the gap
+        between its handle and its body).
     min_fraction : pieces smaller than this fraction of the hull's volume are dropped
         (tessellation slivers).
 
@@ -182,7 +183,8 @@ def mesh_interior(
             u = u / np.linalg.norm(u)
             on_hull = (piece.triangles_center @ normals.T - offsets).max(axis=1) > -tol
             facing = piece.face_normals @ u >= np.cos(np.deg2rad(max_tilt_deg))
-            if not (on_hull & facing).any():
+            lid = piece.area_faces[on_hull & facing].sum()
+            if not lid > 0.5 * piece.area_faces[on_hull].sum():
                 continue
         pieces.append(piece)
     return Interior(pieces)
