@@ -57,7 +57,7 @@ class Interior:
 
     @property
     def volume(self) -> float:
-        """m^3: the summed volume of the pieces."""
+        """m^3: the summed volume of the pieces (counted twice where pieces overlap)."""
         return float(sum(p.volume for p in self.pieces))
 
     def mesh(self) -> trimesh.Trimesh | None:
