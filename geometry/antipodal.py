@@ -153,12 +153,19 @@ def deduplicate(sites: ContactPairs, quality: np.ndarray, radius: float) -> np.n
 
 
 def cone_directions(
-    axes: np.ndarray, half_angle: float, count: int, seed: int = 0
+    axes: np.ndarray,
+    half_angle: float,
+    count: int,
+    seed: int = 0,
+    reference: np.ndarray | None = None,
 ) -> np.ndarray:
     """(n, count, 3) unit directions inside the cone of ``half_angle`` rad about each axis.
 
-    axes : (n, 3) unit vectors. The directions cover the cone evenly (equal solid angle:
-    tilt ``half_angle * sqrt((j + 0.5) / count)``, azimuths a golden-angle spiral), turned
+    axes : (n, 3) unit vectors. reference : (n, 3) vectors not parallel to the axes, where
+    azimuth 0 points (default :func:`geometry.frames.perpendicular`, which depends on the
+    coordinate frame; give one attached to the object, e.g. a face's edge, for directions
+    that turn with it). The directions cover the cone evenly (equal solid angle: tilt
+    ``half_angle * sqrt((j + 0.5) / count)``, azimuths a golden-angle spiral), turned
     about each axis by a seeded random angle so that neighbouring points do not repeat the
     same pattern. Same inputs, same output.
     """
@@ -167,7 +174,12 @@ def cone_directions(
     tilt = float(half_angle) * np.sqrt((j + 0.5) / max(int(count), 1))
     turn = np.random.default_rng([int(seed), 0xC0E]).random(len(axes)) * 2.0 * np.pi
     azimuth = turn[:, None] + j[None, :] * np.pi * (3.0 - np.sqrt(5.0))
-    u = perpendicular(axes)
+    if reference is None:
+        u = perpendicular(axes)
+    else:
+        ref = np.asarray(reference, dtype=float).reshape(-1, 3)
+        u = ref - np.einsum("ij,ij->i", ref, axes)[:, None] * axes
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
     v = np.cross(axes, u)
     side = np.cos(azimuth)[..., None] * u[:, None] + np.sin(azimuth)[..., None] * v[:, None]
     return np.cos(tilt)[None, :, None] * axes[:, None] + np.sin(tilt)[None, :, None] * side
@@ -276,7 +288,10 @@ def antipodal_sites(
     pairs = len(normal)
     if oblique_rays > 0:
         half_angle = float(oblique_fraction) * float(np.arctan(friction))
-        directions = cone_directions(inward, half_angle, int(oblique_rays), seed)
+        tri = mesh.triangles[faces]  # azimuth 0 along each face's first edge: frame-free
+        directions = cone_directions(
+            inward, half_angle, int(oblique_rays), seed, reference=tri[:, 1] - tri[:, 0]
+        )
         count = directions.shape[1]
         oblique = _cast_pairs(
             mesh,

@@ -384,11 +384,13 @@ class SurfaceLabels:
         self.tolerance = float(tolerance)
         if len(self.meshes) != len(self.parts) or not self.meshes:
             raise ValueError("SurfaceLabels needs one part index per primitive mesh")
-        self._trees = [cKDTree(m.triangles_center) for m in self.meshes]
+        # a primitive with no faces (degenerate, e.g. a radius of 1e-6 m) is on no surface
+        self._trees = [cKDTree(m.triangles_center) if len(m.faces) else None for m in meshes]
         self._reach = [
             float(np.linalg.norm(m.triangles - m.triangles_center[:, None], axis=2).max())
+            if len(m.faces) else 0.0
             for m in self.meshes
-        ]
+        ]  # fmt: skip
 
     def distances(self, points: np.ndarray, limit: float) -> np.ndarray:
         """(n, k) float, m: distance from each point (n, 3) to each primitive's surface where
@@ -403,6 +405,8 @@ class SurfaceLabels:
         for k, (mesh, tree, reach) in enumerate(
             zip(self.meshes, self._trees, self._reach, strict=True)
         ):
+            if tree is None:
+                continue
             pairs = query.sparse_distance_matrix(tree, reach + limit, output_type="ndarray")
             if not len(pairs):
                 continue
