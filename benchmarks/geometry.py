@@ -17,6 +17,10 @@ prints:
   collide per pose, no containment test: the floor) and ``ratio`` = our time / floor time
   (below 1: faster than the floor, thanks to the broad phase and the palm-first early exit).
 
+Then antipodal sites on the curved objects (sampled over the whole surface, with no facet
+step first) with rays along the normals only and with the oblique rays inside the friction
+cone added (the count must not drop).
+
 Then, for icospheres up to ``--naive-max-faces`` (default 20,480), the naive baseline: every
 face pair screened at once (normals antiparallel within the gripper's tolerance, distance along
 the normal below the opening; numpy, in row blocks), against our whole generation (``gen ms``
@@ -57,6 +61,45 @@ def hammer() -> gm.PartMesh:
     handle = gm.cylinder(0.012, 0.28, 32, transform_from(turn, [0.14, 0, 0]))
     head = gm.box((0.03, 0.11, 0.025), transform_from(None, [0.27, 0.0, 0.0]))
     return gm.compose([("handle", handle), ("head", head)])
+
+
+def torus() -> gm.PartMesh:
+    """A torus: ring radius 30 mm, tube radius 12 mm, 64 x 32 sections (4,096 faces)."""
+    import trimesh
+
+    t = trimesh.creation.torus(0.03, 0.012, major_sections=64, minor_sections=32)
+    mesh, _ = gm.validate_mesh(t.vertices, t.faces)
+    return gm.PartMesh.single(mesh)
+
+
+def mug() -> gm.PartMesh:
+    """A mug of 4 mm walls: a cup (r 40 mm, 100 mm tall) with a box handle."""
+    from handover.geometry import hollow
+
+    handle = gm.box((0.012, 0.02, 0.07), transform_from(None, [0.05, 0.0, 0.0]))
+    return gm.compose([("body", hollow.cup(0.04, 0.1, 0.004)), ("handle", handle)])
+
+
+def oblique_table(gripper: Gripper, cases: list[tuple[str, Callable[[], gm.PartMesh]]]) -> None:
+    """Antipodal sites with rays along normals only against normals plus oblique rays."""
+    from handover.geometry.antipodal import antipodal_sites
+
+    print("\nantipodal sites: normal rays only vs normal + oblique rays in the friction cone")
+    print(f"{'object':<16} {'faces':>6} {'normal':>7} {'+oblique':>9} {'ms normal':>10} "
+          f"{'ms both':>8}")  # fmt: skip
+    for name, make in cases:
+        mesh = make().mesh
+        kw = dict(spacing=gripper.finger_width / 2.0, min_opening=gripper.min_opening,
+                  max_opening=gripper.max_opening, friction=gripper.friction)  # fmt: skip
+        mesh.ray.intersects_first(mesh.vertices[:1], -mesh.vertex_normals[:1])  # warm scene
+        start = time.perf_counter()
+        normal = antipodal_sites(mesh, oblique_rays=0, **kw)
+        t_normal = time.perf_counter() - start
+        start = time.perf_counter()
+        both = antipodal_sites(mesh, **kw)
+        t_both = time.perf_counter() - start
+        print(f"{name:<16} {len(mesh.faces):>6} {len(normal.sites):>7} {len(both.sites):>9} "
+              f"{1000 * t_normal:>10.1f} {1000 * t_both:>8.1f}")  # fmt: skip
 
 
 def builtin_objects() -> list[tuple[str, Callable[[], gm.PartMesh]]]:
@@ -174,6 +217,8 @@ def main() -> None:
     ]
     cases.append(("box 100x60x30", lambda: gm.PartMesh.single(gm.box((0.1, 0.06, 0.03)))))
     cases.append(("hammer", hammer))
+    cases.append(("torus", torus))
+    cases.append(("mug 4mm wall", mug))
     if not args.no_kb:
         cases += builtin_objects()
 
@@ -196,6 +241,8 @@ def main() -> None:
             f"{r['cands']:>6} {r['kept']:>5} {r['gen_ms']:>8.1f} {r['coll_s']:>9.0f} "
             f"{r['fcl_s']:>9.0f} {r['ratio']:>6.2f}"
         )
+    curved = [c for c in cases if c[0].startswith(("icosphere/", "torus", "mug", "kb:"))]
+    oblique_table(gripper, curved)
     naive_table(gripper, args.naive_max_faces, generation_ms)
 
 

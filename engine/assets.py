@@ -17,11 +17,14 @@ if TYPE_CHECKING:
     from handover.engine.schema import GripperSpec, ObjectSpec, Primitive
     from handover.engine.store import KB
     from handover.geometry.gripper import Gripper
+    from handover.geometry.interior import Interior
     from handover.geometry.mesh import PartMesh
 
 __all__ = [
     "object_part_mesh",
     "primitive_mesh",
+    "primitive_cavity",
+    "object_interior",
     "gripper_from_spec",
     "mesh_file_object",
     "mesh_object",
@@ -39,9 +42,10 @@ def primitive_mesh(prim: Primitive):
     ``T = translate(position) @ rotate(rotation_deg)`` about the primitive's own centre.
     """
     from handover.geometry import mesh as gm
-    from handover.geometry.frames import rotation_from_euler_deg, transform_from
 
-    transform = transform_from(rotation_from_euler_deg(prim.rotation_deg), prim.position)
+    transform = _placement(prim)
+    if prim.is_hollow:
+        return _hollow(prim, transform, cavity=False)
     if prim.shape == "box":
         return gm.box(prim.extents, transform)
     if prim.shape == "cylinder":
@@ -49,6 +53,52 @@ def primitive_mesh(prim: Primitive):
     if prim.shape == "capsule":
         return gm.capsule(prim.radius, prim.height, transform, sections=prim.sections)
     return gm.icosphere(prim.radius, prim.subdivisions, transform)
+
+
+def _placement(prim: Primitive) -> np.ndarray:
+    from handover.geometry.frames import rotation_from_euler_deg, transform_from
+
+    return transform_from(rotation_from_euler_deg(prim.rotation_deg), prim.position)
+
+
+def _hollow(prim: Primitive, transform: np.ndarray, *, cavity: bool):
+    from handover.geometry import hollow
+
+    if prim.shape == "cup":
+        build = hollow.cup_cavity if cavity else hollow.cup
+        return build(prim.radius, prim.height, prim.thickness, prim.bottom_thickness,
+                     prim.sections, transform)  # fmt: skip
+    if prim.shape == "tube":
+        build = hollow.tube_cavity if cavity else hollow.tube
+        return build(prim.radius, prim.height, prim.thickness, prim.sections, transform)
+    build = hollow.bowl_cavity if cavity else hollow.bowl
+    return build(prim.radius, prim.height, prim.thickness, prim.profile or "spherical",
+                 prim.bottom_radius or 0.0, prim.sections, transform)  # fmt: skip
+
+
+def primitive_cavity(prim: Primitive):
+    """The interior (keep-out volume) of a hollow KB primitive (cup, bowl, tube) as a
+    closed convex ``trimesh.Trimesh`` in the object frame, or None for a solid one."""
+    return _hollow(prim, _placement(prim), cavity=True) if prim.is_hollow else None
+
+
+def object_interior(kb: KB, obj: ObjectSpec, part_mesh: PartMesh | None = None) -> Interior:
+    """The object's openings as one :class:`geometry.interior.Interior` (object frame, m):
+    the cavities of its hollow primitives; for a mesh file, the volume its convex hull adds
+    in pieces that open along the object's ``up`` axis (all such pieces when it has none;
+    nothing when the mesh is not watertight). ``part_mesh`` saves loading the mesh again.
+    Which objects have an opening that matters is the KB's to say (``open_container``)."""
+    from handover.geometry.interior import Interior, mesh_interior
+    from handover.geometry.mesh import MeshError
+
+    if obj.geometry.primitives:
+        pieces = [primitive_cavity(p) for p in obj.geometry.primitives if p.is_hollow]
+        return Interior(pieces)
+    pm = part_mesh if part_mesh is not None else object_part_mesh(kb, obj)
+    try:
+        return mesh_interior(pm.mesh, obj.axes.get("up"))
+    except MeshError:
+        return Interior([])
 
 
 def object_part_mesh(kb: KB, obj: ObjectSpec) -> PartMesh:

@@ -74,20 +74,36 @@ __all__ = [
 
 
 class Primitive(KBModel):
-    """A solid primitive, in the object frame, belonging to one part.
+    """A primitive shape, in the object frame, belonging to one part.
 
-    box: ``extents`` (x, y, z sizes); cylinder and capsule: ``radius`` and ``height`` along the
-    primitive's local z (capsule height excludes the caps); sphere: ``radius`` and
-    ``subdivisions`` (an icosphere: 0 gives the 20-face icosahedron, the seed's convex
-    polyhedral sphere is 2 or 3). ``position`` then ``rotation_deg`` (extrinsic x, y, z
-    rotations, degrees) place it.
+    Solids. box: ``extents`` (x, y, z sizes); cylinder and capsule: ``radius`` and
+    ``height`` along the primitive's local z (capsule height excludes the caps); sphere:
+    ``radius`` and ``subdivisions`` (an icosphere: 0 gives the 20-face icosahedron, the
+    seed's convex polyhedral sphere is 2 or 3).
+
+    Hollow shapes (open containers; their wall is a closed solid, their opening an interior
+    no hand should enter), each with ``radius``, ``height`` and a wall ``thickness``, the
+    opening at the top (local +z): cup: a cylinder open at the top, with an optional
+    ``bottom_thickness`` (default: the wall's); tube: a cylinder open at both ends; bowl:
+    ``profile`` ``spherical`` (a spherical cap of rim ``radius`` and depth ``height``) or
+    ``conical`` (a cone, or a frustum from ``bottom_radius``). The wall must be thinner than
+    the radius (and the bottom than the height).
+
+    ``position`` then ``rotation_deg`` (extrinsic x, y, z rotations, degrees) place it, about
+    its centre (a hollow shape's centre is half its height below the opening). Where the
+    surfaces of two primitives coincide (a rim lining a cup's top) the contact belongs to the
+    one listed first.
     """
 
-    shape: Literal["box", "cylinder", "sphere", "capsule"]
+    shape: Literal["box", "cylinder", "sphere", "capsule", "cup", "bowl", "tube"]
     part: Id
     extents: FiniteVec3 | None = None
     radius: Positive | None = None
     height: Positive | None = None
+    thickness: Positive | None = None
+    bottom_thickness: Positive | None = None
+    profile: Literal["spherical", "conical"] | None = None
+    bottom_radius: NonNegative | None = None
     subdivisions: Annotated[int, Field(ge=0, le=6)] = 2
     sections: Annotated[int, Field(ge=3, le=256)] = 32
     position: FiniteVec3 = (0.0, 0.0, 0.0)
@@ -100,18 +116,55 @@ class Primitive(KBModel):
             "cylinder": ("radius", "height"),
             "capsule": ("radius", "height"),
             "sphere": ("radius",),
+            "cup": ("radius", "height", "thickness"),
+            "bowl": ("radius", "height", "thickness"),
+            "tube": ("radius", "height", "thickness"),
         }[self.shape]
         missing = [f for f in need if getattr(self, f) is None]
         if missing:
             raise ValueError(f"a {self.shape} needs {' and '.join(missing)}")
+        only = {
+            "thickness": ("cup", "bowl", "tube"),
+            "bottom_thickness": ("cup",),
+            "profile": ("bowl",),
+            "bottom_radius": ("bowl",),
+        }
+        stray = [f for f, shapes in only.items() if getattr(self, f) is not None
+                 and self.shape not in shapes]  # fmt: skip
+        if stray:
+            raise ValueError(f"a {self.shape} does not take {' or '.join(stray)}")
+        if self.bottom_radius is not None and self.profile != "conical":
+            raise ValueError("only a conical bowl takes bottom_radius (set profile: conical)")
         if self.extents is not None and min(self.extents) <= 0:
             raise ValueError("box extents must all be positive")
+        if self.is_hollow:
+            from handover.geometry.hollow import check_dimensions
+            from handover.geometry.mesh import MeshError
+
+            try:
+                check_dimensions(
+                    self.shape,
+                    self.radius,
+                    self.height,
+                    self.thickness,
+                    self.bottom_thickness,
+                    self.profile or "spherical",
+                    self.bottom_radius or 0.0,
+                )
+            except MeshError as e:
+                raise ValueError(str(e)) from None
         return self
+
+    @property
+    def is_hollow(self) -> bool:
+        """A cup, bowl or tube: an open container with a wall and an interior."""
+        return self.shape in ("cup", "bowl", "tube")
 
 
 class PartRegion(KBModel):
-    """Faces of a mesh whose centroid lies in this axis-aligned box (object frame) belong to
-    ``part``. Regions are tested in order; the first match wins."""
+    """Points of a mesh inside this axis-aligned box (object frame, boundary included) belong
+    to ``part``: a grasp contact by where it touches, a face by its centroid. Regions are
+    tested in order; the first match wins."""
 
     part: Id
     center: FiniteVec3

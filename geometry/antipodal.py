@@ -12,14 +12,25 @@ mug or a bottle has no large facets, so its grasps come from here:
    the opposite contact ``q`` with normal ``n_q`` (it must face along the ray).
 3. Keep pairs with ``min_opening <= |q - p| <= max_opening`` whose normals both lie within
    the friction cone of the line ``p -> q`` (:func:`geometry.quality.in_friction_cone`).
-4. Deduplicate: orient each pair canonically (contact 0 first when the axis points along a
+   Where the wall is thin (a cup's side) the ray leaves through the inner surface: one
+   contact outside, one inside, pinching the wall.
+4. Oblique pairs: from each point also cast ``oblique_rays`` rays at directions spread
+   over the cone of ``oblique_fraction * atan(mu)`` about ``-n_p`` (:func:`cone_directions`,
+   seeded), kept by the same tests, so a pair exists wherever a parallel-jaw grasp is
+   stable, not only where a normal happens to cross the object to an antipodal point.
+5. Deduplicate: orient each pair canonically (contact 0 first when the axis points along a
    fixed generic direction); pairs whose two contacts are both within half the spacing of
    another's (in either order, so that the result does not depend on the object frame) are
    near-identical, and a pair is dropped when a near-identical one has a better quality
-   (ties to the earlier sample).
+   (ties to the earlier sample). The pairs along normals are deduplicated among
+   themselves first; oblique pairs within a whole spacing of a normal pair are dropped,
+   and the rest deduplicated among themselves with a whole spacing as the radius (they
+   fill the gaps between normal pairs without multiplying the sites), so adding them never
+   removes a site.
 
-Sites keep the order of their samples. The reference approach (roll 0) is a deterministic
-perpendicular to the closing direction (:func:`geometry.frames.perpendicular`).
+Sites keep the order of their samples, the normal ones first, then the oblique ones. The
+reference approach (roll 0) is a deterministic perpendicular to the closing direction
+(:func:`geometry.frames.perpendicular`).
 """
 
 from __future__ import annotations
@@ -42,25 +53,38 @@ __all__ = [
     "sample_surface",
     "antipodal_sites",
     "deduplicate",
+    "cone_directions",
+    "OBLIQUE_RAYS",
+    "OBLIQUE_FRACTION",
 ]
 
 MAX_SAMPLES = 20_000
 """Most surface samples drawn; beyond it the spacing is widened to fit (see stats)."""
+
+OBLIQUE_RAYS = 6
+"""Rays cast from each sample inside the friction cone, besides the one along the normal."""
+
+OBLIQUE_FRACTION = 0.8
+"""Half-angle of the cone the oblique rays are cast in, as a fraction of ``atan(mu)``: the
+contact they start from keeps a margin (quality at least 0.2 there)."""
 
 
 @dataclass
 class AntipodalSites:
     """What :func:`antipodal_sites` found.
 
-    sites : ContactPairs (source ``SOURCE_ANTIPODAL``), deduplicated.
+    sites : ContactPairs (source ``SOURCE_ANTIPODAL``), deduplicated: the sites found
+        along normals first, then the oblique ones.
     samples : surface points sampled. spacing : m, the spacing actually used.
-    pairs : valid antipodal pairs before deduplication.
+    pairs : valid antipodal pairs before deduplication (normal and oblique rays).
+    normal_sites : how many of ``sites`` come from rays along the normals.
     """
 
     sites: ContactPairs
     samples: int
     spacing: float
     pairs: int
+    normal_sites: int = 0
 
 
 def sample_surface(
@@ -128,37 +152,65 @@ def deduplicate(sites: ContactPairs, quality: np.ndarray, radius: float) -> np.n
     return np.flatnonzero(~dropped)
 
 
-def antipodal_sites(
+def cone_directions(
+    axes: np.ndarray,
+    half_angle: float,
+    count: int,
+    seed: int = 0,
+    reference: np.ndarray | None = None,
+) -> np.ndarray:
+    """(n, count, 3) unit directions inside the cone of ``half_angle`` rad about each axis.
+
+    axes : (n, 3) unit vectors. reference : (n, 3) vectors not parallel to the axes, where
+    azimuth 0 points (default :func:`geometry.frames.perpendicular`, which depends on the
+    coordinate frame; give one attached to the object, e.g. a face's edge, for directions
+    that turn with it). The directions cover the cone evenly (equal solid angle: tilt
+    ``half_angle * sqrt((j + 0.5) / count)``, azimuths a golden-angle spiral), turned
+    about each axis by a seeded random angle so that neighbouring points do not repeat the
+    same pattern. Same inputs, same output.
+    """
+    axes = np.asarray(axes, dtype=float).reshape(-1, 3)
+    j = np.arange(int(count))
+    tilt = float(half_angle) * np.sqrt((j + 0.5) / max(int(count), 1))
+    turn = np.random.default_rng([int(seed), 0xC0E]).random(len(axes)) * 2.0 * np.pi
+    azimuth = turn[:, None] + j[None, :] * np.pi * (3.0 - np.sqrt(5.0))
+    if reference is None:
+        u = perpendicular(axes)
+    else:
+        ref = np.asarray(reference, dtype=float).reshape(-1, 3)
+        u = ref - np.einsum("ij,ij->i", ref, axes)[:, None] * axes
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(axes, u)
+    side = np.cos(azimuth)[..., None] * u[:, None] + np.sin(azimuth)[..., None] * v[:, None]
+    return np.cos(tilt)[None, :, None] * axes[:, None] + np.sin(tilt)[None, :, None] * side
+
+
+def _cast_pairs(
     mesh: trimesh.Trimesh,
+    points: np.ndarray,
+    faces: np.ndarray,
+    directions: np.ndarray,
     *,
-    spacing: float,
     min_opening: float,
     max_opening: float,
     friction: float,
-    seed: int = 0,
-    face_mask: np.ndarray | None = None,
-    max_samples: int = MAX_SAMPLES,
-) -> AntipodalSites:
-    """Antipodal grasp sites from sampled surface points (see the module docstring).
-
-    mesh : validated, object frame, m. spacing : m between samples. min_opening,
-    max_opening : m, allowed contact distance. friction : mu. seed : sampling seed.
-    face_mask : (F,) bool, faces to sample (default all).
-    """
+) -> ContactPairs:
+    """Antipodal pairs from rays cast into the material from surface ``points`` (n, 3) on
+    ``faces`` (n,) along ``directions`` (n, 3) (pointing inward: ``d . n_p < 0``); the pair
+    is kept when the ray leaves through a face facing along it, within the opening, with
+    both normals in the friction cone of the line between the contacts. Not deduplicated;
+    in the canonical orientation (closing axis along the generic direction)."""
     from handover.geometry.candidates import SOURCE_ANTIPODAL
 
-    points, faces, used_spacing = sample_surface(mesh, spacing, seed, face_mask, max_samples)
-    n_samples = len(points)
-    if n_samples == 0:
-        return AntipodalSites(ContactPairs.empty(), 0, used_spacing, 0)
     n_p = mesh.face_normals[faces]
     step = 1e-5 * float(mesh.scale)
-    hit, dist = ray_first_hits(mesh, points - step * n_p, -n_p)
+    origins = points - step * n_p
+    hit, dist = ray_first_hits(mesh, origins, directions)
     ok = hit >= 0
-    points, faces, n_p, hit, dist = points[ok], faces[ok], n_p[ok], hit[ok], dist[ok]
-    q = points - (dist + step)[:, None] * n_p
+    points, faces, n_p, hit = points[ok], faces[ok], n_p[ok], hit[ok]
+    q = origins[ok] + dist[ok][:, None] * directions[ok]
     n_q = mesh.face_normals[hit]
-    leaving = np.einsum("ij,ij->i", n_q, -n_p) > 0
+    leaving = np.einsum("ij,ij->i", n_q, directions[ok]) > 0
     width = np.linalg.norm(q - points, axis=1)
     ok = leaving & (width >= max(min_opening, 1e-9)) & (width <= max_opening)
     points, faces, n_p, hit, q, n_q, width = (
@@ -177,13 +229,85 @@ def antipodal_sites(
     normals[swap] = normals[swap][:, ::-1]
     face_pairs[swap] = face_pairs[swap][:, ::-1]
     o[swap] = -o[swap]
-    sites = ContactPairs(
+    return ContactPairs(
         contacts=contacts,
         normals=normals,
         faces=face_pairs,
-        approach=perpendicular(o),
+        approach=perpendicular(o) if len(o) else np.zeros((0, 3)),
         overlap_area=np.zeros(len(o)),
         source=np.full(len(o), SOURCE_ANTIPODAL, dtype=np.int8),
     )
-    keep = deduplicate(sites, antipodal_quality(normals, o, friction), used_spacing / 2.0)
-    return AntipodalSites(sites.take(keep), n_samples, used_spacing, int(len(o)))
+
+
+def _near_any(sites: ContactPairs, others: ContactPairs, radius: float) -> np.ndarray:
+    """(len(sites),) bool: the site is near-identical (as in :func:`deduplicate`) to one of
+    ``others``."""
+    from scipy.spatial import cKDTree
+
+    near = np.zeros(len(sites), dtype=bool)
+    if not len(sites) or not len(others):
+        return near
+    tree = cKDTree(others.contacts.reshape(len(others), 6))
+    for contacts in (sites.contacts, sites.contacts[:, ::-1]):
+        d, _ = tree.query(contacts.reshape(len(sites), 6), p=np.inf, distance_upper_bound=radius)
+        near |= d <= radius
+    return near
+
+
+def antipodal_sites(
+    mesh: trimesh.Trimesh,
+    *,
+    spacing: float,
+    min_opening: float,
+    max_opening: float,
+    friction: float,
+    seed: int = 0,
+    face_mask: np.ndarray | None = None,
+    max_samples: int = MAX_SAMPLES,
+    oblique_rays: int = OBLIQUE_RAYS,
+    oblique_fraction: float = OBLIQUE_FRACTION,
+) -> AntipodalSites:
+    """Antipodal grasp sites from sampled surface points (see the module docstring).
+
+    mesh : validated, object frame, m. spacing : m between samples. min_opening,
+    max_opening : m, allowed contact distance. friction : mu. seed : sampling seed.
+    face_mask : (F,) bool, faces to sample (default all). oblique_rays : rays per sample
+    cast inside the friction cone besides the one along the normal (0: normals only).
+    oblique_fraction : their cone's half-angle as a fraction of ``atan(friction)``.
+    """
+    points, faces, used_spacing = sample_surface(mesh, spacing, seed, face_mask, max_samples)
+    n_samples = len(points)
+    if n_samples == 0:
+        return AntipodalSites(ContactPairs.empty(), 0, used_spacing, 0)
+    kwargs = {"min_opening": min_opening, "max_opening": max_opening, "friction": friction}
+    inward = -mesh.face_normals[faces]
+    normal = _cast_pairs(mesh, points, faces, inward, **kwargs)
+    radius = used_spacing / 2.0
+    keep = deduplicate(normal, _quality(normal, friction), radius)
+    sites = normal.take(keep)
+    pairs = len(normal)
+    if oblique_rays > 0:
+        half_angle = float(oblique_fraction) * float(np.arctan(friction))
+        tri = mesh.triangles[faces]  # azimuth 0 along each face's first edge: frame-free
+        directions = cone_directions(
+            inward, half_angle, int(oblique_rays), seed, reference=tri[:, 1] - tri[:, 0]
+        )
+        count = directions.shape[1]
+        oblique = _cast_pairs(
+            mesh,
+            np.repeat(points, count, axis=0),
+            np.repeat(faces, count),
+            directions.reshape(-1, 3),
+            **kwargs,
+        )
+        pairs += len(oblique)
+        # coarser than the normal pairs: one oblique site per spacing of contact motion
+        coarse = 2.0 * radius
+        oblique = oblique.take(~_near_any(oblique, sites, coarse))
+        oblique = oblique.take(deduplicate(oblique, _quality(oblique, friction), coarse))
+        sites = ContactPairs.concatenate([sites, oblique])
+    return AntipodalSites(sites, n_samples, used_spacing, pairs, len(keep))
+
+
+def _quality(sites: ContactPairs, friction: float) -> np.ndarray:
+    return antipodal_quality(sites.normals, sites.axis, friction) if len(sites) else np.zeros(0)

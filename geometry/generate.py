@@ -8,6 +8,8 @@
    the closing direction ``o``; ``n = o x a``. Rolls 180 degrees apart approach from
    opposite sides and are distinct candidates. Each roll is tried at two depths
    (:func:`contact_offsets`): contacts at the pads' centres, and near the fingertips.
+   Each contact is labelled with the part at its point (``PartMesh.part_at``: the region
+   box or primitive surface it lies in), not the part of the face it lies on.
 4. With a collider, candidates whose gripper (open at ``width + 2 * clearance``) touches
    or penetrates the object are dropped (the seed: "storing the angles without
    collisions"). This step is separate: ``collider=None`` skips it.
@@ -75,6 +77,7 @@ class GenerationStats:
     antipodal_samples: int = 0
     antipodal_pairs: int = 0
     antipodal_sites: int = 0
+    antipodal_oblique_sites: int = 0
     antipodal_spacing: float = 0.0
     sites: int = 0
     rolls_per_site: int = 0
@@ -117,7 +120,7 @@ def contact_offsets(gripper: Gripper) -> np.ndarray:
 def expand_rolls(
     sites: ContactPairs,
     rolls: np.ndarray,
-    face_part: np.ndarray,
+    site_parts: np.ndarray,
     part_names: list[str],
     friction: float,
     mass_centre: np.ndarray,
@@ -125,7 +128,8 @@ def expand_rolls(
 ) -> CandidateSet:
     """One candidate per (site, roll, offset), site-major then roll, every field filled.
 
-    sites : S sites. rolls : (R,) rad. face_part : (F,) part index of each mesh face.
+    sites : S sites. rolls : (R,) rad. site_parts : (S, 2) int, the part index at each
+    site's two contacts (:meth:`geometry.mesh.PartMesh.part_at`).
     friction : mu for quality. mass_centre : (3,) m. offsets : (D,) m (default [0]).
     """
     offsets = np.zeros(1) if offsets is None else np.asarray(offsets, dtype=float)
@@ -152,7 +156,7 @@ def expand_rolls(
         contacts=sites.contacts[site],
         normals=sites.normals[site],
         faces=sites.faces[site].astype(np.int64),
-        parts=np.asarray(face_part, dtype=np.int64)[sites.faces][site],
+        parts=np.asarray(site_parts, dtype=np.int64).reshape(-1, 2)[site],
         site=site.astype(np.int64),
         roll=roll,
         overlap_area=sites.overlap_area[site].astype(float),
@@ -221,6 +225,7 @@ def generate_with_stats(
     stats.antipodal_samples = anti.samples
     stats.antipodal_pairs = anti.pairs
     stats.antipodal_sites = len(anti.sites)
+    stats.antipodal_oblique_sites = len(anti.sites) - anti.normal_sites
     stats.antipodal_spacing = anti.spacing
 
     t = time.perf_counter()
@@ -228,8 +233,9 @@ def generate_with_stats(
     stats.sites = len(sites)
     offsets = contact_offsets(gripper)
     stats.depths_per_roll = len(offsets)
+    site_parts = part_mesh.part_at(sites.contacts.reshape(-1, 3), sites.faces.reshape(-1))
     candidates = expand_rolls(
-        sites, rolls, part_mesh.face_part, part_mesh.part_names, gripper.friction,
+        sites, rolls, site_parts.reshape(-1, 2), part_mesh.part_names, gripper.friction,
         part_mesh.mass_centre, offsets,
     )  # fmt: skip
     stats.before_collision = len(candidates)

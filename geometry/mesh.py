@@ -36,6 +36,9 @@ __all__ = [
     "icosphere",
     "capsule",
     "PartMesh",
+    "RegionLabels",
+    "SurfaceLabels",
+    "SURFACE_TOLERANCE",
     "compose",
     "part_mesh_from_regions",
     "mass_centre",
@@ -334,6 +337,104 @@ def mass_centre(mesh: trimesh.Trimesh) -> np.ndarray:
     return (mesh.triangles_center * area[:, None]).sum(axis=0) / area.sum()
 
 
+SURFACE_TOLERANCE = 1e-4
+"""m: a point this close to a primitive's surface lies on it (:class:`SurfaceLabels`), so
+that surfaces that coincide, as a rim lining the top of a cup's wall, count as both."""
+
+
+@dataclass(frozen=True)
+class RegionLabels:
+    """The part at a point from axis-aligned boxes (object frame, m): the first box that
+    contains the point (boundary included) gives its part, else ``default``.
+
+    parts : (k,) int part index of each box. centers, extents : (k, 3) m. default : int.
+    """
+
+    parts: np.ndarray
+    centers: np.ndarray
+    extents: np.ndarray
+    default: int = 0
+
+    def part_at(self, points: np.ndarray) -> np.ndarray:
+        """(n,) int: the part index at each point (n, 3), m, object frame."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        if not len(self.parts):
+            return np.full(len(pts), self.default, dtype=np.int64)
+        inside = (np.abs(pts[:, None, :] - self.centers) <= self.extents / 2.0).all(axis=2)
+        first = inside.argmax(axis=1)
+        return np.where(inside.any(axis=1), np.asarray(self.parts)[first], self.default)
+
+
+class SurfaceLabels:
+    """The part at a point of a composed object's surface: the part of the first primitive
+    (in the order given) whose surface passes within ``tolerance`` of the point, else the
+    part of the primitive whose surface is nearest.
+
+    meshes : list of the primitives' closed meshes (object frame, m). parts : (k,) int part
+    index of each. tolerance : m (default :data:`SURFACE_TOLERANCE`).
+    """
+
+    def __init__(
+        self, meshes: list, parts: np.ndarray, tolerance: float = SURFACE_TOLERANCE
+    ) -> None:
+        from scipy.spatial import cKDTree
+
+        self.meshes = list(meshes)
+        self.parts = np.asarray(parts, dtype=np.int64)
+        self.tolerance = float(tolerance)
+        if len(self.meshes) != len(self.parts) or not self.meshes:
+            raise ValueError("SurfaceLabels needs one part index per primitive mesh")
+        # a primitive with no faces (degenerate, e.g. a radius of 1e-6 m) is on no surface
+        self._trees = [cKDTree(m.triangles_center) if len(m.faces) else None for m in meshes]
+        self._reach = [
+            float(np.linalg.norm(m.triangles - m.triangles_center[:, None], axis=2).max())
+            if len(m.faces) else 0.0
+            for m in self.meshes
+        ]  # fmt: skip
+
+    def distances(self, points: np.ndarray, limit: float) -> np.ndarray:
+        """(n, k) float, m: distance from each point (n, 3) to each primitive's surface where
+        it is below ``limit`` m, else inf."""
+        from scipy.spatial import cKDTree
+
+        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        out = np.full((len(pts), len(self.meshes)), np.inf)
+        if not len(pts):
+            return out
+        query = cKDTree(pts)
+        for k, (mesh, tree, reach) in enumerate(
+            zip(self.meshes, self._trees, self._reach, strict=True)
+        ):
+            if tree is None:
+                continue
+            pairs = query.sparse_distance_matrix(tree, reach + limit, output_type="ndarray")
+            if not len(pairs):
+                continue
+            i, f = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
+            d = distance_to_faces(mesh, pts[i], f)
+            near = d < limit
+            np.minimum.at(out[:, k], i[near], d[near])
+        return out
+
+    def part_at(self, points: np.ndarray) -> np.ndarray:
+        """(n,) int: the part index at each point (n, 3), m, object frame."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        if (self.parts == self.parts[0]).all():
+            return np.full(len(pts), self.parts[0], dtype=np.int64)
+        dist = self.distances(pts, self.tolerance)
+        on = dist <= self.tolerance
+        prim = on.argmax(axis=1)
+        lost = np.flatnonzero(~on.any(axis=1))
+        if len(lost):  # off every surface by more than the tolerance: the nearest one
+            limit = self.tolerance
+            far = np.full((len(lost), len(self.meshes)), np.inf)
+            while np.isinf(far).all(axis=1).any() and limit < 10 * MAX_COORDINATE:
+                limit *= 10.0
+                far = self.distances(pts[lost], limit)
+            prim[lost] = far.argmin(axis=1)
+        return self.parts[prim]
+
+
 @dataclass
 class PartMesh:
     """One object surface whose faces are tagged with part names.
@@ -342,12 +443,15 @@ class PartMesh:
     face_part : (F,) int, index into ``part_names`` of each face.
     part_names : list[str], the parts, in order of first appearance.
     mass_centre : (3,) float, m: volume centroid if watertight, else area centroid.
+    labels : what gives the part at a point (:class:`RegionLabels` for a mesh with regions,
+        :class:`SurfaceLabels` for composed primitives), or None: the part of the face.
     """
 
     mesh: trimesh.Trimesh
     face_part: np.ndarray
     part_names: list[str]
     mass_centre: np.ndarray
+    labels: RegionLabels | SurfaceLabels | None = None
 
     def __post_init__(self) -> None:
         self.face_part = np.asarray(self.face_part, dtype=np.int64)
@@ -365,6 +469,17 @@ class PartMesh:
     def single(cls, mesh: trimesh.Trimesh, part: str = "body") -> PartMesh:
         """The whole mesh as one part named ``part``."""
         return cls(mesh, np.zeros(len(mesh.faces), dtype=np.int64), [part], mass_centre(mesh))
+
+    def part_at(self, points: np.ndarray, faces: np.ndarray | None = None) -> np.ndarray:
+        """(n,) int: the part index (into ``part_names``) at each point (n, 3), m, object
+        frame: from ``labels`` when set, else the part of ``faces`` (n,) int, the face each
+        point lies on (required then)."""
+        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        if self.labels is not None:
+            return np.asarray(self.labels.part_at(pts), dtype=np.int64)
+        if faces is None:
+            raise ValueError("a PartMesh without labels needs the face of each point")
+        return self.face_part[np.asarray(faces, dtype=np.int64).reshape(-1)]
 
     def part_faces(self, part: str) -> np.ndarray:
         """(k,) int: indices of the faces of ``part`` (empty if it has none)."""
@@ -394,11 +509,13 @@ def compose(parts: list[tuple[str, trimesh.Trimesh]]) -> PartMesh:
     parts : list of ``(part_name, mesh)``; several meshes may share a part name.
 
     The solids are unioned into one outer surface (manifold3d), so faces inside another
-    part are gone, and each face of the union is tagged with the part of the input solid
-    it came from (manifold3d tracks every output triangle's source mesh exactly, which is
-    the limit of "the part whose surface it lies closest to": the distance is zero). When a
-    solid is not a closed manifold or the union fails, the parts are concatenated instead
-    (a :class:`MeshWarning` says so; interior faces then remain).
+    part are gone. The part at a point of the surface (``PartMesh.part_at``, what a
+    contact is labelled with) is that of the first solid, in the order given, whose surface
+    passes within :data:`SURFACE_TOLERANCE` of it (:class:`SurfaceLabels`): where surfaces
+    coincide (a rim lining a cup's top) the solid listed first wins. Each face is tagged
+    with the part at its centroid. When a solid is not a closed manifold or the union fails,
+    the parts are concatenated instead (a :class:`MeshWarning` says so; interior faces then
+    remain).
 
     Returns a :class:`PartMesh` whose ``part_names`` are in order of first appearance.
     """
@@ -408,11 +525,13 @@ def compose(parts: list[tuple[str, trimesh.Trimesh]]) -> PartMesh:
     meshes = [m for _, m in parts]
     if len(meshes) == 1:
         mesh, _ = validate_mesh(meshes[0].vertices, meshes[0].faces, f"part '{names[0]}'")
-        return PartMesh(mesh, np.zeros(len(mesh.faces), np.int64), names, mass_centre(mesh))
+        labels = SurfaceLabels([mesh], np.zeros(1, np.int64))
+        return PartMesh(mesh, np.zeros(len(mesh.faces), np.int64), names, mass_centre(mesh),
+                        labels)  # fmt: skip
 
     union = _manifold_union(meshes)
     if union is not None:
-        vertices, faces, source = union
+        vertices, faces, _ = union
     else:
         warnings.warn(
             "the parts could not be unioned (a part is not a closed manifold); they are "
@@ -421,10 +540,10 @@ def compose(parts: list[tuple[str, trimesh.Trimesh]]) -> PartMesh:
             stacklevel=2,
         )
         vertices, faces = _stack([m.vertices for m in meshes], [m.faces for m in meshes])
-        source = np.repeat(np.arange(len(meshes)), [len(m.faces) for m in meshes])
-    mesh, kept = validate_mesh(vertices, faces, "composed object")
-    face_part = index[source[kept]]
-    return PartMesh(mesh, face_part, names, mass_centre(mesh))
+    mesh, _ = validate_mesh(vertices, faces, "composed object")
+    labels = SurfaceLabels(meshes, index)
+    face_part = labels.part_at(mesh.triangles_center)
+    return PartMesh(mesh, face_part, names, mass_centre(mesh), labels)
 
 
 def _manifold_union(
@@ -469,27 +588,29 @@ def part_mesh_from_regions(
 ) -> PartMesh:
     """Tag a mesh's faces with parts by axis-aligned boxes.
 
-    mesh : validated mesh, object frame, m. default_part : the part of faces in no region.
-    regions : list of ``(part, center (3,), extents (3,))``, m, object frame; a face whose
-        centroid lies in a box (boundary included) belongs to its part; the first matching
-        region wins.
+    mesh : validated mesh, object frame, m. default_part : the part of points in no region.
+    regions : list of ``(part, center (3,), extents (3,))``, m, object frame; a point in a
+        box (boundary included) belongs to its part; the first matching region wins.
+
+    The part at a point (``PartMesh.part_at``, what a contact is labelled with) comes from
+    the boxes (:class:`RegionLabels`), so a face that spans two regions is resolved per
+    contact; each face is tagged with the part at its centroid.
 
     Returns a :class:`PartMesh` with ``part_names = [default_part, then region parts in
     order]`` (duplicates once).
     """
     regions = list(regions or [])
     names, index = _names_in_order([default_part] + [r[0] for r in regions])
-    face_part = np.zeros(len(mesh.faces), dtype=np.int64)
-    unassigned = np.ones(len(mesh.faces), dtype=bool)
-    centres = mesh.triangles_center
-    for k, (part, center, extents) in enumerate(regions):
+    centers = np.zeros((len(regions), 3))
+    extents = np.ones((len(regions), 3))
+    for k, (part, center, size) in enumerate(regions):
         c = np.asarray(center, dtype=float).reshape(3)
-        e = np.asarray(extents, dtype=float).reshape(3)
+        e = np.asarray(size, dtype=float).reshape(3)
         if not (np.isfinite(c).all() and np.isfinite(e).all() and (e > 0).all()):
             raise MeshError(
                 f"region {k} of part '{part}' needs a finite center and positive extents"
             )
-        inside = (np.abs(centres - c) <= e / 2.0).all(axis=1) & unassigned
-        face_part[inside] = index[k + 1]
-        unassigned &= ~inside
-    return PartMesh(mesh, face_part, names, mass_centre(mesh))
+        centers[k], extents[k] = c, e
+    labels = RegionLabels(index[1:], centers, extents, int(index[0]))
+    face_part = labels.part_at(mesh.triangles_center)
+    return PartMesh(mesh, face_part, names, mass_centre(mesh), labels)

@@ -138,3 +138,84 @@ def test_gripper_from_spec_keeps_every_number():
         0.008, (0.05, 0.12, 0.07), 0.004, 0.6
     )  # fmt: skip
     assert (g.parallel_tol_deg, g.min_overlap_area, g.roll_step_deg) == (8, 2e-4, 30)
+
+
+# ---------------------------------------------------------------- hollow primitives
+
+MUG = """\
+id: mug
+name: A mug from a cup, a rim and a handle
+mass: 0.3
+tags: [open_container]
+geometry:
+  primitives:
+    - {shape: tube, part: rim, radius: 0.04, height: 0.01, thickness: 0.004,
+       position: [0, 0, 0.095]}
+    - {shape: cup, part: body, radius: 0.04, height: 0.1, thickness: 0.004,
+       bottom_thickness: 0.006, position: [0, 0, 0.05]}
+    - {shape: box, part: handle, extents: [0.012, 0.02, 0.07], position: [0.05, 0, 0.05]}
+parts:
+  rim: {tags: [rim, food_contact]}
+  body: {tags: []}
+  handle: {tags: [handle]}
+axes:
+  up: [0, 0, 1]
+"""
+
+
+def test_a_mug_from_a_cup_is_gripped_across_its_body_wall(tmp_path):
+    from handover.engine.assets import object_interior
+    from handover.geometry.collision import ObjectCollider
+    from handover.geometry.generate import generate_candidates
+
+    kb = load_kb(_kb(tmp_path, mug=MUG))
+    obj = kb.objects["mug"]
+    pm = object_part_mesh(kb, obj)
+    assert pm.mesh.is_watertight
+    grip = gripper_from_spec(next(iter(load_kb(None).grippers.values())))
+    c = generate_candidates(pm, grip, collider=ObjectCollider(pm.mesh))
+    body = pm.part_names.index("body")
+    wall = (c.parts == body).all(axis=1) & (c.width < 0.0045)
+    assert wall.any()  # across the 4 mm wall of the body
+    radial = np.linalg.norm(c.contacts[wall][..., :2], axis=-1)
+    assert (radial.min(axis=1) < 0.037).all() and (radial.max(axis=1) > 0.039).all()
+    # no finger pad centre of those grasps lies in the drink: the inner contact is on the
+    # wall, and the interior is the cup's cavity from the bottom (6 mm) to the rim plane
+    inside = object_interior(kb, obj)
+    assert len(inside) == 2  # the cup's cavity and the rim's bore
+    probes = [[0, 0, 0.05], [0, 0, 0.101], [0, 0, 0.005], [0.035, 0, 0.097], [0.038, 0, 0.05]]
+    assert inside.contains(np.array(probes)).tolist() == [True, False, False, True, False]
+    assert not inside.contains(c.contacts[wall].reshape(-1, 3)).any()
+    # contacts in the top centimetre are the rim's, inside and outside
+    top = (c.contacts[..., 2] > 0.0901).all(axis=1)
+    assert (c.parts[top] == pm.part_names.index("rim")).all()
+
+
+@pytest.mark.parametrize(
+    "prim, message",
+    [
+        ("{shape: cup, part: body, radius: 0.02, height: 0.1, thickness: 0.02}", "its radius"),
+        ("{shape: cup, part: body, radius: 0.02, height: 0.1}", "needs thickness"),
+        ("{shape: box, part: body, extents: [0.1, 0.1, 0.1], thickness: 0.01}", "does not take"),
+        ("{shape: bowl, part: body, radius: 0.05, height: 0.02, thickness: 0.004,"
+         " bottom_radius: 0.02}", "conical"),
+    ],
+)
+def test_impossible_hollow_primitives_are_kb_errors_at_their_line(make_kb, prim, message):
+    from handover.engine.errors import KBError
+
+    text = f"""\
+        id: cupish
+        name: Cupish
+        mass: 0.1
+        geometry:
+          primitives:
+            - {prim}
+        parts:
+          body: {{tags: []}}
+        """
+    root = make_kb({"objects/cupish.yaml": text})
+    with pytest.raises(KBError) as info:
+        load_kb(root)
+    (issue,) = info.value.issues
+    assert issue.line == 6 and message in issue.message

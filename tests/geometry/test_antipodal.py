@@ -94,3 +94,79 @@ def test_pairs_stay_inside_the_material_of_a_non_convex_object():
     mids = found.sites.centre
     assert len(mids) > 0
     assert pm.mesh.contains(mids).all()
+
+
+# ---------------------------------------------------------------- oblique pairs
+
+
+def torus():
+    """The torus of benchmarks/geometry.py: ring radius 30 mm, tube radius 12 mm."""
+    import trimesh
+
+    t = trimesh.creation.torus(0.03, 0.012, major_sections=64, minor_sections=32)
+    mesh, _ = gm.validate_mesh(t.vertices, t.faces)
+    return mesh
+
+
+CURVED = {
+    "icosphere": lambda: gm.icosphere(0.02, 3),
+    "torus": torus,
+}
+
+
+@pytest.mark.parametrize("name", sorted(CURVED))
+def test_every_pair_is_on_the_surface_within_the_friction_cone(name):
+    import trimesh
+
+    m = CURVED[name]()
+    s = antipodal_sites(m, spacing=0.011, **OPEN).sites
+    assert len(s) > 0
+    points = s.contacts.reshape(-1, 3)
+    # independently: trimesh's brute-force closest point on the whole surface
+    _, distance, _ = trimesh.proximity.closest_point_naive(m, points)
+    assert distance.max() < 5e-4
+    # the face each contact names holds it (trimesh's own point-triangle distance), and
+    # that face's normal is within the friction cone of the line between the contacts
+    on_face = trimesh.triangles.closest_point(m.triangles[s.faces.reshape(-1)], points)
+    assert np.linalg.norm(on_face - points, axis=1).max() < 5e-4
+    normal = m.face_normals[s.faces]  # (S, 2, 3)
+    line = s.contacts[:, 1] - s.contacts[:, 0]
+    line /= np.linalg.norm(line, axis=1, keepdims=True)
+    half = np.degrees(np.arctan(OPEN["friction"]))
+    push0 = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", -normal[:, 0], line), -1, 1)))
+    push1 = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", normal[:, 1], line), -1, 1)))
+    assert push0.max() <= half + 1e-6 and push1.max() <= half + 1e-6
+
+
+@pytest.mark.parametrize("name", sorted(CURVED))
+def test_oblique_rays_add_pairs_and_never_remove_one(name):
+    m = CURVED[name]()
+    normal_only = antipodal_sites(m, spacing=0.011, oblique_rays=0, **OPEN)
+    both = antipodal_sites(m, spacing=0.011, **OPEN)
+    assert both.pairs > normal_only.pairs  # oblique rays found valid pairs
+    assert len(both.sites) >= len(normal_only.sites)
+    assert both.normal_sites == len(normal_only.sites)
+    # the normal pairs come first, unchanged
+    assert_allclose(both.sites.contacts[: both.normal_sites], normal_only.sites.contacts)
+    # the oblique ones really are oblique: off the normal at their first contact
+    oblique = both.sites.take(np.arange(both.normal_sites, len(both.sites)))
+    assert (cone_angles(oblique.normals, oblique.axis).max(axis=1) > np.radians(2)).all()
+
+
+def test_oblique_pairs_grip_a_sphere_off_centre():
+    # on a sphere every chord within the cone is antipodal: normal rays give only chords
+    # through the centre, oblique ones fill in the off-centre chords between them
+    m = gm.icosphere(0.02, 4)
+    normal_only = antipodal_sites(m, spacing=0.011, oblique_rays=0, **OPEN).sites
+    both = antipodal_sites(m, spacing=0.011, **OPEN).sites
+    assert len(both) > len(normal_only)
+    off_axis = lambda s: np.linalg.norm(np.cross(s.centre, s.axis), axis=1)  # noqa: E731
+    assert off_axis(normal_only).max() < 1e-3
+    assert off_axis(both).max() > 0.004
+
+
+def test_oblique_pairs_are_seeded():
+    m = torus()
+    a = antipodal_sites(m, spacing=0.011, seed=5, **OPEN).sites
+    b = antipodal_sites(m, spacing=0.011, seed=5, **OPEN).sites
+    assert a.contacts.tobytes() == b.contacts.tobytes()

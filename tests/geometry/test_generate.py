@@ -166,12 +166,19 @@ def test_a_book_is_grasped_near_its_edges():
     assert (np.einsum("ij,ij->i", c.a[:, :2], c.centre[:, :2]) < 0).all()
 
 
-def test_big_sphere_collides_everywhere():
-    # an 80 mm ball fits between the fingers but reaches 40 mm behind the contacts, where
-    # the palm is (the pads are centred 20 mm in front of it)
-    pm = gm.PartMesh.single(gm.icosphere(0.04, 3))
+def test_big_sphere_is_only_pinched_off_centre():
+    # an 80 mm ball fits between the fingers but, gripped through its centre, reaches 40 mm
+    # behind the contacts, where the palm is (the pads are centred 20 mm in front of it):
+    # what survives the collision filter are oblique pinches of its cap, with the palm
+    # beyond the ball
+    radius = 0.04
+    pm = gm.PartMesh.single(gm.icosphere(radius, 3))
     c, stats = generate_with_stats(pm, GRIPPER, collider=ObjectCollider(pm.mesh))
-    assert stats.before_collision > 0 and len(c) == 0
+    assert stats.before_collision > len(c)
+    assert len(c) > 0
+    assert (c.com_distance > 0.005).all()  # the grasp axis passes off the centre
+    palm_to_centre = -np.einsum("ij,ij->i", c.centre, c.a) + GRIPPER.finger_depth + c.offset
+    assert (palm_to_centre > radius - 1e-3).all()
 
 
 unit_floats = st.floats(-1, 1, allow_nan=False)
