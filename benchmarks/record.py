@@ -106,7 +106,7 @@ def synthetic_plan(n: int, seed: int = 0) -> tuple[PlanResult, PlanContext, Atte
         generation={"antipodal": n}, gripper=Gripper.default(),
         hand=HumanHand(palm=(0.08, 0.09, 0.03), finger_length=0.08, finger_thickness=0.02,
                        grip_width=0.08),
-        rotations=rotations, poses=poses, initial=initial, scene=None,
+        rotations=rotations, initial=initial, scene=None,
         scene_box_list=[("table", np.array([0.8, 1.2, 0.05]), table)], facts=None,
     )  # fmt: skip
     gi = np.repeat(np.arange(n), K)
@@ -122,7 +122,9 @@ def synthetic_plan(n: int, seed: int = 0) -> tuple[PlanResult, PlanContext, Atte
         kept=kept, score=score, first_fail=np.where(fails.any(1), fails.argmax(1), -1),
         soft_scores=np.repeat(score[:, None], len(SOFT), axis=1),
     )  # fmt: skip
-    hands = Hands(key=("benchmark", 1), region=region, sites=(sites,), s_range=np.zeros((K, 2)))
+    hands = Hands(key=("benchmark", 1), region=region, sites=(sites,), s_range=np.zeros((K, 2)),
+                  poses=poses, location=np.zeros(K, dtype=np.int64), located=np.ones(K, bool),
+                  measured={}, hits=((),) * K)
     attempt = Attempt("H1G1", True, None, None, decision, Phase("H1G1", hands=hands))
     grasp = {"hand": "right", "id": 0, "pose": cands.poses()[0], "width": 0.03,
              "contacts": contacts[0], "parts": ["handle", "handle"], "score": 1.0,

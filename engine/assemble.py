@@ -30,15 +30,17 @@ def _gripper_meshes(spec: GripperSpec) -> dict:
     return {"meshes": spec.meshes.model_dump()}
 
 
-def grasp_record(ctx: PlanContext, hand: str, i: int, k: int, score: float | None) -> dict:
-    """A robot grasp as the JSON result describes it (object frame and world)."""
+def grasp_record(ctx: PlanContext, hand: str, i: int, pose_k: np.ndarray,
+                 score: float | None) -> dict:
+    """A robot grasp as the JSON result describes it (object frame, and world with the object
+    at ``pose_k`` (4, 4), its handover pose)."""
     c = ctx.candidates
     pose = ctx.gripper_poses()[i]
     return {
         "hand": hand,
         "id": i,
         "pose": pose,
-        "pose_world": ctx.poses[k] @ pose,
+        "pose_world": pose_k @ pose,
         "width": float(c.width[i]),
         "contacts": c.contacts[i],
         "parts": [c.part_names[p] for p in c.parts[i]],
@@ -57,13 +59,14 @@ def human_record(ctx: PlanContext, k: int, hand: str, hands: Hands,
     site = sites.site[k]
     from handover.engine.features import hand_model
 
+    pose = hands.poses[k]
     return {
         "hand": hand,
         "position": site,
-        "position_world": ctx.poses[k, :3, :3] @ site + ctx.poses[k, :3, 3],
+        "position_world": pose[:3, :3] @ site + pose[:3, 3],
         "part": ctx.part_mesh.part_names[int(sites.part[k])],
         "model": [{"name": name, "extents": ext, "pose": pose}
-                  for name, ext, pose in hand_model(ctx, hands, sites, k)],
+                  for name, ext, pose in hand_model(ctx, hands.region, sites, k, pose)],
     }
 
 
@@ -116,7 +119,8 @@ def build_result(
     """Assemble the JSON-able result of the chosen attempt."""
     s = ctx.situation
     k = attempt.chosen[-1].presentation if attempt.chosen else 0
-    robot_grasps = [grasp_record(ctx, c.hand, c.grasp, c.presentation, attempt.score)
+    robot_grasps = [grasp_record(ctx, c.hand, c.grasp, c.phase.hands.poses[c.presentation],
+                                 attempt.score)
                     for c in attempt.chosen]
     human: list[dict] = []
     trace: list[dict] = []
@@ -173,10 +177,10 @@ def build_result(
         mode=attempt.mode if attempt.feasible else None,
         feasible=attempt.feasible,
         reason=attempt.reason if not attempt.feasible else None,
-        object_pose=ctx.poses[k] if attempt.feasible else None,
+        object_pose=attempt.phase.hands.poses[k] if attempt.feasible else None,
         receiver={"position": s.receiver_position, "facing": s.receiver_facing,
-                  "hand_height": s.receiver.hand_height, "role": s.receiver.role,
-                  "dominant_hand": s.receiver.dominant_hand},
+                  "stature": s.receiver.height, "posture": s.receiver.posture,
+                  "role": s.receiver.role, "dominant_hand": s.receiver.dominant_hand},
         robot_grasps=robot_grasps,
         human_grasps=human,
         gripper={"id": s.gripper.id, "max_width": g.max_opening, "min_width": g.min_opening,

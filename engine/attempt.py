@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     from handover.engine.compiler import ConstraintGraph
     from handover.engine.evaluate import Decision
     from handover.engine.presentation import ReceiverRegion, ReceiverSites
+    from handover.engine.world import Locations
 
 __all__ = ["Roles", "Hands", "Phase", "Chosen", "Attempt"]
 
@@ -39,18 +40,33 @@ class Roles:
 
 @dataclass(frozen=True, eq=False)
 class Hands:
-    """Where the receiver's hands go, per presentation, for one set of roles.
+    """Where the receiver's hands go on the object, and where the object is offered, per
+    presentation, for one set of roles and location rules.
 
-    key : hashable identity (roles, number of hands) for memoised features.
+    key : hashable identity (roles, number of hands, location rules) for memoised features.
     region : the receiver's graspable region. sites : one :class:`ReceiverSites` per
-    receiver hand (one, or two for a large object). s_range : (K, 2) m, the giver's graspable
+    receiver hand (one, or two for a large object); receiving : the receiver's hands that
+    take it. s_range : (K, 2) m, the giver's graspable
     region's extent along robot->receiver in each presentation (the ``giver_side`` rule).
+    poses : (K, 4, 4) object -> world at the handover, each presentation at its location.
+    location : (K,) int, the chosen location of each presentation (index into
+    ``locations.points``); where no location passes every hard location rule, the one that
+    came closest (and ``located[k]`` is False). measured : measure -> (K,) the chosen
+    location's values (``clear`` 1/0). hits : per presentation, what the object or the
+    receiver's hands hit at the chosen location (names; empty when clear).
     """
 
     key: tuple
     region: ReceiverRegion
     sites: tuple[ReceiverSites, ...]
     s_range: np.ndarray
+    poses: np.ndarray
+    location: np.ndarray
+    located: np.ndarray
+    measured: dict
+    hits: tuple[tuple[str, ...], ...]
+    receiving: tuple[str, ...] = ("right",)
+    locations: Locations | None = None
 
 
 @dataclass(frozen=True)

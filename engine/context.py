@@ -15,13 +15,13 @@ import numpy as np
 
 from handover.engine.attempt import Hands, Roles
 from handover.engine.presentation import (
-    handover_poses,
     predict_receiver_sites,
     predict_two_hand_sites,
     presentation_rotations,
     receiver_region,
 )
 from handover.engine.query import Situation
+from handover.engine.world import Locations, World, build_world, candidate_locations, place
 
 if TYPE_CHECKING:
     from handover.geometry.candidates import CandidateSet
@@ -57,8 +57,8 @@ class PlanContext:
     context (gripper poses, the scene collision of a grasp at pick-up, hand boxes keyed by
     the hands' identity), computed on first use.
 
-    rotations : (K, 3, 3) object -> world at the handover; poses : (K, 4, 4).
-    initial : (4, 4) object -> world at pick-up.
+    rotations : (K, 3, 3) object -> world at the handover (where each is offered depends on
+    the mode's rules: :meth:`hands`). initial : (4, 4) object -> world at pick-up.
     part_tags : tags of each part index of ``part_mesh``.
     warnings : what the preparation found worth telling (units of a mesh file).
     """
@@ -71,7 +71,6 @@ class PlanContext:
     gripper: Gripper
     hand: HumanHand
     rotations: np.ndarray
-    poses: np.ndarray
     initial: np.ndarray
     scene: BoxWorld
     scene_box_list: list
@@ -108,17 +107,33 @@ class PlanContext:
             self.memo["d_obj"] = np.einsum("kji,j->ki", self.rotations, self.situation.toward)
         return self.memo["d_obj"]
 
-    def hands(self, roles: Roles, count: int = 1) -> Hands:
+    def hands(self, roles: Roles, count: int = 1, location_rules: tuple = ()) -> Hands:
         """Where the receiver's ``count`` hands (1 or 2) go in every presentation, given
-        which parts the people may hold (memoised by ``(roles, count)``)."""
+        which parts the people may hold, and where each presentation is offered under the
+        compiled ``location_rules`` (memoised by roles, count and the rules)."""
         memo = self.memo.setdefault("hands", {})
-        key = (roles, count)
+        key = (roles, count, tuple(c.rule.model_dump_json() for c in location_rules))
         if key not in memo:
-            memo[key] = _hands(self, roles, count)
+            memo[key] = _hands(self, roles, count, location_rules, key)
         return memo[key]
 
+    @property
+    def world(self) -> World:
+        """The bodies at the handover: scene boxes, the receiver's and the robot's bodies."""
+        if "world" not in self.memo:
+            self.memo["world"] = build_world(self.situation, self.scene_box_list)
+        return self.memo["world"]
 
-def _hands(ctx: PlanContext, roles: Roles, count: int) -> Hands:
+    def locations(self, hand: str) -> Locations:
+        """The candidate handover locations around the receiver's ``hand`` (memoised)."""
+        memo = self.memo.setdefault("locations", {})
+        if hand not in memo:
+            memo[hand] = candidate_locations(self, self.world, hand)
+        return memo[hand]
+
+
+def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
+           key: tuple) -> Hands:
     """See :meth:`PlanContext.hands`. The giver's graspable region (parts the robot may
     hold) gives ``s_range``, whose robot-side half the ``giver_side`` rule measures (seed
     3.1: "the half of the graspable region near the robot")."""
@@ -142,7 +157,13 @@ def _hands(ctx: PlanContext, roles: Roles, count: int) -> Hands:
             where=s.task.receiver_site if s.task is not None else "middle",
             finger_thickness=s.hand.finger_thickness,
         ),)
-    return Hands(key=(roles, count), region=region, sites=sites, s_range=s_range)
+    receiving = (s.receiver.dominant_hand,) if count == 1 else (
+        s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")
+    placed = place(ctx, region, sites, list(location_rules), receiving)
+    return Hands(key=key, region=region, sites=sites, s_range=s_range, poses=placed.poses,
+                 location=placed.location, located=placed.located, measured=placed.measured,
+                 hits=placed.hits, receiving=receiving,
+                 locations=ctx.locations(receiving[0]))
 
 
 def _rotation_deg(angles) -> np.ndarray:
@@ -201,7 +222,6 @@ def build_context(
 
     vertices = np.asarray(part_mesh.mesh.vertices, dtype=float)
     rotations = presentation_rotations(situation.toward)
-    poses = handover_poses(vertices, rotations, situation.handover_point)
     boxes = scene_boxes(situation)
     extents = _obb_extents(vertices)
     tags = set(situation.obj.tags).union(*part_tags) if part_tags else set(situation.obj.tags)
@@ -222,7 +242,6 @@ def build_context(
         gripper=gripper,
         hand=hand,
         rotations=rotations,
-        poses=poses,
         initial=initial_pose(situation, vertices),
         scene=BoxWorld(boxes),
         scene_box_list=boxes,

@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.compiler import CompiledRule, ConstraintGraph
-from handover.engine.features import collision_targets
+from handover.engine.features import collision_targets, handover_targets
 from handover.engine.kinds import Outcome
 
 if TYPE_CHECKING:
@@ -205,7 +205,10 @@ def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,
         if out.unit == "part index" and entry["measured"] is not None and entry["measured"] >= 0:
             entry["measured_part"] = ctx.part_mesh.part_names[int(entry["measured"])]
         if c.rule.kind == "collision" and not passed:
-            entry["hits"] = collision_targets(float(out.measured[0]))
+            names = handover_targets(ctx, phase.hands).names if phase is not None else ()
+            entry["hits"] = collision_targets(float(out.measured[0]), names)
+        if c.rule.kind == "location" and c.rule.measure == "clear" and not passed:
+            entry["hits"] = list(phase.hands.hits[presentation])
         entries.append(entry)
     for c in cg.inactive:
         entries.append(_entry(c, "not_applicable", None, None))

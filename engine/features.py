@@ -15,7 +15,8 @@ import numpy as np
 if TYPE_CHECKING:
     from handover.engine.attempt import Hands
     from handover.engine.context import PlanContext
-    from handover.engine.presentation import ReceiverSites
+    from handover.engine.presentation import ReceiverRegion, ReceiverSites
+    from handover.geometry.bodies import Body
 
 __all__ = [
     "tag_mask",
@@ -27,16 +28,51 @@ __all__ = [
     "collision_other_gripper",
     "COLLISION_BITS",
     "collision_targets",
+    "collision_handover",
+    "handover_targets",
 ]
 
-# Bits of a collision rule's measured value: which targets were hit.
+# Bits of a collision rule's measured value: which targets were hit. At the handover, bit
+# ``HANDOVER_BIT + p`` is the world's target primitive p (``scene:table``, ``body:...``).
 COLLISION_BITS = {"scene": 1, "receiver_hand": 2, "other_gripper": 4}
+HANDOVER_BIT = 3
+LABELS = {"scene": "scene at pick-up", "receiver_hand": "receiver_hand",
+          "other_gripper": "other_gripper"}
 
 
-def collision_targets(measured: float) -> list[str]:
-    """The targets a collision rule's measured bit mask names (e.g. 3 -> scene, hand)."""
+def collision_targets(measured: float, handover_names: tuple[str, ...] = ()) -> list[str]:
+    """The targets a collision rule's measured bit mask names (e.g. 3 -> scene at pick-up,
+    receiver_hand); ``handover_names``: the world's targets at the handover, in bit order."""
     bits = int(measured) if np.isfinite(measured) else 0
-    return [name for name, bit in COLLISION_BITS.items() if bits & bit]
+    out = [LABELS[name] for name, bit in COLLISION_BITS.items() if bits & bit]
+    out += [name for p, name in enumerate(handover_names) if bits & (1 << (HANDOVER_BIT + p))]
+    return out
+
+
+def handover_targets(ctx: PlanContext, hands: Hands) -> Body:
+    """What a gripper at the handover must not touch: the scene, the robot's body and the
+    receiver's body but the arms that take the object."""
+    return ctx.world.without_receiving_arms(hands.receiving)
+
+
+def collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
+                       pk: np.ndarray) -> np.ndarray:
+    """(R,) int64 bit mask: which of :func:`handover_targets` the gripper at grasp ``gi``
+    touches with the object offered in presentation ``pk`` (bit ``HANDOVER_BIT + p``)."""
+    targets = handover_targets(ctx, hands)
+    out = np.zeros(len(gi), dtype=np.int64)
+    if len(targets) == 0:
+        return out
+    weights = np.left_shift(np.int64(1), HANDOVER_BIT + np.arange(len(targets), dtype=np.int64))
+    posed = ctx.gripper_boxes()
+    for k in np.unique(pk):  # the targets move into the object frame, not every gripper out
+        rows = np.flatnonzero(pk == k)
+        local = targets.moved(np.linalg.inv(hands.poses[k]))
+        sel = gi[rows]
+        hits = local.posed_hits(
+            posed._replace(centres=posed.centres[sel], rotations=posed.rotations[sel]))
+        out[rows] = hits.astype(np.int64) @ weights
+    return out
 
 
 def tag_mask(ctx: PlanContext, tags) -> np.ndarray:
@@ -65,14 +101,15 @@ def collision_scene(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
     return known[gi].astype(bool)
 
 
-def hand_model(ctx: PlanContext, hands: Hands, sites: ReceiverSites, k: int) -> list:
-    """One receiver hand (palm and finger boxes, world) at ``sites`` in presentation ``k``;
-    empty where that hand has no site."""
+def hand_model(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites, k: int,
+               pose: np.ndarray) -> list:
+    """One receiver hand (palm and finger boxes, world) at ``sites`` in presentation ``k``
+    with the object at ``pose`` (4, 4); empty where that hand has no site."""
     if not sites.valid[k]:
         return []
-    rot, pose = ctx.rotations[k], ctx.poses[k]
-    site = pose[:3, :3] @ sites.site[k] + pose[:3, 3]
-    axis = rot @ (sites.axis[k] if sites.axis is not None else hands.region.axis)
+    rot = pose[:3, :3]
+    site = rot @ sites.site[k] + pose[:3, 3]
+    axis = rot @ (sites.axis[k] if sites.axis is not None else region.axis)
     approach = _hand_approach(axis, ctx.situation.toward)
     return ctx.hand.boxes(site, axis, approach, float(sites.thickness[k]))
 
@@ -91,7 +128,8 @@ def receiver_hand_boxes(ctx: PlanContext, hands: Hands, k: int) -> list:
     memo = ctx.memo.setdefault("hand_boxes", {})
     key = (hands.key, k)
     if key not in memo:
-        memo[key] = [b for sites in hands.sites for b in hand_model(ctx, hands, sites, k)]
+        memo[key] = [b for sites in hands.sites
+                     for b in hand_model(ctx, hands.region, sites, k, hands.poses[k])]
     return memo[key]
 
 
@@ -109,7 +147,7 @@ def collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
         boxes = receiver_hand_boxes(ctx, hands, int(k))
         if not boxes:
             continue
-        world = BoxWorld(boxes).moved(np.linalg.inv(ctx.poses[k]))
+        world = BoxWorld(boxes).moved(np.linalg.inv(hands.poses[k]))
         sel = gi[rows]
         out[rows] = world.posed_hits(
             posed._replace(centres=posed.centres[sel], rotations=posed.rotations[sel])

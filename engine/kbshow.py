@@ -77,7 +77,7 @@ def listing(kb: KB) -> dict[str, list[dict[str, Any]]]:
         ],
         "receivers": [
             {"id": r.id, "name": r.name, "role": r.role, "dominant_hand": r.dominant_hand,
-             "posture": r.posture, "hand_height": r.hand_height, "hand": r.hand}
+             "posture": r.posture, "stature": r.height, "hand": r.hand}
             for r in kb.receivers.values()
         ],
         "scenes": [

@@ -83,8 +83,6 @@ class Situation:
     receiver_position : (3,) m, world. Where the receiver stands (floor).
     receiver_facing : (3,) unit, world, horizontal.
     receiver_right : (3,) unit, world. The receiver's own right-hand side.
-    handover_point : (3,) m, world. Where the object's centre is presented: halfway between
-        robot and receiver, at the receiver's hand height.
     directions : name -> (3,) unit world vector for every receiver-frame direction.
     """
 
@@ -102,7 +100,6 @@ class Situation:
     receiver_position: np.ndarray
     receiver_facing: np.ndarray
     receiver_right: np.ndarray
-    handover_point: np.ndarray
     directions: dict[str, np.ndarray] = field(default_factory=dict)
 
 
@@ -159,8 +156,6 @@ def resolve_situation(kb: KB, query: Query, obj: ObjectSpec | None = None) -> Si
         "receiver_dominant": dominant,
         "receiver_nondominant": -dominant,
     }
-    distance = float(np.linalg.norm(flat))
-    handover_point = toward * (distance / 2.0) + up * receiver.hand_height
     return Situation(
         query=query,
         obj=obj,
@@ -176,6 +171,5 @@ def resolve_situation(kb: KB, query: Query, obj: ObjectSpec | None = None) -> Si
         receiver_position=receiver_position,
         receiver_facing=facing,
         receiver_right=right,
-        handover_point=handover_point,
         directions=directions,
     )

@@ -270,8 +270,12 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
     c = ctx.candidates
     centre = np.asarray(c.centre, dtype=np.float32)
     approach = np.asarray(c.a, dtype=np.float32) * arrow
-    handover_pose = (np.asarray(result.object_pose, dtype=float) if result.feasible
-                     and result.object_pose is not None else ctx.poses[k])  # fmt: skip
+    if result.feasible and result.object_pose is not None:
+        handover_pose = np.asarray(result.object_pose, dtype=float)
+    elif attempt is not None and attempt.phase is not None:  # where that presentation was
+        handover_pose = attempt.phase.hands.poses[k]
+    else:
+        handover_pose = ctx.initial
 
     rec = rr.RecordingStream(APPLICATION_ID, recording_id=uuid.uuid4(), send_properties=False)
     rec.set_log_time_enabled(False)

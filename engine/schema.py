@@ -281,16 +281,30 @@ class Culture(KBModel):
 # ---------------------------------------------------------------- people, robot, scene
 
 
+ROLE_STATURE: dict[str, float] = {"adult": 1.70, "elder": 1.62, "child": 1.10,
+                                  "superior": 1.70}
+"""m, a receiver's stature when the profile gives none. Adult: between the mean statures of
+adult men (~1.76 m) and women (~1.63 m) in the NCD-RisC 2016 country averages of Europe and
+East Asia; elder: the same less ~5 cm lost by 70-80 years (Sorkin et al., Am J Epidemiol
+1999); child: the WHO 2007 growth reference median at about 5 years (1.10 m)."""
+
+
 class ReceiverProfile(KBModel):
-    """Who receives: role, dominant hand, posture, and the height of their hand (m, world z)."""
+    """Who receives: role, dominant hand, posture (standing or seated), stature (m; the body
+    and its reach are sized from it), and the hand model the robot keeps clear of."""
 
     id: Id
     name: str
     role: Literal["adult", "elder", "child", "superior"] = "adult"
     dominant_hand: Literal["left", "right"] = "right"
     posture: Literal["standing", "seated"] = "standing"
-    hand_height: Positive = 1.0
+    stature: Annotated[float, Field(gt=0.3, le=2.6, allow_inf_nan=False)] | None = None
     hand: Id = "adult_hand"
+
+    @property
+    def height(self) -> float:
+        """m: the stature given, else the role's default (:data:`ROLE_STATURE`)."""
+        return self.stature if self.stature is not None else ROLE_STATURE[self.role]
 
 
 class GripperMeshes(KBModel):

@@ -1,4 +1,6 @@
 """Meshes in, validated: loading files, primitives, and objects made of named parts.
+Longer than 500 lines: loading, validating, composing parts and labelling contacts by part
+share one notion of a part-tagged mesh; split, each piece would re-explain it.
 
 Every mesh that leaves this module has finite vertices, no degenerate faces, merged
 vertices and consistent winding (outward normals when it is watertight). Bad input raises

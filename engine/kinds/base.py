@@ -45,9 +45,12 @@ FEATURES: dict[str, tuple[float, str, str]] = {
     "giver_side": (2.0, "grasp x presentation", "grasp position along robot->receiver"),
     "approach": (2.0, "grasp x presentation", "angle of approach a to robot->receiver"),
     "clearance": (3.0, "grasp x presentation", "distance from robot grasp to receiver site"),
+    "location": (1.0, "presentation", "the handover location chosen for the presentation"),
     "collision_scene": (50.0, "grasp", "gripper against table and obstacles at pick-up"),
     "collision_receiver_hand": (100.0, "grasp x presentation", "gripper against human hand"),
     "collision_other_gripper": (100.0, "grasp pair", "gripper against the other gripper"),
+    "collision_handover": (100.0, "grasp x presentation",
+                           "gripper against table, obstacles and bodies at the handover"),
 }
 
 

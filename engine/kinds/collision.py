@@ -14,20 +14,22 @@ if TYPE_CHECKING:
     from handover.engine.attempt import Phase
     from handover.engine.context import PlanContext
 
-Target = Literal["scene", "receiver_hand", "other_gripper"]
+Target = Literal["scene", "receiver_hand", "other_gripper", "handover"]
 
 
 @register
 class CollisionRule(RuleBase):
-    """against: the targets checked (scene, receiver_hand, other_gripper). The gripper
-    against the object itself is settled when candidates are generated."""
+    """against: the targets checked: scene (the table and obstacles at pick-up),
+    receiver_hand, other_gripper (the robot's other gripper on the object), handover (the
+    table, obstacles, the robot's and the receiver's bodies where the object is offered).
+    The gripper against the object itself is settled when candidates are generated."""
 
     kind: Literal["collision"] = "collision"
     against: list[Target] = Field(min_length=1)
 
     colour = (130, 0, 0)
     summary = "gripper against scene, receiver's hands, other gripper"
-    example = {"against": ["scene", "receiver_hand"]}
+    example = {"against": ["scene", "receiver_hand", "handover"]}
 
     def features(self) -> list[str]:
         return [f"collision_{t}" for t in self.against]
@@ -49,6 +51,10 @@ class CollisionRule(RuleBase):
                 hit = f.collision_receiver_hand(ctx, phase.hands, gi, pk)
             elif target == "other_gripper" and phase.other_grasp is not None:
                 hit = f.collision_other_gripper(ctx, phase.other_grasp, gi)
+            elif target == "handover" and phase.receiver_present:
+                checked.append(target)
+                mask |= f.collision_handover(ctx, phase.hands, gi, pk)
+                continue
             if hit is not None:
                 checked.append(target)
                 mask |= np.where(hit, f.COLLISION_BITS[target], 0)

@@ -70,17 +70,16 @@ def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
 
 
 def beyond_reach(ctx: PlanContext) -> str | None:
-    """What lies beyond the robot's ``reach`` (horizontal distance from its base axis): the
-    object where it is picked up, or the handover point. None when both are within it."""
+    """Whether the object to pick up lies beyond the robot's ``reach`` (horizontal distance
+    from its base axis), said with the distance; None when it is within. (Where the object is
+    offered, the ``location`` rules judge.)"""
     robot = ctx.situation.robot
-    said = []
-    for what, point in (("the object at pick-up", ctx.initial[:3, 3]),
-                        ("the handover point", ctx.situation.handover_point)):
-        distance = float(np.hypot(point[0], point[1]))
-        if distance > robot.reach + 1e-9:
-            said.append(f"{what} is {distance:.2f} m from the robot, beyond its reach of "
-                        f"{robot.reach:g} m ({robot.source})")
-    return "; ".join(said) or None
+    point = ctx.initial[:3, 3]
+    distance = float(np.hypot(point[0], point[1]))
+    if distance > robot.reach + 1e-9:
+        return (f"the object at pick-up is {distance:.2f} m from the robot, beyond its reach "
+                f"of {robot.reach:g} m ({robot.source})")
+    return None
 
 
 def required_mode(kb: KB, ctx: PlanContext) -> tuple[str | None, str, str | None, str]:

@@ -8,12 +8,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from handover.engine.attempt import Attempt, Roles
+    from handover.engine.attempt import Attempt, Hands, Roles
     from handover.engine.compiler import ConstraintGraph
     from handover.engine.context import PlanContext
     from handover.engine.loader import KB
 
-__all__ = ["PLANNERS", "HANDS_NEEDED", "register", "receiver_roles", "hand_at"]
+__all__ = ["PLANNERS", "HANDS_NEEDED", "register", "receiver_roles", "hands_for", "hand_at"]
 
 Planner = Callable[["KB", "PlanContext"], "Attempt"]
 PLANNERS: dict[str, Planner] = {}
@@ -37,6 +37,13 @@ def receiver_roles(cg: ConstraintGraph, ctx: PlanContext) -> Roles:
     """The roles of ``cg``'s active contact rules, the query's task first."""
     task = ctx.situation.task
     return cg.roles(tuple(task.receiver_tags) if task is not None else ())
+
+
+def hands_for(cg: ConstraintGraph, ctx: PlanContext, count: int = 1) -> Hands:
+    """Where the receiver's ``count`` hands go and where each presentation is offered,
+    under ``cg``'s contact and location rules."""
+    locations = tuple(c for c in cg.order if c.rule.kind == "location")
+    return ctx.hands(receiver_roles(cg, ctx), count, locations)
 
 
 def hand_at(pose: np.ndarray, centre: np.ndarray, hands=("left", "right")) -> str:

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import compile
 from handover.engine.evaluate import evaluate, infeasible_reason
-from handover.engine.modes.common import hand_at, receiver_roles, register
+from handover.engine.modes.common import hand_at, hands_for, register
 
 if TYPE_CHECKING:
     from handover.engine.context import PlanContext
@@ -20,7 +20,7 @@ if TYPE_CHECKING:
 def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a one-hand handover; see the module docstring."""
     cg = compile(kb, ctx, "H1G1")
-    phase = Phase("H1G1", hands=ctx.hands(receiver_roles(cg, ctx)), pickup=True,
+    phase = Phase("H1G1", hands=hands_for(cg, ctx), pickup=True,
                   receiver_present=True)
     decision = evaluate(cg, ctx, phase)
     ranking = decision.ranking()
@@ -28,6 +28,6 @@ def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
         return Attempt("H1G1", False, infeasible_reason(decision, "H1G1"), cg, decision, phase)
     best = int(ranking[0])
     i, k = int(decision.gi[best]), int(decision.pk[best])
-    hand = hand_at(ctx.poses[k], ctx.candidates.centre[i], ctx.situation.robot.hands)
+    hand = hand_at(phase.hands.poses[k], ctx.candidates.centre[i], ctx.situation.robot.hands)
     return Attempt("H1G1", True, None, cg, decision, phase, (Chosen(hand, i, k, phase),),
                    float(decision.score[best]))

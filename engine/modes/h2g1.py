@@ -28,7 +28,7 @@ from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import ConstraintGraph, compile
 from handover.engine.evaluate import evaluate, infeasible_reason
 from handover.engine.features import collision_scene
-from handover.engine.modes.common import receiver_roles, register
+from handover.engine.modes.common import hands_for, register
 
 if TYPE_CHECKING:
     from handover.engine.context import PlanContext
@@ -74,7 +74,7 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     cg = compile(kb, ctx, "H2G1")
     hands, hands_why = receiver_hand_count(cg)
     # Rows are judged at the presentation; pick-up is a property of the pair (below).
-    phase = Phase("H2G1", hands=ctx.hands(receiver_roles(cg, ctx), hands), pickup=False,
+    phase = Phase("H2G1", hands=hands_for(cg, ctx, hands), pickup=False,
                   receiver_present=True)
     decision = evaluate(cg, ctx, phase)
     extra = {"receiver_hands": hands, "receiver_hands_why": hands_why}

@@ -22,7 +22,7 @@ import numpy as np
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import CompiledRule, compile
 from handover.engine.evaluate import evaluate, evaluate_rule, infeasible_reason
-from handover.engine.modes.common import hand_at, receiver_roles, register
+from handover.engine.modes.common import hand_at, hands_for, register
 
 if TYPE_CHECKING:
     from handover.engine.context import PlanContext
@@ -50,9 +50,10 @@ def first_rules(hard: list[CompiledRule]) -> list[CompiledRule]:
     return keep
 
 
-def midair_pose(ctx: PlanContext, k: int) -> np.ndarray:
-    """(4, 4) world: the object in presentation ``k``, ``MIDAIR_BACKOFF`` nearer the robot."""
-    pose = ctx.poses[k].copy()
+def midair_pose(ctx: PlanContext, handover: np.ndarray) -> np.ndarray:
+    """(4, 4) world: the object at its ``handover`` pose (4, 4), ``MIDAIR_BACKOFF`` nearer
+    the robot."""
+    pose = handover.copy()
     pose[:3, 3] -= MIDAIR_BACKOFF * ctx.situation.toward
     return pose
 
@@ -87,7 +88,7 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     cg = compile(kb, ctx, "H2G2")
     # The second hand hands over: it never takes the object off the table. The first picks
     # it while the receiver's hands are not there yet.
-    second = Phase("H2G2", hands=ctx.hands(receiver_roles(cg, ctx)), pickup=False,
+    second = Phase("H2G2", hands=hands_for(cg, ctx), pickup=False,
                    receiver_present=True)
     first = second.but(pickup=True, receiver_present=False)
     decision = evaluate(cg, ctx, second)
@@ -126,7 +127,7 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     i2, k = int(decision.gi[row]), int(decision.pk[row])
     first_hand = hand_at(ctx.initial, ctx.candidates.centre[f])
     second_hand = "left" if first_hand == "right" else "right"
-    extra.update(first=f, first_hand=first_hand, midair=midair_pose(ctx, k),
+    extra.update(first=f, first_hand=first_hand, midair=midair_pose(ctx, second.hands.poses[k]),
                  rows_skipped=m)
     chosen = (Chosen(first_hand, f, k, first.but(other_grasp=i2), stage="pick"),
               Chosen(second_hand, i2, k, second.but(other_grasp=f)))

@@ -134,11 +134,13 @@ def _context(cands: CandidateSet) -> PlanContext:
         candidates=cands, generation={"facet_pairs": 3}, gripper=Gripper.default(),
         hand=HumanHand(palm=(0.08, 0.09, 0.03), finger_length=0.08, finger_thickness=0.02,
                        grip_width=0.08),
-        rotations=rotations, poses=poses, initial=initial, scene=None,
+        rotations=rotations, initial=initial, scene=None,
         scene_box_list=[("table", np.array([0.8, 1.2, 0.05]), table)],
         facts=None,
     )  # fmt: skip
-    hands = Hands(key=("test", 1), region=region, sites=(sites,), s_range=np.zeros((K, 2)))
+    hands = Hands(key=("test", 1), region=region, sites=(sites,), s_range=np.zeros((K, 2)),
+                  poses=poses, location=np.zeros(K, dtype=np.int64), located=np.ones(K, bool),
+                  measured={}, hits=((),) * K)
     return ctx, hands
 
 
@@ -189,7 +191,7 @@ def synthetic_plan(feasible: bool = True, h2g2: bool = False):
         second = _grasp(cands, 0, "right", 0.9, "handover")
         grasps = [first, second]
         trace = _trace(5, "left", "pick") + _trace(0, "right", "handover")
-        midair = ctx.poses[0].copy()
+        midair = hands.poses[0].copy()
         midair[0, 3] -= 0.2
         regrasp = {"first": first, "midair_pose": midair, "second": second}
     result = PlanResult(
@@ -199,7 +201,7 @@ def synthetic_plan(feasible: bool = True, h2g2: bool = False):
         mode=("H2G2" if h2g2 else "H1G1") if feasible else None,
         feasible=feasible,
         reason=None if feasible else attempt.reason,
-        object_pose=ctx.poses[0] if feasible else None,
+        object_pose=hands.poses[0] if feasible else None,
         receiver={"position": [1.0, 0.0, 0.0], "facing": [-1.0, 0.0, 0.0],
                   "hand_height": 1.0, "role": "adult", "dominant_hand": "right"},
         robot_grasps=grasps,

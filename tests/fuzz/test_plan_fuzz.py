@@ -242,7 +242,8 @@ def kept_rows(planned) -> tuple[np.ndarray, np.ndarray]:
     rows = np.flatnonzero(decision.kept)
     grasp = ctx.candidates.poses()[decision.gi[rows]]
     pick = np.einsum("ij,njk->nik", ctx.initial, grasp)
-    hand = np.einsum("nij,njk->nik", ctx.poses[decision.pk[rows]], grasp)
+    poses = planned.attempt.phase.hands.poses
+    hand = np.einsum("nij,njk->nik", poses[decision.pk[rows]], grasp)
     keys = np.hstack([canonical(pick), canonical(hand), decision.score[rows, None]])
     best = decision.score[rows] >= decision.score[rows].max() - 1e-9
     return keys, keys[best]
