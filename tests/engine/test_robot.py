@@ -328,3 +328,16 @@ def test_a_body_in_the_yaml_replaces_the_urdf_links(make_kb):
 def test_a_robot_without_arms_has_none(make_kb):
     kb = load_kb(make_kb())
     assert robot_arms(kb, "bot") is None
+
+
+def test_the_readme_shows_the_shipped_robot(builtin_kb):
+    import re
+    from pathlib import Path
+
+    import yaml
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    section = readme.split("### Robots and their arms", 1)[1].split("\n## ", 1)[0]
+    shown = yaml.safe_load(re.findall(r"```yaml\n(.*?)```", section, flags=re.S)[0])
+    shipped = yaml.safe_load((builtin_kb.root / "robots" / "idro.yaml").read_text())
+    assert shown == shipped
