@@ -151,6 +151,13 @@ def test_a_chain_that_does_not_move(make_kb):
     assert "has no moving joint" in issue.message
 
 
+def test_an_arm_based_on_a_moving_link(make_kb):
+    text = ROBOT.replace("base_link: base", "base_link: l1")
+    issue = the_error(make_kb({"robots/arm.yaml": text, "robots/arm.urdf": ARM_URDF}))
+    assert issue.line == line_of(text, "base_link:")
+    assert "link 'l1' moves relative to 'base' (joint 'j1'): it has no fixed pose" in issue.message
+
+
 def test_an_arm_gripper_that_does_not_exist(make_kb):
     text = ROBOT + "    gripper: claw\n"
     issue = the_error(make_kb({"robots/arm.yaml": text, "robots/arm.urdf": ARM_URDF}))
