@@ -2,7 +2,8 @@
 kinematics and collisions, in the world frame.
 
 :func:`robot_arms` (or :meth:`RobotArms.load`) turns a :class:`~handover.engine.robotspec.
-RobotSpec` with ``arms`` into a :class:`RobotArms`: per arm (``left``/``right``) an :class:`Arm`
+RobotSpec` with ``arms`` into a :class:`RobotArms`: per arm (``left``/``right``) an
+:class:`~handover.engine.robotload.Arm`
 with its chain, its :class:`~handover.geometry.kinematics.Kinematics` (tool frame = the grasp
 frame, through the arm's ``tcp``), its base in the world and its links' collision shapes; and
 the robot's body (:class:`~handover.geometry.bodies.Body`, world). A robot without arms gives
@@ -12,7 +13,8 @@ World poses: ``base_pose`` (the URDF root link in the world) @ the arm's base li
 frame @ FK(q) (tip link) @ ``tcp`` = the grasp frame ``[n o a p]`` (m). Joint values are
 radians (metres for prismatic joints).
 
-- The URDF is parsed once per content hash and path in a process (:func:`robot_model`).
+- The URDF is parsed once per content hash and path in a process
+  (:func:`handover.engine.robotload.robot_model`).
 - Each arm's reachability map (:class:`~handover.geometry.reach.ReachMap`) is built on first
   use and saved in ``reach_dir`` (:func:`reach_dir`: ``<grasp database>/reach``), named by the
   URDF's hash, the chain, the tcp and the map's parameters, so a changed URDF or tcp gets a new
