@@ -21,14 +21,18 @@ Errors:
     use a tag an object already carries;
   - an ``axis`` rule naming an axis no object defines, a rule's ``applies.tasks`` naming a task
     no object has;
-  - a receiver's ``hand`` or a robot's ``gripper`` that does not exist; two obstacles with one
-    id in a scene;
+  - a receiver's ``hand`` or a robot's (or an arm's) ``gripper`` that does not exist; two
+    obstacles with one id in a scene;
+  - a robot's ``urdf`` that is missing, outside the KB, xacro, or does not parse (the URDF's
+    file:line in the message); an arm naming a link the URDF lacks; an arm's chain with mimic,
+    floating or planar joints or none that moves (:func:`lint_robot`);
   - a scene whose receiver or robot stands inside the table or an obstacle, whose receiver
     stands on the robot or faces straight up or down, or whose object is placed off the table.
 
 Warnings:
   - a safety rule overridden with ``override_safety`` ("safety rule X overridden by Y: why");
     ``override_safety`` on a rule that overrides no safety rule;
+  - a robot's ``reach`` beyond what its arms reach at full stretch;
   - an object part that no geometry belongs to; an ``axis`` rule that applies to an object
     lacking that axis; a document whose id differs from its file name (loader); a file
     outside the KB folders (loader).
@@ -47,13 +51,15 @@ from typing import TYPE_CHECKING
 
 from handover.engine.errors import KBIssue
 from handover.engine.etiquette import _resolve, applies_to_object, object_tags
-from handover.engine.schema import KBModel, ObjectSpec, RuleBase
+from handover.engine.schema import KBModel, ObjectSpec, RobotSpec, RuleBase
 from handover.geometry.frames import rotation_from_euler_deg
 
 if TYPE_CHECKING:
     from handover.engine.store import KB
 
-__all__ = ["lint_kb", "lint_object", "lint_cultures", "lint_references", "lint_scene"]
+__all__ = [
+    "lint_kb", "lint_object", "lint_cultures", "lint_references", "lint_robot", "lint_scene",
+]
 
 
 def lint_kb(kb: KB, failed_kinds: Iterable[str] = ()) -> list[KBIssue]:
@@ -138,18 +144,18 @@ def _lint_mesh_file(kb: KB, obj: ObjectSpec) -> Iterator[KBIssue]:
 
 
 def lint_mesh_path(
-    kb: KB, at: KBModel, owner: KBModel, name: str, *sub: str | int
+    kb: KB, at: KBModel, owner: KBModel, name: str, *sub: str | int, what: str = "mesh file"
 ) -> Iterator[KBIssue]:
     """A mesh file ``name`` given relative to ``owner``'s YAML file: not empty, not absolute,
     inside the KB folder (also through symbolic links), existing. Issues are located at the
-    node ``sub`` of ``at``."""
+    node ``sub`` of ``at``; ``what`` names the kind of file in the messages (a URDF file)."""
     if not name.strip():
-        yield kb.issue(at, "mesh file name is empty", *sub)
+        yield kb.issue(at, f"{what} name is empty", *sub)
         return
     if PurePosixPath(name).is_absolute() or PureWindowsPath(name).is_absolute():
         yield kb.issue(
             at,
-            f"mesh file '{name}' is an absolute path; give it relative to the YAML file, "
+            f"{what} '{name}' is an absolute path; give it relative to the YAML file, "
             "inside the KB folder",
             *sub,
         )
@@ -157,18 +163,18 @@ def lint_mesh_path(
     path = kb.relative_path(owner, name)
     root = os.path.normpath(kb.root)
     if os.path.commonpath([root, str(path)]) != root:
-        yield kb.issue(at, f"mesh file '{name}' leaves the KB folder; keep meshes inside it", *sub)
+        yield kb.issue(at, f"{what} '{name}' leaves the KB folder; keep it inside", *sub)
         return
     if not path.is_file():
         rel = os.path.relpath(path, root)
-        yield kb.issue(at, f"mesh file '{name}' does not exist (looked for {rel})", *sub)
+        yield kb.issue(at, f"{what} '{name}' does not exist (looked for {rel})", *sub)
         return
     real_root = os.path.realpath(root)
     if os.path.commonpath([real_root, os.path.realpath(path)]) != real_root:
         yield kb.issue(
             at,
-            f"mesh file '{name}' leads through a symbolic link to {os.path.realpath(path)}, "
-            "outside the KB folder; copy the mesh into the KB",
+            f"{what} '{name}' leads through a symbolic link to {os.path.realpath(path)}, "
+            "outside the KB folder; copy it into the KB",
             *sub,
         )
 
@@ -255,13 +261,26 @@ def lint_references(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                     name = getattr(gripper.meshes, part)
                     yield from lint_mesh_path(kb, gripper, gripper, name, "meshes", part)
         for robot in kb.robots.values():
+            known = f"(grippers: {', '.join(sorted(kb.grippers)) or 'none'})"
             if robot.gripper not in kb.grippers:
                 yield kb.issue(
                     robot,
                     f"robot '{robot.id}' has gripper '{robot.gripper}', which does not exist "
-                    f"(grippers: {', '.join(sorted(kb.grippers)) or 'none'})",
+                    + known,
                     "gripper",
                 )
+            for side, arm in robot.arms.items():
+                if arm.gripper not in kb.grippers and arm.gripper != robot.gripper:
+                    yield kb.issue(
+                        robot,
+                        f"robot '{robot.id}': the {side} arm's gripper '{arm.gripper}' does "
+                        "not exist " + known,
+                        "arms",
+                        side,
+                        "gripper",
+                    )
+    for robot in kb.robots.values():
+        yield from lint_robot(kb, robot)
     for scene in kb.scenes.values():
         seen: dict[str, object] = {}
         for k, box in enumerate(scene.obstacles):
@@ -275,6 +294,26 @@ def lint_references(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                 )
             seen.setdefault(box.id, box)
         yield from lint_scene(kb, scene)
+
+
+# ---------------------------------------------------------------- robots
+
+
+def lint_robot(kb: KB, robot: RobotSpec) -> Iterator[KBIssue]:
+    """A robot's URDF: the file exists inside the KB (as mesh files do), parses (a problem is
+    reported at the ``urdf`` key with the URDF's own file:line; xacro is not supported), the
+    links each arm names exist, each chain has only revolute, continuous, prismatic and fixed
+    joints and at least one that moves, an arm's base link is fixed to the URDF's root; a
+    warning when ``reach`` exceeds what the arms reach (:func:`engine.robotload.check_robot`)."""
+    if robot.urdf is None:
+        return
+    path_issues = list(lint_mesh_path(kb, robot, robot, robot.urdf, "urdf", what="URDF file"))
+    if path_issues:
+        yield from path_issues
+        return
+    from handover.engine.robotload import check_robot
+
+    yield from check_robot(kb, robot)
 
 
 # ---------------------------------------------------------------- scenes

@@ -15,7 +15,8 @@ Kinds of KB document, one per file, told apart by their folder:
 ``receivers/`` :class:`ReceiverProfile` who receives (role, dominant hand, posture)
 ``grippers/``  :class:`GripperSpec`     the robot's parallel-jaw gripper
 ``hands/``     :class:`HumanHandSpec`   the receiver's hand model (an obstacle for the robot)
-``robots/``    :class:`RobotSpec`       two arms, payload per hand, which gripper
+``robots/``    :class:`RobotSpec`       hands, payload, gripper, arms (URDF), body
+               (in :mod:`handover.engine.robotspec`)
 ``scenes/``    :class:`SceneSpec`       table, obstacles, receiver placement, initial pose
 """
 
@@ -40,6 +41,7 @@ from handover.engine.kbmodel import (
     nonzero,
 )
 from handover.engine.kinds import KINDS, RuleBase
+from handover.engine.robotspec import RobotSpec
 
 __all__ = [
     "Source",
@@ -358,20 +360,6 @@ class HumanHandSpec(KBModel):
     finger_length: Positive
     finger_thickness: Positive
     grip_width: Positive
-
-
-class RobotSpec(KBModel):
-    """The robot: the hands it has, the payload one hand may carry, its gripper, and its
-    reach: m, the horizontal distance from its base axis (the world z axis through the
-    origin) within which its hands work; the object at pick-up and the handover point must
-    lie within it. A one-handed robot (``hands: [right]``) plans H1G1 only."""
-
-    id: Id
-    name: str
-    hands: list[Literal["left", "right"]] = ["left", "right"]
-    payload_per_hand: Positive
-    gripper: Id
-    reach: Positive = 0.9
 
 
 class BoxObstacle(KBModel):

@@ -31,7 +31,7 @@ import numpy as np
 from handover.geometry.kinematics import Kinematics
 from handover.geometry.urdf import RobotModelError
 
-__all__ = ["ReachMap", "fibonacci_sphere", "map_key"]
+__all__ = ["ReachMap", "fibonacci_sphere", "map_key", "workspace"]
 
 _FORMAT = 1
 # Direction lookup table: equal-area cells (uniform in z, uniform in azimuth).
@@ -127,7 +127,7 @@ class ReachMap:
         """
         if samples < 1 or voxel <= 0 or directions < 1 or voxel_tolerance < 0:
             raise RobotModelError("reach map: samples, voxel and directions must be positive")
-        centre, radius = _workspace(kin)
+        centre, radius = workspace(kin)
         n_vox = int(np.ceil(2.0 * radius / voxel))
         shape = np.array([n_vox] * 3, dtype=np.int64)
         lower = centre - 0.5 * n_vox * voxel
@@ -243,7 +243,7 @@ def _cell_index(points: np.ndarray, lower: np.ndarray, voxel: float, shape: np.n
     return np.where(inside, flat, -1)
 
 
-def _workspace(kin: Kinematics) -> tuple[np.ndarray, float]:
+def workspace(kin: Kinematics) -> tuple[np.ndarray, float]:
     """Centre (3,) and radius (m) of a sphere holding every reachable tool position: centred
     at the first joint, as wide as the sum of the chain's link lengths after it."""
     chain = kin.chain

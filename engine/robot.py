@@ -1,0 +1,300 @@
+"""The robot's arms, from its KB document and URDF: kinematics, reachability, inverse
+kinematics and collisions, in the world frame.
+
+:func:`robot_arms` (or :meth:`RobotArms.load`) turns a :class:`~handover.engine.robotspec.
+RobotSpec` with ``arms`` into a :class:`RobotArms`: per arm (``left``/``right``) an
+:class:`~handover.engine.robotload.Arm`
+with its chain, its :class:`~handover.geometry.kinematics.Kinematics` (tool frame = the grasp
+frame, through the arm's ``tcp``), its base in the world and its links' collision shapes; and
+the robot's body (:class:`~handover.geometry.bodies.Body`, world). A robot without arms gives
+``None``.
+
+World poses: ``base_pose`` (the URDF root link in the world) @ the arm's base link in the root
+frame @ FK(q) (tip link) @ ``tcp`` = the grasp frame ``[n o a p]`` (m). Joint values are
+radians (metres for prismatic joints).
+
+- The URDF is parsed once per content hash and path in a process
+  (:func:`handover.engine.robotload.robot_model`).
+- Each arm's reachability map (:class:`~handover.geometry.reach.ReachMap`) is built on first
+  use and saved in ``reach_dir`` (:func:`reach_dir`: ``<grasp database>/reach``), named by the
+  URDF's hash, the chain, the tcp and the map's parameters, so a changed URDF or tcp gets a new
+  map; in-process maps are kept too. Without a folder, maps live in the process only.
+- :meth:`RobotArms.reachable` screens poses with the map; :meth:`RobotArms.solve` is exact
+  damped-least-squares IK with seeded restarts (same input, same answer; a target's answer
+  may depend on the other targets of the batch through the restarts drawn).
+- :meth:`RobotArms.collisions` names what an arm's links touch at configurations: world boxes,
+  bodies (the receiver's), the robot's own body (except the link the arm is mounted on) and
+  the other arm.
+
+Errors in the robot's files are :class:`~handover.engine.errors.KBError` at the YAML node,
+with the URDF's own file:line in the message (:func:`handover.engine.robotload.check_robot`,
+also run by ``handover kb validate``). Loading and checking live in
+:mod:`handover.engine.robotload`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, NamedTuple
+
+import numpy as np
+
+from handover.engine.errors import KBError, UsageError
+from handover.engine.robotload import Arm, assemble, body_targets, frame_pose, kb_relative
+from handover.engine.robotspec import SIDES, RobotSpec
+from handover.geometry.armcollision import Targets, arms_hits, world_hits
+from handover.geometry.bodies import Body
+from handover.geometry.frames import invert_transform
+from handover.geometry.reach import ReachMap
+from handover.geometry.urdf import RobotModel
+
+if TYPE_CHECKING:
+    from handover.engine.graspdb import GraspDB
+    from handover.engine.store import KB
+
+__all__ = ["RobotArms", "Solution", "reach_dir", "robot_arms"]
+
+REACH_FOLDER = "reach"
+"""The folder of reachability maps inside the grasp database's folder."""
+
+IK_RESTARTS = 10
+"""Random restarts per target after the seed (the field notes: one seed misses 19-28 % of
+reachable poses; 5 restarts 3 %, 20 restarts 0.3 %)."""
+
+_MAPS: dict[tuple, ReachMap] = {}
+
+
+def reach_dir(db: GraspDB | None) -> Path | None:
+    """Where reachability maps are cached: ``<db folder>/reach`` for a grasp database on disk,
+    None (maps kept in the process only) without one or for an in-memory database."""
+    from handover.engine.graspdb import MemoryDB
+
+    if db is None or isinstance(db, MemoryDB):
+        return None
+    return db.root / REACH_FOLDER
+
+
+class Solution(NamedTuple):
+    """Inverse kinematics of m grasp poses for one arm.
+
+    q : (m, dof) joint values within the limits (for a failure: the closest attempt).
+    ok : (m,) bool, reached within 0.1 mm and 1 mrad. position_error : (m,) m.
+    rotation_error : (m,) rad.
+    """
+
+    q: np.ndarray
+    ok: np.ndarray
+    position_error: np.ndarray
+    rotation_error: np.ndarray
+
+
+@dataclass(eq=False)
+class RobotArms:
+    """A robot's arms and body in the world (see the module docstring).
+
+    spec : the robot's document. model : its URDF. urdf : the URDF's path relative to the KB
+    folder (posix). base_pose : (4, 4) the root link in the world. arms : side -> :class:`Arm`.
+    body : the robot's body in the world. reach_dir : where maps are cached (None: memory).
+    map_params : :meth:`ReachMap.build` parameters (``samples``, ``voxel``, ``directions``,
+    ...); the defaults of :meth:`ReachMap.cached` where absent.
+    """
+
+    spec: RobotSpec
+    model: RobotModel
+    urdf: str
+    base_pose: np.ndarray
+    arms: dict[str, Arm]
+    body: Body
+    reach_dir: Path | None = None
+    map_params: dict = field(default_factory=dict)
+
+    @classmethod
+    def load(
+        cls,
+        kb: KB,
+        robot: str | RobotSpec,
+        *,
+        reach_dir: Path | str | None = None,
+        map_params: dict | None = None,
+    ) -> RobotArms:
+        """The arms of ``robot`` (an id or a document of ``kb``). Raises
+        :class:`~handover.engine.errors.KBError` for a robot without arms or with a URDF
+        problem (located at the YAML node, the URDF's file:line in the message)."""
+        spec = kb.robot(robot) if isinstance(robot, str) else robot
+        if not spec.arms:
+            raise KBError([kb.issue(spec, f"robot '{spec.id}' has no arms (give 'urdf' and "
+                                          "'arms')")])  # fmt: skip
+        built, issues = assemble(kb, spec)
+        errors = [i for i in issues if i.severity == "error"]
+        if errors or built is None:
+            raise KBError(errors)
+        model, arms, body = built
+        return cls(
+            spec,
+            model,
+            kb_relative(kb, spec),
+            frame_pose(spec.base_pose),
+            arms,
+            body,
+            None if reach_dir is None else Path(reach_dir),
+            dict(map_params or {}),
+        )
+
+    # ------------------------------------------------------------------ arms and poses
+
+    @property
+    def sides(self) -> tuple[str, ...]:
+        """The arms' sides, ``left`` first."""
+        return tuple(s for s in SIDES if s in self.arms)
+
+    def arm(self, side: str) -> Arm:
+        """The arm on ``side``; UsageError if the robot has none there."""
+        if side not in self.arms:
+            raise UsageError(f"robot '{self.spec.id}' has no {side!r} arm "
+                             f"(arms: {', '.join(self.sides)})")  # fmt: skip
+        return self.arms[side]
+
+    def _to_base(self, arm: Arm, poses_world: np.ndarray) -> np.ndarray:
+        poses = np.asarray(poses_world, dtype=float)
+        if poses.ndim == 2:
+            poses = poses[None]
+        if poses.ndim != 3 or poses.shape[1:] != (4, 4):
+            raise ValueError(f"poses must have shape (m, 4, 4), got {poses.shape}")
+        return invert_transform(arm.base) @ poses
+
+    def fk(self, side: str, q: np.ndarray) -> np.ndarray:
+        """(n, 4, 4) grasp-frame poses in the world for configurations q (n, dof)."""
+        arm = self.arm(side)
+        return arm.base @ arm.kin.fk(q)
+
+    def link_poses(self, side: str, q: np.ndarray) -> np.ndarray:
+        """(n, L, 4, 4) world poses of ``arm.chain.links`` for q (n, dof)."""
+        arm = self.arm(side)
+        return arm.base @ arm.kin.link_poses(q)
+
+    def joints_dict(self, side: str, q: np.ndarray) -> dict[str, float]:
+        """One configuration q (dof,) as ``{joint name: rad (m for prismatic)}``."""
+        return self.arm(side).chain.as_dict(q)
+
+    def within_limits(self, side: str, q: np.ndarray) -> np.ndarray:
+        """(n,) bool: configurations q (n, dof) within the arm's joint limits."""
+        return self.arm(side).chain.within_limits(np.atleast_2d(q))
+
+    # ------------------------------------------------------------------ reachability and IK
+
+    def reach_map(self, side: str) -> ReachMap:
+        """The arm's reachability map: from this process, else from ``reach_dir``, else built
+        (and saved there)."""
+        arm = self.arm(side)
+        key = (None if self.reach_dir is None else str(self.reach_dir), self.model.content_hash,
+               arm.chain.base_link, arm.chain.tip_link, arm.tcp.round(12).tobytes(),
+               tuple(sorted(self.map_params.items())))  # fmt: skip
+        if key not in _MAPS:
+            if self.reach_dir is None:
+                _MAPS[key] = ReachMap.build(arm.kin, **self.map_params)
+            else:
+                _MAPS[key] = ReachMap.cached(arm.kin, self.reach_dir, self.model.content_hash,
+                                             **self.map_params)  # fmt: skip
+        return _MAPS[key]
+
+    def reachable(self, side: str, poses_world: np.ndarray) -> np.ndarray:
+        """(m,) bool: whether the map says the arm reaches grasp poses (m, 4, 4), world, m.
+        A screen: ``False`` is (nearly) certain, ``True`` wants :meth:`solve` to confirm."""
+        arm = self.arm(side)
+        return self.reach_map(side).reachable(self._to_base(arm, poses_world))
+
+    def solve(
+        self,
+        side: str,
+        poses_world: np.ndarray,
+        seed: np.ndarray | None = None,
+        *,
+        restarts: int = IK_RESTARTS,
+    ) -> Solution:
+        """Joint values putting the arm's grasp frame at poses (m, 4, 4), world, m.
+
+        seed : (dof,) or (m, dof) first guess (default: the middle of each joint's range),
+        then up to ``restarts`` seeded random restarts for the targets not reached.
+        """
+        arm = self.arm(side)
+        result = arm.kin.ik(self._to_base(arm, poses_world), seed=seed, restarts=restarts)
+        return Solution(result.q, result.success, result.position_error, result.rotation_error)
+
+    # ------------------------------------------------------------------ collisions
+
+    def collisions(
+        self,
+        side: str,
+        q: np.ndarray,
+        *,
+        boxes: Sequence[tuple[str, np.ndarray, np.ndarray]] = (),
+        bodies: Sequence[Body] = (),
+        other: tuple[str, np.ndarray] | None = None,
+        own_body: bool = True,
+        margin: float = 0.0,
+    ) -> list[list[str]]:
+        """For each configuration q (n, dof) of the arm on ``side``, the names of what its
+        links touch (target order, each once): ``boxes`` ``(name, extents (3,), pose (4,
+        4))`` in the world (a table, obstacles), the primitives of ``bodies`` (world; a
+        receiver), the robot's own body (``own_body``; not the arm's mount link) and, with
+        ``other = (side, q_other (n, dof))``, the other arm's links at the same moments.
+        margin : m, grows the arm's links."""
+        arm = self.arm(side)
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        poses = self.link_poses(side, q)
+        targets = Targets.from_boxes(list(boxes)) if boxes else Targets()
+        for body in bodies:
+            targets = targets + body_targets(body)
+        if own_body and len(self.body):
+            own = self.body.subset([name != arm.mount for name in self.body.names])
+            targets = targets + body_targets(own)
+        hits = world_hits(arm.shapes, poses, targets, margin=margin).any(axis=1)  # (n, K)
+        names = [[targets.names[j] for j in np.flatnonzero(row)] for row in hits]
+        if other is not None:
+            other_side, q_other = other
+            o = self.arm(other_side)
+            q_other = np.atleast_2d(np.asarray(q_other, dtype=float))
+            touch = arms_hits(arm.shapes, poses, o.shapes, self.link_poses(other_side, q_other),
+                              margin=margin).any(axis=1)  # (n, Lb)  # fmt: skip
+            for row, found in zip(names, touch, strict=True):
+                row.extend(o.shapes.links[j] for j in np.flatnonzero(found))
+        return [list(dict.fromkeys(row)) for row in names]
+
+    # ------------------------------------------------------------------ the result's field
+
+    def describe(self) -> dict:
+        """The result's ``robot`` field: ``{id, urdf (relative to the KB folder), base_pose
+        (4x4 world), arms: {side: {base_link, tip_link, tcp (4x4, tip link -> grasp frame),
+        gripper, joints: [names]}}}``, plain JSON types."""
+        return {
+            "id": self.spec.id,
+            "urdf": self.urdf,
+            "base_pose": self.base_pose.tolist(),
+            "arms": {
+                side: {
+                    "base_link": arm.chain.base_link,
+                    "tip_link": arm.chain.tip_link,
+                    "tcp": arm.tcp.tolist(),
+                    "gripper": arm.gripper,
+                    "joints": list(arm.chain.joint_names),
+                }
+                for side, arm in ((s, self.arms[s]) for s in self.sides)
+            },
+        }
+
+
+def robot_arms(
+    kb: KB,
+    robot: str | RobotSpec,
+    *,
+    db: GraspDB | None = None,
+    map_params: dict | None = None,
+) -> RobotArms | None:
+    """The arms of ``robot`` with maps cached next to ``db`` (:func:`reach_dir`), or None for
+    a robot without arms (a floating gripper per hand)."""
+    spec = kb.robot(robot) if isinstance(robot, str) else robot
+    if not spec.arms:
+        return None
+    return RobotArms.load(kb, spec, reach_dir=reach_dir(db), map_params=map_params)
