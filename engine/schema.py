@@ -17,6 +17,7 @@ Kinds of KB document, one per file, told apart by their folder:
 ``hands/``     :class:`HumanHandSpec`   the receiver's hand model (an obstacle for the robot)
 ``robots/``    :class:`RobotSpec`       two arms, payload per hand, which gripper
 ``scenes/``    :class:`SceneSpec`       table, obstacles, receiver placement, initial pose
+``tests/``     :class:`KBTestFile`      cases run by ``handover kb test`` (:mod:`engine.kbtestspec`)
 """
 
 from __future__ import annotations
@@ -39,6 +40,7 @@ from handover.engine.kbmodel import (
     Tag,
     nonzero,
 )
+from handover.engine.kbtestspec import KBTestFile
 from handover.engine.kinds import KINDS, RuleBase
 
 __all__ = [
@@ -67,6 +69,7 @@ __all__ = [
     "ReceiverPlacement",
     "ObjectPlacement",
     "SceneSpec",
+    "KBTestFile",
     "DOCUMENT_KINDS",
 ]
 
@@ -418,4 +421,5 @@ DOCUMENT_KINDS: dict[str, type[KBModel]] = {
     "hands": HumanHandSpec,
     "robots": RobotSpec,
     "scenes": SceneSpec,
+    "tests": KBTestFile,
 }
