@@ -93,7 +93,7 @@ def _render_coverage(out: Any, cov: dict[str, Any]) -> None:
 
     rules = cov["rules"]
     width = max([len(k) for k in rules] + [4])
-    out.print(f"\n[bold]rule coverage[/] (cases where each rule applied, rejected candidates, "
+    out.print("\n[bold]rule coverage[/] (cases where each rule applied, rejected candidates, "
               "decided)")
     out.print(f"{'rule':<{width}}  {'culture':<9} {'applied':>7} {'rejected':>8} "
               f"{'decided':>7}  source")
