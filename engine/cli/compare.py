@@ -54,41 +54,46 @@ def compare(
 
 
 def _render(report: dict[str, Any]) -> None:
+    from rich import box
     from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
     out = Console(highlight=False, soft_wrap=True)
-    table = Table(title=f"{report['object']}: every combination", title_justify="left")
-    for col in ("culture", "receiver", "task", "gripper", "outcome", "mode", "robot holds",
-                "receiver holds", "presented axes"):
-        table.add_column(col)
-    for c in report["combinations"]:
+    if not out.is_terminal:
+        out.width = 240  # a pipe or a file: whole lines, never wrapped cells
+    combos = report["combinations"]
+    dims = [d for d in ("culture", "receiver", "task", "gripper")
+            if d in ("culture", "receiver") or len({str(c[d]) for c in combos}) > 1]
+    table = Table(title=f"{report['object']}: {len(combos)} combinations", title_justify="left",
+                  box=box.SIMPLE_HEAD)
+    for col in (*dims, "outcome", "mode", "robot holds", "receiver holds", "presented axes"):
+        table.add_column(col, no_wrap=True)
+    for c in combos:
         holds = "; ".join(f"{g['hand']}: {'/'.join(g['parts'])}" for g in c["robot_grasps"])
         axes = "; ".join(f"{a} {v['toward']} ({v['deg']:g} deg)" for a, v in c["axes"].items())
-        table.add_row(*(escape(str(c[d] or "-")) for d in ("culture", "receiver", "task",
-                                                           "gripper", "outcome")),
-                      c["mode"] or "-", holds or "-", ", ".join(c["receiver_parts"]) or "-",
-                      axes or "-")
+        table.add_row(*(escape(str(c[d] or "-")) for d in dims), c["outcome"], c["mode"] or "-",
+                      holds or "-", ", ".join(c["receiver_parts"]) or "-", axes or "-")
     out.print(table)
     for d in report["diffs"]:
         head = f"[bold]{escape(d['from'])} -> {escape(d['to'])}[/]"
         changes = [f"{k} {v[0]} -> {v[1]}" for k, v in (("outcome", d["outcome"]),
                                                          ("mode", d["mode"])) if v[0] != v[1]]
-        out.print(f"\n{head}: {', '.join(changes) or 'same outcome and mode'}")
-        rows = Table(show_edge=False, show_header=True)
+        out.print(f"{head}: {', '.join(changes) or 'same outcome and mode'}")
+        rows = Table(box=box.SIMPLE_HEAD, show_edge=False)
         for col in ("change", "rule", "detail", "source"):
-            rows.add_column(col)
+            rows.add_column(col, no_wrap=True)
         for e in d["decided"]:
-            rows.add_row("[bold]decided[/]", e["rule"], escape(e["how"]), e["source"])
+            side = {"from": f" (in {d['from']})", "to": f" (in {d['to']})"}.get(e.get("side"), "")
+            rows.add_row("decided", e["rule"], escape(e["how"] + side), e["source"])
         for e in d["became_active"]:
             rows.add_row("became active", e["rule"], escape(f"was {e['was']}"), e["source"])
         for e in d["became_inactive"]:
             rows.add_row("became inactive", e["rule"], escape(e["now"]), e["source"])
         for e in d["thresholds"]:
             rows.add_row("threshold", e["rule"],
-                         escape(f"{'; '.join(e['was'])} -> {'; '.join(e['now'])}"), e["source"])
+                         escape(f"{' / '.join(e['was'])} -> {' / '.join(e['now'])}"), e["source"])
         if rows.row_count:
             out.print(rows)
         else:
-            out.print("  no rule changed")
+            out.print("  no rule changed\n")
