@@ -27,7 +27,11 @@ Errors:
     file:line in the message); an arm naming a link the URDF lacks; an arm's chain with mimic,
     floating or planar joints or none that moves (:func:`lint_robot`);
   - a scene whose receiver or robot stands inside the table or an obstacle, whose receiver
-    stands on the robot or faces straight up or down, or whose object is placed off the table.
+    stands on the robot or faces straight up or down, or whose object is placed off the table;
+  - a test case (``tests/``) whose query names an unknown object, task, receiver, culture,
+    scene, gripper or robot, or whose expectations name an axis the object lacks, a part or
+    tag the object does not have, or a rule not in force in the case's culture; two cases
+    with one name in a file.
 
 Warnings:
   - a safety rule overridden with ``override_safety`` ("safety rule X overridden by Y: why");
@@ -51,7 +55,8 @@ from typing import TYPE_CHECKING
 
 from handover.engine.errors import KBIssue
 from handover.engine.etiquette import _resolve, applies_to_object, object_tags
-from handover.engine.schema import KBModel, ObjectSpec, RobotSpec, RuleBase
+from handover.engine.query import DEFAULTS
+from handover.engine.schema import KBModel, KBTestFile, ObjectSpec, RobotSpec, RuleBase
 from handover.geometry.frames import rotation_from_euler_deg
 
 if TYPE_CHECKING:
@@ -59,6 +64,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "lint_kb", "lint_object", "lint_cultures", "lint_references", "lint_robot", "lint_scene",
+    "lint_tests", "rule_tags",
 ]
 
 
@@ -74,6 +80,8 @@ def lint_kb(kb: KB, failed_kinds: Iterable[str] = ()) -> list[KBIssue]:
         issues.extend(lint_object(kb, obj))
     issues.extend(lint_cultures(kb, failed))
     issues.extend(lint_references(kb, failed))
+    for test_file in kb.tests.values():
+        issues.extend(lint_tests(kb, test_file, failed))
     return sorted(set(issues))
 
 
@@ -182,7 +190,7 @@ def lint_mesh_path(
 # ---------------------------------------------------------------- cultures and rules
 
 
-def _rule_tags(rule: RuleBase) -> Iterator[tuple[str, tuple[str | int, ...]]]:
+def rule_tags(rule: RuleBase) -> Iterator[tuple[str, tuple[str | int, ...]]]:
     for field in ("object_tags_any", "object_tags_none"):
         for k, tag in enumerate(getattr(rule.applies, field)):
             yield tag, ("applies", field, k)
@@ -204,7 +212,7 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
     used_tasks = {t for o in kb.objects.values() for t in o.tasks}
     for culture in kb.cultures.values():
         for rule in culture.rules:
-            for tag, sub in _rule_tags(rule):
+            for tag, sub in rule_tags(rule):
                 if tag not in used_tags:
                     yield kb.issue(
                         rule,
@@ -399,3 +407,58 @@ def lint_scene(kb: KB, scene) -> Iterator[KBIssue]:
                 f"{y0 + half[1]:g}): it would float at the table's height",
                 *(("position",) if scene.object is not None else ("support",)),
             )
+
+
+# ---------------------------------------------------------------- test files
+
+
+_QUERY_KINDS = {"receiver": "receivers", "culture": "etiquette", "scene": "scenes",
+                "gripper": "grippers", "robot": "robots"}
+
+
+def lint_tests(kb: KB, test_file: KBTestFile, failed: Iterable[str] = ()) -> Iterator[KBIssue]:
+    """A test file's cases against the KB: every id a query names exists, every axis, part,
+    tag and rule an expectation names exists for the case's object and culture (a misspelt
+    name would make ``robot_parts_none`` pass, or a case fail for the wrong reason)."""
+    failed = set(failed)
+    names: dict[str, KBModel] = {}
+    for case in test_file.cases:
+        if case.name in names:
+            first = names[case.name].source.line
+            yield kb.issue(case, f"two cases named '{case.name}' (the first at line {first})",
+                           "name")
+        names.setdefault(case.name, case)
+        q, expect = case.query, case.expect
+        for field, kind in _QUERY_KINDS.items():
+            item = getattr(q, field)
+            attr = kind if kind != "etiquette" else "cultures"
+            if item is not None and kind not in failed and item not in getattr(kb, attr):
+                known = ", ".join(sorted(getattr(kb, attr))) or "none"
+                yield kb.issue(q, f"unknown {field} '{item}' (known: {known})", field)
+        if "objects" in failed:
+            continue
+        obj = kb.objects.get(q.object)
+        if obj is None:
+            known = ", ".join(sorted(kb.objects)) or "none"
+            yield kb.issue(q, f"unknown object '{q.object}' (known: {known})", "object")
+            continue
+        if q.task is not None and q.task not in obj.tasks:
+            yield kb.issue(q, f"object '{obj.id}' has no task '{q.task}' (its tasks: "
+                           f"{', '.join(sorted(obj.tasks)) or 'none'})", "task")
+        for axis in expect.axes:
+            if axis not in obj.axes:
+                yield kb.issue(expect, f"object '{obj.id}' has no axis '{axis}' (its axes: "
+                               f"{', '.join(sorted(obj.axes)) or 'none'})", "axes", axis)
+        known_names = set(obj.parts) | object_tags(obj)
+        for field in ("receiver_parts_any", "robot_parts_none"):
+            for i, name in enumerate(getattr(expect, field)):
+                if name not in known_names:
+                    yield kb.issue(expect, f"object '{obj.id}' has no part or tag '{name}' "
+                                   f"(parts: {', '.join(obj.parts)})", field, i)
+        culture = q.culture or DEFAULTS["culture"]
+        if expect.rules and "etiquette" not in failed and culture in kb.cultures:
+            in_force = {r.rule.id for r in _resolve(kb, culture)[0]}
+            for rule_id in expect.rules:
+                if rule_id not in in_force:
+                    yield kb.issue(expect, f"rule '{rule_id}' is not in force in culture "
+                                   f"'{culture}'", "rules", rule_id)

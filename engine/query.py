@@ -26,7 +26,7 @@ if TYPE_CHECKING:
         Task,
     )
 
-__all__ = ["Query", "Situation", "resolve_situation", "MODES", "DEFAULTS"]
+__all__ = ["Query", "Situation", "resolve_situation", "receiver_directions", "MODES", "DEFAULTS"]
 
 MODES = ("auto", "h1g1", "h2g2", "h2g1")
 
@@ -111,6 +111,31 @@ def _unit(v, what: str) -> np.ndarray:
     return v / norm
 
 
+def receiver_directions(position, facing, dominant_hand: str) -> dict[str, np.ndarray]:
+    """The receiver frame's named directions (``engine.kbmodel.DIRECTIONS``) as world unit
+    vectors, (3,) each, for a receiver standing at ``position`` (m, world; the robot at the
+    origin) facing ``facing`` (world, its horizontal part counts), with a ``"left"`` or
+    ``"right"`` dominant hand. UsageError when either vector has no horizontal part."""
+    flat = np.asarray(position, dtype=float) * np.array([1.0, 1.0, 0.0])
+    toward = _unit(flat, "the direction from the robot to the receiver")
+    facing = np.asarray(facing, dtype=float) * np.array([1.0, 1.0, 0.0])
+    facing = _unit(facing, "the receiver's facing direction (horizontal part)")
+    up = np.array([0.0, 0.0, 1.0])
+    right = np.cross(facing, up)
+    right /= np.linalg.norm(right)
+    dominant = right if dominant_hand == "right" else -right
+    return {
+        "toward_receiver": toward,
+        "away_from_receiver": -toward,
+        "up": up,
+        "down": -up,
+        "receiver_right": right,
+        "receiver_left": -right,
+        "receiver_dominant": dominant,
+        "receiver_nondominant": -dominant,
+    }
+
+
 def resolve_situation(kb: KB, query: Query, obj: ObjectSpec | None = None) -> Situation:
     """Look every id of ``query`` up in ``kb`` (unknown ids raise UsageError naming the known
     ones) and compute the world-frame directions of the receiver frame.
@@ -138,24 +163,13 @@ def resolve_situation(kb: KB, query: Query, obj: ObjectSpec | None = None) -> Si
         task = obj.tasks[task_id]
 
     receiver_position = np.asarray(scene.receiver.position, dtype=float)
-    flat = receiver_position * np.array([1.0, 1.0, 0.0])
-    toward = _unit(flat, "the direction from the robot to the receiver")
-    facing = np.asarray(scene.receiver.facing, dtype=float) * np.array([1.0, 1.0, 0.0])
-    facing = _unit(facing, "the receiver's facing direction (horizontal part)")
-    up = np.array([0.0, 0.0, 1.0])
-    right = np.cross(facing, up)
-    right /= np.linalg.norm(right)
-    dominant = right if receiver.dominant_hand == "right" else -right
-    directions = {
-        "toward_receiver": toward,
-        "away_from_receiver": -toward,
-        "up": up,
-        "down": -up,
-        "receiver_right": right,
-        "receiver_left": -right,
-        "receiver_dominant": dominant,
-        "receiver_nondominant": -dominant,
-    }
+    directions = receiver_directions(
+        receiver_position, scene.receiver.facing, receiver.dominant_hand
+    )
+    toward = directions["toward_receiver"]
+    facing = _unit(np.asarray(scene.receiver.facing, dtype=float) * np.array([1.0, 1.0, 0.0]),
+                   "the receiver's facing direction (horizontal part)")
+    right = directions["receiver_right"]
     return Situation(
         query=query,
         obj=obj,

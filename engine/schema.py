@@ -18,6 +18,7 @@ Kinds of KB document, one per file, told apart by their folder:
 ``robots/``    :class:`RobotSpec`       hands, payload, gripper, arms (URDF), body
                (in :mod:`handover.engine.robotspec`)
 ``scenes/``    :class:`SceneSpec`       table, obstacles, receiver placement, initial pose
+``tests/``     :class:`KBTestFile`      cases run by ``handover kb test`` (:mod:`engine.kbtestspec`)
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from handover.engine.kbmodel import (
     Tag,
     nonzero,
 )
+from handover.engine.kbtestspec import KBTestFile
 from handover.engine.kinds import KINDS, RuleBase
 from handover.engine.robotspec import RobotSpec
 
@@ -69,6 +71,7 @@ __all__ = [
     "ReceiverPlacement",
     "ObjectPlacement",
     "SceneSpec",
+    "KBTestFile",
     "DOCUMENT_KINDS",
 ]
 
@@ -420,4 +423,5 @@ DOCUMENT_KINDS: dict[str, type[KBModel]] = {
     "hands": HumanHandSpec,
     "robots": RobotSpec,
     "scenes": SceneSpec,
+    "tests": KBTestFile,
 }

@@ -20,6 +20,7 @@ from handover.engine.schema import (
     GripperSpec,
     HumanHandSpec,
     KBModel,
+    KBTestFile,
     ObjectSpec,
     ReceiverProfile,
     RobotSpec,
@@ -38,6 +39,7 @@ KIND_ATTRS: dict[str, tuple[str, str]] = {
     "hands": ("hands", "hand"),
     "robots": ("robots", "robot"),
     "scenes": ("scenes", "scene"),
+    "tests": ("tests", "test file"),
 }
 
 
@@ -57,6 +59,7 @@ class KB:
     hands: dict[str, HumanHandSpec] = field(default_factory=dict)
     robots: dict[str, RobotSpec] = field(default_factory=dict)
     scenes: dict[str, SceneSpec] = field(default_factory=dict)
+    tests: dict[str, KBTestFile] = field(default_factory=dict)
     warnings: list[KBIssue] = field(default_factory=list)
     marks: dict[str, Marks] = field(default_factory=dict, repr=False)
 

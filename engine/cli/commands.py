@@ -7,8 +7,10 @@ from __future__ import annotations
 
 from handover.engine.cli import (
     batch,  # noqa: F401,E402  (batch)
+    compare,  # noqa: F401,E402  (compare)
     grasps,  # noqa: F401,E402  (grasps)
     kb,  # noqa: F401,E402  (kb validate, kb list, kb show, kb schema)
+    kbtest,  # noqa: F401,E402  (kb test)
     plan,  # noqa: F401,E402  (plan, explain-graph)
     review,  # noqa: F401,E402  (review)
 )
