@@ -18,8 +18,51 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
     from handover.engine.presentation import ReceiverSites
     from handover.engine.schema import GripperSpec
+    from handover.geometry.bodies import Body
 
 __all__ = ["build_result", "grasp_record", "human_record"]
+
+
+def body_record(body: Body) -> list[dict]:
+    """A body's primitives for the result: capsules ``{name, shape, p0, p1, radius}`` and
+    boxes ``{name, shape, extents, pose}``, world frame, m."""
+    out: list[dict] = [
+        {"name": n, "shape": "capsule", "p0": a, "p1": b, "radius": float(r)}
+        for n, a, b, r in zip(body.capsule_names, body.p0, body.p1, body.radius, strict=True)
+    ]
+    out += [{"name": n, "shape": "box", "extents": e, "pose": p}
+            for n, e, p in zip(body.box_names, body.extents, body.poses, strict=True)]
+    return out
+
+
+def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
+    """Where the object is offered (the receiver's grasp site, world) and why there: the
+    chosen location's measures against the location rules, and what else was considered."""
+    if attempt.phase is None:
+        return None
+    hands = attempt.phase.hands
+    locs = hands.locations
+    rules = [c for c in attempt.graph.order if c.rule.kind == "location"]
+    measured = {m: float(v[k]) for m, v in hands.measured.items()}
+    said = []
+    for c in rules:
+        ok, _ = c.rule.judge(np.array([measured[c.rule.measure]]))
+        said.append(f"{c.id} {'pass' if ok[0] else 'fail'} ({c.rule.measure} "
+                    f"{measured[c.rule.measure]:.3g}, {c.rule.threshold()})")
+    point = locs.points[int(hands.location[k])] if locs is not None and len(locs.points) \
+        else None
+    return {
+        "position": point,
+        "presentation": k,
+        "located": bool(hands.located[k]),
+        "measured": measured,
+        "hits": list(hands.hits[k]),
+        "candidates": 0 if locs is None else len(locs.points),
+        "why": ("the receiver's grasp site at the best location (soft location rules) "
+                "where every hard location rule passes and nothing is hit: " if
+                hands.located[k] else "no location passes every hard location rule here; "
+                "the closest: ") + "; ".join(said),
+    }
 
 
 def _gripper_meshes(spec: GripperSpec) -> dict:
@@ -201,6 +244,9 @@ def build_result(
         scene={"id": s.scene.id, "boxes": [
             {"id": name, "extents": ext, "pose": pose} for name, ext, pose in ctx.scene_box_list
         ]},
+        handover_point=_handover_point(ctx, attempt, k),
+        bodies={"receiver": body_record(ctx.world.receiver_body),
+                "robot": body_record(ctx.world.robot_body)},
     )
     if attempt.graph is not None and attempt.decision is not None:
         result.why_not = [_why_not(attempt, ctx, gid) for gid in why_not]

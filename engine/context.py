@@ -61,6 +61,7 @@ class PlanContext:
     the mode's rules: :meth:`hands`). initial : (4, 4) object -> world at pick-up.
     part_tags : tags of each part index of ``part_mesh``.
     warnings : what the preparation found worth telling (units of a mesh file).
+    kb_root : the KB folder (files the KB names, e.g. a robot's URDF, are relative to it).
     """
 
     situation: Situation
@@ -76,6 +77,7 @@ class PlanContext:
     scene_box_list: list
     facts: ObjectFacts
     collider: Any = None
+    kb_root: Any = None
     warnings: list[str] = field(default_factory=list)
     memo: dict[str, Any] = field(default_factory=dict)
 
@@ -121,7 +123,7 @@ class PlanContext:
     def world(self) -> World:
         """The bodies at the handover: scene boxes, the receiver's and the robot's bodies."""
         if "world" not in self.memo:
-            self.memo["world"] = build_world(self.situation, self.scene_box_list)
+            self.memo["world"] = build_world(self.situation, self.scene_box_list, self.kb_root)
         return self.memo["world"]
 
     def locations(self, hand: str) -> Locations:

@@ -85,5 +85,6 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None) 
     )
     ctx = build_context(situation, part_mesh, part_tags, candidates, stats, gripper, hand)
     ctx.collider = collider
+    ctx.kb_root = kb.root
     ctx.warnings.extend(hints)
     return ctx

@@ -56,6 +56,9 @@ class PlanResult:
     alternatives : the next best rows [{"grasp", "presentation", "score"}].
     rules : every compiled rule with source and activity (the graph's rule nodes).
     why_not : explanations of candidates asked about (``--why-not``).
+    handover_point : where the object is offered: the receiver's grasp site (world), the
+    chosen location's measures, why there. bodies : the receiver's and the robot's bodies
+    (capsules and boxes, world).
     """
 
     object: str
@@ -79,6 +82,8 @@ class PlanResult:
     rules: list[dict] = field(default_factory=list)
     why_not: list[dict] = field(default_factory=list)
     scene: dict = field(default_factory=dict)
+    handover_point: dict | None = None
+    bodies: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
 
     @property
@@ -113,6 +118,8 @@ class PlanResult:
                 "alternatives": self.alternatives,
                 "rules": self.rules,
                 "scene": self.scene,
+                "handover_point": self.handover_point,
+                "bodies": self.bodies,
                 "warnings": self.warnings,
             }
         )

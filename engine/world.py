@@ -35,6 +35,7 @@ __all__ = [
     "Locations",
     "candidate_locations",
     "RECEIVING_ARM",
+    "robot_axis",
 ]
 
 # The grid of candidate locations: wide bands, so that the location rules (data) decide.
@@ -86,7 +87,7 @@ class World:
         return self.targets.subset(keep)
 
 
-def build_world(situation: Situation, scene_boxes: list) -> World:
+def build_world(situation: Situation, scene_boxes: list, kb_root=None) -> World:
     """The bodies of ``situation``: the receiver standing or seated where the scene puts them,
     sized from their stature; the robot's body from its KB entry; the scene's boxes."""
     from handover.geometry.bodies import Body, concatenate
@@ -95,7 +96,7 @@ def build_world(situation: Situation, scene_boxes: list) -> World:
     r = situation.receiver
     receiver_body, landmarks = human_body(
         r.height, r.posture, situation.receiver_position, situation.receiver_facing)
-    robot_body = _robot_body(situation)
+    robot_body = _robot_body(situation, kb_root)
     scene = Body.from_primitives(boxes=[_solid_down(situation, name, ext, pose)
                                         for name, ext, pose in scene_boxes])
     targets = concatenate([scene, receiver_body, robot_body],
@@ -116,11 +117,29 @@ def _solid_down(situation: Situation, name: str, extents: np.ndarray, pose: np.n
     return name, np.array([extents[0], extents[1], top]), solid
 
 
-def _robot_body(situation: Situation) -> Body:
-    """The robot's body (base, torso, head) as its KB entry gives it, world frame."""
-    from handover.geometry.bodies import Body
+def robot_axis(robot) -> np.ndarray:
+    """(2,) m, world: where the robot's base axis (its ``base_pose``'s vertical) meets the
+    floor; its ``reach`` is measured horizontally from it."""
+    return np.asarray(robot.base_pose.position[:2], dtype=float)
 
-    return Body.empty()
+
+def _robot_body(situation: Situation, kb_root) -> Body:
+    """The robot's body (base, torso, head) in the world: its KB entry's ``body``, else the
+    links fixed to its URDF's root (parsing the URDF, slower), else none; placed by the
+    robot's ``base_pose``."""
+    from handover.engine.robotload import frame_pose, robot_model, urdf_body, yaml_body
+    from handover.geometry.bodies import Body, robot_body
+
+    spec = situation.robot
+    base = frame_pose(spec.base_pose)
+    if spec.body:
+        capsules, boxes = yaml_body(spec)
+    elif spec.urdf and kb_root is not None:
+        path = (kb_root / spec.source.file).parent / spec.urdf
+        capsules, boxes = urdf_body(robot_model(path))
+    else:
+        return Body.empty()
+    return robot_body(capsules, boxes, base)
 
 
 @dataclass(frozen=True)
@@ -145,7 +164,7 @@ def candidate_locations(ctx: PlanContext, world: World, hand: str) -> Locations:
         lm, np.zeros(3), 1e3, hand, spacing=GRID_SPACING, reach_fraction=GRID_REACH,
         height_fraction=GRID_HEIGHT, min_front=GRID_FRONT, lateral=GRID_LATERAL)
     robot = ctx.situation.robot
-    horizontal = np.hypot(grid.points[:, 0], grid.points[:, 1])
+    horizontal = np.linalg.norm(grid.points[:, :2] - robot_axis(robot)[None, :], axis=1)
     measures = {
         "receiver_reach": grid.reach_fraction,
         "height": grid.height_fraction,
@@ -265,8 +284,7 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
                     hit_names[pending[j]] = tuple(
                         names[p] for p in np.flatnonzero(hit[j, 0]))
             pending = pending[~found]
-        for k in pending:  # nothing clear: report the best location and what it hits
-            chosen[k] = -1
+        hit_names = [names if c < 0 else () for names, c in zip(hit_names, chosen, strict=True)]
     best = order[0] if L else -1
     location = np.where(chosen >= 0, chosen, best)
     located = (chosen >= 0) & ok[np.maximum(location, 0)] if L else np.zeros(K, bool)
@@ -283,3 +301,47 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
         hit_names = [("no location within the receiver's reach",)] * K
     return Placement(poses=poses, location=location, located=located, measured=measured,
                      hits=tuple(hit_names))
+
+
+def location_reason(ctx: PlanContext, hands, rules: list) -> str | None:
+    """Why no presentation could be offered anywhere (None when some could): the location
+    that came closest, each hard location rule it fails with its value in plain units, and
+    what the object or the receiver's hands hit there."""
+    if hands.located.any() or not rules:
+        return None
+    robot = ctx.situation.robot
+    k = 0
+    said = []
+    for c in rules:
+        rule = c.rule
+        if not rule.hard:
+            continue
+        value = float(hands.measured[rule.measure][k])
+        ok, _ = rule.judge(np.array([value]))
+        if ok[0]:
+            continue
+        if rule.measure == "robot_reach":
+            value = _nearest_for_receiver(hands.locations, rules)
+            said.append(f"the best place the receiver can reach is {value * robot.reach:.2f} m "
+                        f"from the robot's base axis, beyond its reach of {robot.reach:g} m "
+                        f"({c.id}, {robot.source})")
+        elif rule.measure == "clear":
+            hit = sorted({n for names in hands.hits for n in names})
+            said.append(f"wherever the receiver could take it the object or their hand hits "
+                        f"{', '.join(hit) or 'something'} ({c.id})")
+        elif not np.isfinite(value):
+            said.append(f"there is no place within the receiver's reach ({c.id})")
+        else:
+            said.append(f"{rule.measure} is {value:.2f}, not {rule.threshold()} ({c.id})")
+    return "; ".join(said) or None
+
+
+def _nearest_for_receiver(locs: Locations, rules: list) -> float:
+    """The least ``robot_reach`` among the locations that pass every hard location rule about
+    the receiver (all but ``robot_reach`` and ``clear``); inf when there is none."""
+    ok = np.ones(len(locs.points), dtype=bool)
+    for c in rules:
+        if c.rule.hard and c.rule.measure not in ("robot_reach", "clear"):
+            ok &= c.rule.judge(locs.measures[c.rule.measure])[0]
+    values = locs.measures["robot_reach"][ok]
+    return float(values.min()) if len(values) else float("inf")

@@ -81,18 +81,19 @@ def _render(report: dict[str, Any]) -> None:
                                                          ("mode", d["mode"])) if v[0] != v[1]]
         out.print(f"{head}: {', '.join(changes) or 'same outcome and mode'}")
         rows = Table(box=box.SIMPLE_HEAD, show_edge=False)
-        for col in ("change", "rule", "detail", "source"):
-            rows.add_column(col, no_wrap=True)
+        for col in ("change", "rule", "source"):  # never cut: what a reader looks for
+            rows.add_column(col, no_wrap=True, min_width=len(col))
+        rows.add_column("detail", overflow="fold", ratio=1)
         for e in d["decided"]:
             side = {"from": f" (in {d['from']})", "to": f" (in {d['to']})"}.get(e.get("side"), "")
-            rows.add_row("decided", e["rule"], escape(e["how"] + side), e["source"])
+            rows.add_row("decided", e["rule"], e["source"], escape(e["how"] + side))
         for e in d["became_active"]:
-            rows.add_row("became active", e["rule"], escape(f"was {e['was']}"), e["source"])
+            rows.add_row("became active", e["rule"], e["source"], escape(f"was {e['was']}"))
         for e in d["became_inactive"]:
-            rows.add_row("became inactive", e["rule"], escape(e["now"]), e["source"])
+            rows.add_row("became inactive", e["rule"], e["source"], escape(e["now"]))
         for e in d["thresholds"]:
-            rows.add_row("threshold", e["rule"],
-                         escape(f"{' / '.join(e['was'])} -> {' / '.join(e['now'])}"), e["source"])
+            rows.add_row("threshold", e["rule"], e["source"],
+                         escape(f"{' / '.join(e['was'])} -> {' / '.join(e['now'])}"))
         if rows.row_count:
             out.print(rows)
         else:

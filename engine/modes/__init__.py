@@ -59,6 +59,13 @@ def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
         return Attempt(mode, False, f"{mode}: {out_of_reach}")
     attempt = PLANNERS[mode](kb, ctx)
     if not attempt.feasible:
+        if attempt.phase is not None and attempt.graph is not None:
+            from handover.engine.world import location_reason
+
+            where = location_reason(ctx, attempt.phase.hands,
+                                    [c for c in attempt.graph.order if c.rule.kind == "location"])
+            if where:
+                return replace(attempt, reason=f"{attempt.reason}. Where to offer it: {where}")
         return attempt
     trace = chosen_traces(ctx, attempt)
     failed = [e for e in trace if e["hard"] and e["status"] == "fail"]
@@ -73,9 +80,10 @@ def beyond_reach(ctx: PlanContext) -> str | None:
     """Whether the object to pick up lies beyond the robot's ``reach`` (horizontal distance
     from its base axis), said with the distance; None when it is within. (Where the object is
     offered, the ``location`` rules judge.)"""
+    from handover.engine.world import robot_axis
+
     robot = ctx.situation.robot
-    point = ctx.initial[:3, 3]
-    distance = float(np.hypot(point[0], point[1]))
+    distance = float(np.linalg.norm(ctx.initial[:2, 3] - robot_axis(robot)))
     if distance > robot.reach + 1e-9:
         return (f"the object at pick-up is {distance:.2f} m from the robot, beyond its reach "
                 f"of {robot.reach:g} m ({robot.source})")

@@ -244,8 +244,14 @@ def test_a_one_handed_robot_plans_one_hand_only(world_planner):
 def test_a_handover_point_beyond_the_robot_s_reach_is_refused_with_the_distance(world_planner):
     plan = world_planner.plan("knife", scene="far_receiver")
     assert not plan.feasible
-    # The handover point is halfway to the receiver: 1.2 m, beyond a 0.9 m reach.
-    assert "the handover point is 1.20 m from the robot, beyond its reach of 0.9 m" in plan.reason
+    # The receiver stands 2.4 m away; the nearest place they reach (within_receiver_reach: 90 %
+    # of their arm from the receiving shoulder) is that much nearer the robot than the
+    # shoulder, horizontally, on a 6 cm grid.
+    assert "beyond its reach of 0.9 m" in plan.reason and "within_robot_reach" in plan.reason
+    distance = float(plan.reason.split("the best place the receiver can reach is ")[1].split()[0])
+    lm = plan.context.world.receiver
+    shoulder = np.hypot(*lm.right_shoulder[:2])
+    assert distance == pytest.approx(shoulder - 0.9 * lm.arm_reach, abs=0.06)
 
 
 @pytest.mark.parametrize("args", [("knife",), ("mug", "--receiver", "elder", "--culture",

@@ -341,3 +341,25 @@ def test_the_readme_shows_the_shipped_robot(builtin_kb):
     shown = yaml.safe_load(re.findall(r"```yaml\n(.*?)```", section, flags=re.S)[0])
     shipped = yaml.safe_load((builtin_kb.root / "robots" / "idro.yaml").read_text())
     assert shown == shipped
+
+
+def test_the_shipped_robot_s_body_is_its_urdf_s_fixed_links(builtin_kb):
+    """idro.yaml writes its body out so planning need not parse the URDF: the shapes must be
+    the URDF's links fixed to its root."""
+    from handover.engine.robotload import robot_model, urdf_body, yaml_body
+
+    spec = builtin_kb.robot("idro")
+    caps_y, boxes_y = yaml_body(spec)
+    caps_u, boxes_u = urdf_body(robot_model(builtin_kb.root / "robots" / spec.urdf))
+    assert sorted(c[0] for c in caps_y) == sorted(c[0] for c in caps_u)
+    assert sorted(b[0] for b in boxes_y) == sorted(b[0] for b in boxes_u)
+    urdf_caps = {c[0]: c for c in caps_u}
+    for name, p0, p1, r in caps_y:
+        _, q0, q1, s = urdf_caps[name]
+        assert r == pytest.approx(s, abs=1e-6)
+        assert {tuple(np.round(p0, 6)), tuple(np.round(p1, 6))} == \
+            {tuple(np.round(q0, 6)), tuple(np.round(q1, 6))}
+    urdf_boxes = {b[0]: b for b in boxes_u}
+    for name, ext, pose in boxes_y:
+        np.testing.assert_allclose(ext, urdf_boxes[name][1], atol=1e-6)
+        np.testing.assert_allclose(pose, urdf_boxes[name][2], atol=1e-6)
