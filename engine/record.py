@@ -37,6 +37,10 @@ Entities (see ``ENTITY_*``)::
     world                             ViewCoordinates (z up), static
     world/scene                       Boxes3D: table and obstacles, static
     world/people                      Arrows3D: robot and receiver, where they stand and face
+    world/bodies/{receiver,robot}/{capsules,boxes}
+                                      Capsules3D, Boxes3D: the bodies, static
+    world/handover/locations          Points3D: candidate handover locations, the chosen one
+                                      large (stage 0)
     world/receiver/hands              Boxes3D: the receiver's hand model(s), shown presentation
     world/receiver/sites              Points3D: the receiver's predicted grasp (stage 4)
     world/initial                     Transform3D: object -> world at pick-up
@@ -76,6 +80,7 @@ from handover.engine.recordstages import (
     ENTITY_APPROACH,
     ENTITY_CANDIDATES,
     ENTITY_CENTRES,
+    ENTITY_LOCATIONS,
     ENTITY_LOG,
     ENTITY_SUMMARY,
     OUTCOME_COLOURS,
@@ -98,6 +103,10 @@ __all__ = ["write_recording", "blueprint", "camera"]
 
 SECOND_HAND_COLOUR = (0, 200, 255)
 RECEIVER_HAND_COLOUR = (225, 175, 130)
+RECEIVER_BODY_COLOUR = (200, 160, 140)
+ROBOT_BODY_COLOUR = (110, 115, 130)
+LOCATION_COLOURS = {"candidate": (150, 200, 255), "chosen": (255, 220, 0),
+                    "closest": (230, 40, 40)}
 SCENE_COLOURS = {"table": (170, 130, 90), "obstacle": (120, 120, 135)}
 AXIS_COLOURS = {
     "up": (60, 90, 255),
@@ -125,6 +134,54 @@ def _quaternions(rotations: np.ndarray) -> np.ndarray:
     if len(rotations) == 0:
         return np.zeros((0, 4))
     return Rotation.from_matrix(rotations).as_quat()
+
+
+def _log_body(rec, entity: str, primitives: list[dict], colour: tuple[int, int, int]) -> None:
+    """A body (the result's ``bodies`` entry: capsules and boxes, world) as two batched
+    entities, ``{entity}/capsules`` and ``{entity}/boxes``."""
+    import rerun as rr
+
+    from handover.geometry.frames import perpendicular
+
+    caps = [p for p in primitives if p["shape"] == "capsule"]
+    if caps:
+        p0 = np.array([c["p0"] for c in caps], dtype=float)
+        d = np.array([c["p1"] for c in caps], dtype=float) - p0
+        length = np.linalg.norm(d, axis=1)
+        a = np.where(length[:, None] > 1e-9, d / np.maximum(length, 1e-9)[:, None], [0, 0, 1.0])
+        n = perpendicular(a)
+        n /= np.linalg.norm(n, axis=1, keepdims=True)
+        frames = np.stack([n, np.cross(a, n), a], axis=2)  # columns n, o, a: z along the axis
+        rec.log(f"{entity}/capsules", rr.Capsules3D(
+            lengths=length, radii=[c["radius"] for c in caps], translations=p0,
+            quaternions=_quaternions(frames), colors=colour, labels=[c["name"] for c in caps],
+            fill_mode="solid"), static=True)  # fmt: skip
+    boxes = [(p["name"], p["extents"], p["pose"]) for p in primitives if p["shape"] == "box"]
+    names, centres, half, quats = _boxes_arrays(boxes)
+    if names:
+        rec.log(f"{entity}/boxes", rr.Boxes3D(centers=centres, half_sizes=half, quaternions=quats,
+                                               colors=colour, labels=names, fill_mode="solid"),
+                static=True)  # fmt: skip
+
+
+def _log_locations(rec, phase, k: int) -> None:
+    """Where the object could be offered (stage 0: the location is chosen before the grasps
+    are judged): every candidate location of the receiver's grasp site, small, and the one
+    chosen for the shown presentation, large (yellow; red when no location passed every hard
+    location rule and it is only the closest)."""
+    import rerun as rr
+
+    if phase is None or phase.hands.locations is None or not len(phase.hands.locations.points):
+        return
+    hands = phase.hands
+    locs = hands.locations
+    chosen = int(hands.location[k])
+    colours = np.tile(np.array(LOCATION_COLOURS["candidate"], dtype=np.uint8),
+                      (len(locs.points), 1))
+    radii = np.full(len(locs.points), 0.006)
+    colours[chosen] = LOCATION_COLOURS["chosen" if hands.located[k] else "closest"]
+    radii[chosen] = 0.02
+    rec.log(ENTITY_LOCATIONS, rr.Points3D(locs.points, colors=colours, radii=radii))
 
 
 def _boxes_arrays(boxes: list) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
@@ -305,6 +362,8 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
             origins=[[0.0, 0.0, 0.0], pos], vectors=[[0.3, 0.0, 0.0], 0.3 * facing],
             labels=["robot", f"receiver ({rcv.get('role', '')})"],
             colors=[(80, 80, 80), RECEIVER_HAND_COLOUR]), static=True)  # fmt: skip
+    for who, colour in (("receiver", RECEIVER_BODY_COLOUR), ("robot", ROBOT_BODY_COLOUR)):
+        _log_body(rec, f"world/bodies/{who}", (result.bodies or {}).get(who, []), colour)
     positions, triangles, normals, vcol = _mesh_arrays(ctx)
     mesh = rr.Mesh3D(vertex_positions=positions, triangle_indices=triangles,
                      vertex_normals=normals, vertex_colors=vcol)  # fmt: skip
@@ -327,6 +386,8 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
         rec.log("world/receiver/hands", rr.Boxes3D(
             centers=centres, half_sizes=half, quaternions=quats, colors=RECEIVER_HAND_COLOUR,
             labels=[f"receiver {nm}" for nm in names], fill_mode="solid"), static=True)  # fmt: skip
+    rec.set_time(TIMELINE, sequence=0)
+    _log_locations(rec, phase, k)
     rec.log(ENTITY_CANDIDATES, rr.AnnotationContext(
         [rr.AnnotationInfo(id=cid, label=label, color=rgb) for cid, label, rgb in legend]),
         static=True)  # fmt: skip

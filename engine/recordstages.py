@@ -35,6 +35,7 @@ __all__ = [
     "OUTCOME_COLOURS",
     "OTHER_KIND_COLOUR",
     "ENTITY_CANDIDATES",
+    "ENTITY_LOCATIONS",
     "ENTITY_CENTRES",
     "ENTITY_APPROACH",
     "ENTITY_LOG",
@@ -92,6 +93,7 @@ OUTCOME_COLOURS: dict[str, tuple[int, int, int]] = {
 OTHER_KIND_COLOUR = (255, 0, 255)
 
 ENTITY_CANDIDATES = "world/handover/candidates"
+ENTITY_LOCATIONS = "world/handover/locations"
 ENTITY_CENTRES = "world/handover/candidates/centres"
 ENTITY_APPROACH = "world/handover/candidates/approach"
 ENTITY_LOG = "trace/log"

@@ -562,3 +562,28 @@ def test_real_h2g2_plan_records_pick_midair_and_handover(kb, tmp_path):
     # The candidates are drawn at the handover: the second hand's grasp is the chosen one.
     final = by_stage(cols[ENTITY_CENTRES], "Points3D:class_ids")[4]
     assert final[second["id"]] == CLASS_CHOSEN
+
+
+def test_the_recording_draws_both_bodies_and_the_handover_locations(kb, tmp_path):
+    from handover.engine.planner import plan
+    from handover.engine.query import Query
+
+    planned = plan(kb, Query(object="knife", receiver="seated_adult"))
+    path = tmp_path / "seated.rrd"
+    planned.record(path)
+    result = planned.result
+    cols = read_columns(path)
+    for who in ("receiver", "robot"):
+        drawn = []
+        for shape in ("capsules", "boxes"):
+            for row in cols.get(f"world/bodies/{who}/{shape}", []):
+                labels = row.get(f"{'Capsules3D' if shape == 'capsules' else 'Boxes3D'}:labels")
+                drawn += list(labels or [])
+        assert sorted(drawn) == sorted(p["name"] for p in result.bodies[who]), who
+    assert "chair_seat" in {p["name"] for p in result.bodies["receiver"]}  # seated
+    rows = cols["world/handover/locations"]
+    assert [r["stage"] for r in rows] == [0]  # chosen before the grasps are judged
+    points = np.asarray(rows[0]["Points3D:positions"])
+    radii = np.asarray(rows[0]["Points3D:radii"])
+    big = points[np.argmax(radii)]
+    np.testing.assert_allclose(big, result.handover_point["position"], atol=1e-4)
