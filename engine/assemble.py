@@ -10,6 +10,7 @@ import numpy as np
 
 from handover.engine.errors import UsageError
 from handover.engine.evaluate import trace_row
+from handover.engine.features import handover_targets
 from handover.engine.result import PlanResult
 
 if TYPE_CHECKING:
@@ -190,6 +191,8 @@ def build_result(
         "presentations": ctx.k,
         "kept": int(d.kept.sum()) if d is not None else 0,
         "rejected_by": d.rejected_by() if d is not None else {},
+        "collisions": (d.collision_hits(handover_targets(ctx, attempt.phase.hands).names)
+                       if d is not None and attempt.phase is not None else {}),
         "generation": ctx.generation,
     }
     for key in ("first_rejected_by", "first_feasible", "pairs_checked", "pairs_colliding",

@@ -68,6 +68,25 @@ class Decision:
         order = np.lexsort((idx, -self.score[idx]))
         return idx[order]
 
+    def collision_hits(self, names: tuple[str, ...] = ()) -> dict[str, dict[str, int]]:
+        """For each collision rule, how many rows it removed hit each target (a row that hit
+        two targets counts for both); ``names``: the world's targets at the handover."""
+        from handover.engine.features import collision_targets
+
+        out: dict[str, dict[str, int]] = {}
+        for h, c in enumerate(self.hard):
+            if c.rule.kind != "collision" or c.id not in self.measured:
+                continue
+            values = self.measured[c.id][self.fails[:, h] & self.checked[:, h]]
+            codes, counts = np.unique(values[np.isfinite(values)], return_counts=True)
+            tally: dict[str, int] = {}
+            for code, count in zip(codes, counts, strict=True):
+                for target in collision_targets(float(code), names):
+                    tally[target] = tally.get(target, 0) + int(count)
+            if tally:
+                out[c.id] = dict(sorted(tally.items(), key=lambda kv: (-kv[1], kv[0])))
+        return out
+
     def rejected_by(self) -> dict[str, int]:
         """Rows removed by each hard rule: the first rule (in order) a row failed."""
         first = self.first_fail[self.first_fail >= 0]
@@ -152,10 +171,12 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
         if not is_collision[h]:
             continue
         idx = np.flatnonzero(alive)
+        measured[c.id] = np.full(rows, np.nan)
         if len(idx):
             out = evaluate_rule(c, ctx, phase, gi[idx], pk[idx])
             fails[idx, h] = ~out.passed
             checked[idx, h] = True
+            measured[c.id][idx] = out.measured
         alive &= ~fails[:, h]
 
     # First failing hard rule in evaluation order (collision rules come last by cost).

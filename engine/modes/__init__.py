@@ -59,14 +59,7 @@ def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
         return Attempt(mode, False, f"{mode}: {out_of_reach}")
     attempt = PLANNERS[mode](kb, ctx)
     if not attempt.feasible:
-        if attempt.phase is not None and attempt.graph is not None:
-            from handover.engine.world import location_reason
-
-            where = location_reason(ctx, attempt.phase.hands,
-                                    [c for c in attempt.graph.order if c.rule.kind == "location"])
-            if where:
-                return replace(attempt, reason=f"{attempt.reason}. Where to offer it: {where}")
-        return attempt
+        return replace(attempt, reason=_reason_with_targets(ctx, attempt))
     trace = chosen_traces(ctx, attempt)
     failed = [e for e in trace if e["hard"] and e["status"] == "fail"]
     if failed:
@@ -74,6 +67,29 @@ def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
         return attempt.rejected(f"{mode}: the chosen grasps fail hard rules in their own "
                                 f"trace: {names}")
     return replace(attempt, extra=attempt.extra | {"trace": trace})
+
+
+def _reason_with_targets(ctx: PlanContext, attempt: Attempt) -> str | None:
+    """An infeasible attempt's reason, with what its collision rules hit and, when nothing
+    could be offered anywhere, why not."""
+    from handover.engine.features import handover_targets
+    from handover.engine.world import location_reason
+
+    reason = attempt.reason
+    if attempt.phase is None or attempt.graph is None:
+        return reason
+    hands = attempt.phase.hands
+    if attempt.decision is not None:
+        hits = attempt.decision.collision_hits(handover_targets(ctx, hands).names)
+        for rule_id, tally in hits.items():
+            if reason and rule_id in reason:
+                listed = ", ".join(f"{t} ({n})" for t, n in list(tally.items())[:4])
+                reason = f"{reason}; {rule_id} hit {listed}"
+    where = location_reason(ctx, hands,
+                            [c for c in attempt.graph.order if c.rule.kind == "location"])
+    if where:
+        reason = f"{reason}. Where to offer it: {where}"
+    return reason
 
 
 def beyond_reach(ctx: PlanContext) -> str | None:

@@ -58,6 +58,34 @@ def midair_pose(ctx: PlanContext, handover: np.ndarray) -> np.ndarray:
     return pose
 
 
+def _clear_in_midair(ctx: PlanContext, hands, firsts: np.ndarray, seconds: np.ndarray,
+                     presentations: np.ndarray) -> tuple[np.ndarray, dict[str, int]]:
+    """(F, M) bool: the object at the midair pose of each second row's presentation, and both
+    grippers there (first grasp f, second grasp m), hit none of the world's targets (table,
+    obstacles, bodies); and what was hit, counted over (pair) failures."""
+    targets = ctx.world.without_receiving_arms(hands.receiving)
+    names = targets.names
+    clear = np.ones((len(firsts), len(seconds)), dtype=bool)
+    tally: dict[str, int] = {}
+    if len(targets) == 0:
+        return clear, tally
+    posed = ctx.gripper_boxes()
+    for k in np.unique(presentations):
+        cols = np.flatnonzero(presentations == k)
+        pose = midair_pose(ctx, hands.poses[k])
+        obj = targets.mesh_hits(ctx.collider, pose[None])[0]  # (P,)
+        local = targets.moved(np.linalg.inv(pose))
+        f_hit = local.posed_hits(posed._replace(centres=posed.centres[firsts],
+                                                rotations=posed.rotations[firsts]))  # (F, P)
+        s_hit = local.posed_hits(posed._replace(centres=posed.centres[seconds[cols]],
+                                                rotations=posed.rotations[seconds[cols]]))
+        bad_f, bad_s = f_hit.any(axis=1), s_hit.any(axis=1)
+        clear[:, cols] = ~(obj.any() | bad_f[:, None] | bad_s[None, :])
+        for p in np.flatnonzero(obj | f_hit.any(axis=0) | s_hit.any(axis=0)):
+            tally[f"{names[p]}"] = tally.get(names[p], 0) + len(cols)
+    return clear, dict(sorted(tally.items(), key=lambda kv: (-kv[1], kv[0])))
+
+
 def _feasible_firsts(ctx: PlanContext, rules: list[CompiledRule],
                      phase: Phase) -> tuple[np.ndarray, dict]:
     """Indices of candidates that pass every first-phase rule (ordered by quality desc, then
@@ -111,11 +139,23 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
                            poses[seconds], widths[seconds], paired=False)  # (F, M)
     free = ~hit
     free &= firsts[:, None] != seconds[None, :]
+    clear, midair_hits = _clear_in_midair(ctx, second.hands, firsts, seconds,
+                                          decision.pk[pool])
+    extra["pairs_checked"] = int(hit.size)
+    extra["pairs_colliding"] = int(hit.sum())
+    extra["pairs_hitting_in_midair"] = int((free & ~clear).sum())
+    if midair_hits:
+        extra["midair_hits"] = midair_hits
+    free &= clear
     col = np.flatnonzero(free.any(axis=0))
     other = next((c for c in cg.hard if c.rule.kind == "collision"
                   and "other_gripper" in c.rule.against), None)
-    extra["pairs_checked"] = int(hit.size)
-    extra["pairs_colliding"] = int(hit.sum())
+    if len(col) == 0 and free.size and (~hit & ~clear).any():
+        named = ", ".join(f"{t} ({n})" for t, n in list(midair_hits.items())[:4])
+        return Attempt("H2G2", False,
+                       f"H2G2: at the midair pose the object or a gripper hits {named} for "
+                       f"every pair of the best {len(pool)} second grasps", cg, decision,
+                       second, extra=extra)
     if len(col) == 0:
         rule = other.id if other is not None else "gripper-gripper collision"
         return Attempt("H2G2", False,

@@ -230,3 +230,25 @@ def test_a_robot_body_of_zero_size_is_a_kb_error_at_its_line(capsys, make_kb):
     _, err = capsys.readouterr()
     assert code == EXIT_INVALID_KB
     assert "robots/bot.yaml:6" in err
+
+
+@pytest.mark.parametrize("obj", ["pen", "scissors", "knife", "hammer"])
+def test_a_midair_regrasp_happens_in_free_space(planner, obj):
+    plan = planner.plan(obj, mode="h2g2", receiver="seated_adult")
+    if not plan.feasible:
+        assert plan.reason
+        return
+    r = plan.to_dict()
+    midair = np.asarray(r["regrasp"]["midair_pose"])
+    mesh = plan.context.part_mesh.mesh
+    sample, _ = trimesh.sample.sample_surface_even(mesh, 1500, seed=3)
+    pts = np.vstack([mesh.vertices, sample]) @ midair[:3, :3].T + midair[:3, 3]
+    for b in r["scene"]["boxes"]:
+        assert not inside_box(pts, b["extents"], b["pose"]).any(), b["id"]
+    table = next(b for b in r["scene"]["boxes"] if b["id"] == "table")
+    top = table["pose"][2][3] + table["extents"][2] / 2
+    over = (np.abs(pts[:, 0] - table["pose"][0][3]) < table["extents"][0] / 2) & \
+        (np.abs(pts[:, 1] - table["pose"][1][3]) < table["extents"][1] / 2)
+    assert (pts[over, 2] >= top - TOL).all()
+    assert inside_body(pts, r["bodies"]["robot"]) == []
+    assert inside_body(pts, r["bodies"]["receiver"], skip=receiving_arms(r)) == []
