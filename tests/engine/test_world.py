@@ -252,3 +252,18 @@ def test_a_midair_regrasp_happens_in_free_space(planner, obj):
     assert (pts[over, 2] >= top - TOL).all()
     assert inside_body(pts, r["bodies"]["robot"]) == []
     assert inside_body(pts, r["bodies"]["receiver"], skip=receiving_arms(r)) == []
+
+
+def test_a_small_child_is_offered_beside_the_table_or_told_why(world_kb):
+    (world_kb / "receivers" / "small_child.yaml").write_text(
+        "id: small_child\nname: A child of about four\nrole: child\nstature: 1.0\n"
+        "hand: child_hand\n", encoding="utf-8")
+    planner = Planner(kb=world_kb)
+    for obj in ("ball", "book", "mug"):
+        plan = planner.plan(obj, receiver="small_child")
+        if plan.feasible:
+            check_in_the_world(plan)
+            lm = receiver_landmarks(plan.to_dict())
+            assert lm.elbow_height < 0.75  # lower than the table top: beside it, then
+        else:
+            assert "table" in plan.reason or "clear_at_handover" in plan.reason
