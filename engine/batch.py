@@ -70,7 +70,9 @@ COLUMNS: dict[str, str] = {
     "warnings": "string",  # JSON list of warning messages raised while planning
     "candidates": "int64",  # geometric candidates of the object
     "content_hash": "string",  # KB YAML files + the object's mesh file
+    "rules": "string",  # JSON {applied: [id], rejected: {id: rows}, decided: [id]} (coverage)
 }
+OPTIONAL_COLUMNS = ("rules",)  # absent from files written before it: read as null
 KEY_COLUMNS = ("object", "culture", "receiver", "task", "scene", "query_mode")
 
 # ---------------------------------------------------------------- what to plan
@@ -321,7 +323,7 @@ def _row(q: BatchQuery, content_hash: str, **values: Any) -> dict:
         "object": q.object, "culture": q.culture, "receiver": q.receiver, "task": q.task,
         "scene": q.scene, "query_mode": q.mode, "mode": None, "feasible": None, "grasps": None,
         "score": None, "reason": None, "error": None, "warnings": "[]", "candidates": None,
-        "content_hash": content_hash,
+        "content_hash": content_hash, "rules": None,
     }  # fmt: skip
     row.update(values)
     return row
@@ -341,10 +343,13 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
 
     query = Query(object=obj.query_object, task=q.task, receiver=q.receiver, culture=q.culture,
                   scene=q.scene, mode=q.mode, mesh_scale=obj.scale)  # fmt: skip
+    from handover.engine.coverage import decided_rules
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            result = plan(kb, query, db=db).result
+            planned = plan(kb, query, db=db)
+            result = planned.result
         except Exception as e:  # noqa: BLE001 - one failing object must not stop the batch
             messages = sorted({str(w.message) for w in caught})
             return _row(q, content_hash, error=_error_text(e), warnings=json.dumps(messages))
@@ -356,7 +361,37 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
         feasible=bool(result.feasible), grasps=json.dumps(grasps, separators=(",", ":")),
         score=score, reason=result.reason, warnings=json.dumps(messages),
         candidates=int(result.candidates.get("grasps", 0)),
+        rules=json.dumps(_rule_use(result.to_dict(), planned.attempt.decision,
+                                   decided_rules), separators=(",", ":")),
     )  # fmt: skip
+
+
+def _rule_use(result: dict, decision, decided_rules) -> dict:
+    """Which rules applied to a plan, how many rows each rejected, which decided it (the
+    definitions of :mod:`handover.engine.coverage`)."""
+    return {
+        "applied": [r["rule"] for r in result.get("rules", []) if r.get("active")],
+        "rejected": result["candidates"].get("rejected_by", {}),
+        "decided": sorted(decided_rules(result, decision)),
+    }
+
+
+def rule_summary(rows: list[dict]) -> dict[str, dict[str, int]]:
+    """Per rule, over ``rows`` that carry rule use: in how many plans it applied, rejected
+    candidates, decided; rules in first-seen order."""
+    out: dict[str, dict[str, int]] = {}
+    for row in rows:
+        if not row.get("rules"):
+            continue
+        use = json.loads(row["rules"])
+        for rid in use["applied"]:
+            out.setdefault(rid, {"applied": 0, "rejected": 0, "decided": 0})["applied"] += 1
+        for rid, n in use["rejected"].items():
+            if n:
+                out.setdefault(rid, {"applied": 0, "rejected": 0, "decided": 0})["rejected"] += 1
+        for rid in use["decided"]:
+            out.setdefault(rid, {"applied": 0, "rejected": 0, "decided": 0})["decided"] += 1
+    return out
 
 
 def run_unit(unit: Unit, kb_dir: str, db_root: str | None) -> list[dict]:
@@ -597,13 +632,18 @@ def read_rows(path: Path | str) -> list[dict]:
             f"--out {path}: exists but cannot be read as Parquet ({e}); "
             "remove it or choose another file"
         ) from e
-    missing = [c for c in COLUMNS if c not in table.column_names]
+    missing = [c for c in COLUMNS if c not in table.column_names and c not in OPTIONAL_COLUMNS]
     if missing:
         raise UsageError(
             f"--out {path}: not a batch output (no column {', '.join(missing)}); "
             "remove it or choose another file"
         )
-    return table.select(list(COLUMNS)).to_pylist()
+    present = [c for c in COLUMNS if c in table.column_names]
+    rows = table.select(present).to_pylist()
+    for row in rows:
+        for c in OPTIONAL_COLUMNS:
+            row.setdefault(c, None)
+    return rows
 
 
 # ---------------------------------------------------------------- the whole batch

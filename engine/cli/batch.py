@@ -141,3 +141,14 @@ def render_summary(report, console, db_root: Path | None, limit: int = 40) -> No
         f"{report.skipped} already done. {len(report.rows)} rows in {report.out}."
     )
     console.print(f"grasp database: {db_root if db_root is not None else 'off (--no-db)'}")
+    from handover.engine.batch import rule_summary
+
+    use = rule_summary(rows)
+    if use:
+        rules = Table(title="rules over this run's plans (applied / rejected candidates / "
+                            "decided)", title_justify="left")
+        for name in ("rule", "applied", "rejected", "decided"):
+            rules.add_column(name, justify="left" if name == "rule" else "right")
+        for rid, n in use.items():
+            rules.add_row(rid, str(n["applied"]), str(n["rejected"]), str(n["decided"]))
+        console.print(rules)

@@ -310,3 +310,19 @@ def test_ray_gives_the_same_rows_as_the_local_pool(kb, local_ray, tmp_path):
     assert sum(1 for r in on_ray.rows if r["error"]) == 2 * len(BROKEN)
     assert (tmp_path / "pool.parquet").read_bytes() == (tmp_path / "ray.parquet").read_bytes()
     assert os.path.getsize(tmp_path / "ray.parquet") > 0
+
+
+def test_each_row_says_which_rules_applied_rejected_and_decided(kb, tmp_path):
+    units = batch.expand(kb, "mug", cultures=["common,korean"], receivers=["adult,elder"])
+    report = _run(kb, units, tmp_path / "rules.parquet", workers=1, db_root=tmp_path / "db")
+    assert len(report.rows) == 4
+    summary = batch.rule_summary(report.rows)
+    # Two hands for elders is Korean etiquette: it applies to the Korean elder alone and
+    # decides that plan (H2G1); one hand is preferred, and decides, everywhere else.
+    assert summary["two_hands_for_elders"] == {"applied": 1, "rejected": 0, "decided": 1}
+    assert summary["prefer_one_hand"]["decided"] == 3
+    korean_elder = next(r for r in report.rows
+                        if (r["culture"], r["receiver"]) == ("korean", "elder"))
+    use = json.loads(korean_elder["rules"])
+    assert "two_hands_for_elders" in use["applied"] and korean_elder["mode"] == "H2G1"
+    assert batch.read_rows(tmp_path / "rules.parquet") == report.rows
