@@ -123,7 +123,9 @@ def mesh_hits(
         boxed = (np.abs(local - centre) <= half).all(axis=1)
         if boxed.any():
             inside = np.zeros(len(r), dtype=bool)
-            inside[boxed] = tri.contains(local[boxed])
+            from handover.geometry.mesh import contains
+
+            inside[boxed] = contains(tri, local[boxed])
             out[r[inside], c[inside]] = True
     return out
 

@@ -290,7 +290,9 @@ class ObjectCollider:
             points = points.reshape(-1, 3)
             boxed = (np.abs(points - box_centre) <= box_ext / 2.0).all(axis=1)
             if boxed.any():
-                inside = self.mesh.contains(points[boxed])
+                from handover.geometry.mesh import contains
+
+                inside = contains(self.mesh, points[boxed])
                 hit[owner[boxed][inside]] = True
 
         # The rest: a part collides where it crosses the surface (python-fcl, box vs BVH).

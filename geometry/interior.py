@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.geometry.mesh import MeshError
+from handover.geometry.mesh import MeshError, contains
 
 if TYPE_CHECKING:
     import trimesh
@@ -88,7 +88,7 @@ class Interior:
                 height = pts[near] @ normals.T - offsets  # (m, F), <= 0 inside every plane
                 inside[near] = (height < -_PLANE_TOL).all(axis=1)
             else:
-                inside[near] = piece.contains(pts[near])
+                inside[near] = contains(piece, pts[near])
         return inside
 
     def boxes_enter(

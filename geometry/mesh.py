@@ -33,6 +33,7 @@ __all__ = [
     "MESH_SUFFIXES",
     "load_mesh",
     "validate_mesh",
+    "contains",
     "box",
     "cylinder",
     "icosphere",
@@ -71,6 +72,34 @@ class MeshWarning(UserWarning):
 
 
 # ---------------------------------------------------------------- loading and validation
+
+
+# Fixed ray directions for point-in-mesh tests (irrational-looking, so a ray seldom runs
+# along an edge of a mesh written on a grid).
+_CONTAINS_DIRECTIONS = np.array([
+    [0.4395064455, 0.617598629942, 0.652231566745],
+    [-0.5773502692, 0.3015113446, -0.7588965273],
+    [0.1122979476, -0.8490997616, 0.5161983912],
+])
+
+
+def contains(mesh: trimesh.Trimesh, points: np.ndarray) -> np.ndarray:
+    """(n,) bool: which ``points`` (n, 3) lie inside the watertight ``mesh``, the same in
+    every process. trimesh's ``mesh.contains`` retries a point its first rays cannot settle
+    along a direction drawn from an OS-seeded generator, so the answer could change between
+    runs; here two fixed directions are cast and a third settles where they disagree."""
+    from trimesh.ray.ray_util import contains_points
+
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    if len(points) == 0:
+        return np.zeros(0, dtype=bool)
+    d = _CONTAINS_DIRECTIONS / np.linalg.norm(_CONTAINS_DIRECTIONS, axis=1, keepdims=True)
+    first = contains_points(mesh.ray, points, check_direction=d[0])
+    second = contains_points(mesh.ray, points, check_direction=d[1])
+    split = first != second
+    if split.any():
+        first[split] = contains_points(mesh.ray, points[split], check_direction=d[2])
+    return first
 
 
 def load_mesh(path: str | Path, scale: float = 1.0) -> trimesh.Trimesh:
