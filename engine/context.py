@@ -144,7 +144,9 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
     face_part = np.asarray(ctx.part_mesh.face_part)
     graspable = np.array([not (t & roles.giver_forbid) for t in ctx.part_tags] or [True],
                          dtype=bool)
-    giver_faces = graspable[face_part] if graspable.any() else np.ones(len(face_part), bool)
+    giver_faces = graspable[face_part]
+    if not giver_faces.any():  # no face the robot may hold: the whole object is its region
+        giver_faces = np.ones(len(face_part), bool)
     proj = centroids[giver_faces] @ ctx.d_obj().T  # (F', K)
     s_range = np.stack([proj.min(axis=0), proj.max(axis=0)], axis=1)
     region = receiver_region(centroids, face_part, ctx.part_tags, set(roles.want),
