@@ -95,6 +95,8 @@ class ReceiverRegion:
     isotropic : the region has no long direction (see ``ISOTROPY``).
     normal : (3,) unit or None. For an isotropic region that is flat (a disc, a plate), the
         normal of its plane; None for one that is round in every direction (a cube).
+    solid : (F, 3) m or None. Surface samples of the whole object: the hand closes round
+        every part in its section, not only the region's (None: the region's points).
     """
 
     points: np.ndarray
@@ -103,6 +105,7 @@ class ReceiverRegion:
     tags: tuple[str, ...]
     isotropic: bool = False
     normal: np.ndarray | None = None
+    solid: np.ndarray | None = None
 
     @property
     def empty(self) -> bool:
@@ -143,7 +146,8 @@ def receiver_region(
             normal = vt[2] / np.linalg.norm(vt[2])
     used = tuple(sorted(want_tags)) if want_tags and (allowed & wanted).any() else ()
     return ReceiverRegion(points=points, parts=face_part[mask], axis=axis, tags=used,
-                          isotropic=isotropic, normal=normal)  # fmt: skip
+                          isotropic=isotropic, normal=normal,
+                          solid=np.asarray(face_centroids, dtype=float))  # fmt: skip
 
 
 def hand_axes(region: ReceiverRegion, rotations: np.ndarray, toward: np.ndarray) -> np.ndarray:
@@ -285,9 +289,10 @@ def predict_receiver_sites(
     across = np.cross(approach, axes)
     depth = np.zeros(k)
     along = np.einsum("ki,ki->k", site, axes)
+    solid = region.points if region.solid is None else region.solid
     for col in range(k):  # K = 24 presentations
-        section = np.abs(region.points @ axes[col] - along[col]) <= grip_width / 2.0 + BAND_TOL
-        pts = region.points[section if section.any() else band[:, col]]
+        section = np.abs(solid @ axes[col] - along[col]) <= grip_width / 2.0 + BAND_TOL
+        pts = solid[section] if section.any() else region.points[band[:, col]]
         y, z = pts @ across[col], pts @ approach[col]
         thickness[col] = max(float(np.ptp(y)), MIN_SECTION)
         depth[col] = max(float(np.ptp(z)), MIN_SECTION)
@@ -351,10 +356,17 @@ def predict_two_hand_sites(
         site = (band.T.astype(float) @ region.points) / counts[:, None]
         part = np.zeros(k, dtype=np.int64)
         thickness = np.zeros(k)
+        depth = np.zeros(k)
         for col in range(k):  # K = 24 presentations
             parts = np.bincount(region.parts[band[:, col]], minlength=n_parts)
             part[col] = int(parts.argmax())
-            hs = h[band[:, col], col]
-            thickness[col] = float(np.ptp(hs)) if len(hs) > 1 else 0.02
-        out.append(ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj))
+            # the hand closes round the edge it holds: the site is the middle of that
+            # section, across (h) and along the approach (s), so the palm rests on its face
+            hs, ss = h[band[:, col], col], s[band[:, col], col]
+            thickness[col] = max(float(np.ptp(hs)), MIN_SECTION)
+            depth[col] = max(float(np.ptp(ss)), MIN_SECTION)
+            site[col] += ((0.5 * (hs.min() + hs.max()) - site[col] @ h_obj[col]) * h_obj[col]
+                          + (0.5 * (ss.min() + ss.max()) - site[col] @ d_obj[col]) * d_obj[col])
+        out.append(ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj,
+                                 depth=depth))
     return out

@@ -27,8 +27,8 @@ across (``y``) and ``depth`` d along ``z`` (d = t unless given):
 
 :meth:`HumanHand.grip` names the grip a section calls for: ``pinch`` (thinner than
 :data:`PINCH_MAX`: a stem, a pen), ``wrap`` (the fingers reach round the far side),
-``cup`` (they only go up the sides: a 9 cm mug body), ``none`` (wider than the hand's span,
-``2 x finger_length``: no hand closes on it). Lengths in metres.
+``cup`` (they only go up the sides: a 9 cm mug body), ``none`` (wider across than the
+hand's span, ``2 x finger_length``: thumb and fingers cannot bracket it). Lengths in metres.
 """
 
 from __future__ import annotations
@@ -119,7 +119,7 @@ class HumanHand:
         module docstring)."""
         t = float(thickness)
         d = t if depth is None else float(depth)
-        if max(t, d) > 2.0 * self.finger_length:
+        if t > 2.0 * self.finger_length:  # thumb and fingers cannot bracket it
             return "none"
         if max(t, d) < PINCH_MAX:
             return "pinch"

@@ -58,8 +58,8 @@ class HandFitRule(RuleBase):
         return Outcome(ok[pk], depth[pk], ok[pk].astype(float), threshold, "m")
 
     def detail(self, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
-        """``receiver_hand``: the site's gap, the palm's and fingers' depths (m) and each hand's grip
-        (pinch, wrap, cup, none)."""
+        """``receiver_hand``: the site's gap, the palm's and fingers' depths (m) and each
+        hand's grip (pinch, wrap, cup, none)."""
         if phase is None or not phase.receiver_present:
             return {}
         fit, _, _ = self._per_presentation(ctx, phase)
