@@ -40,12 +40,19 @@ class KeepOutRule(RuleBase):
         return f"{' and '.join(self.of)} out of the opening of a part tagged {'/'.join(self.tags)}"
 
     def not_applicable(self, ctx: PlanContext) -> str | None:
-        from handover.engine.features import open_interior
-
-        if not len(open_interior(ctx, tuple(self.tags))):
-            return (f"no opening is modelled on the parts tagged {'/'.join(self.tags)} (a cup, "
-                    "bowl or tube primitive, or a hollow mesh)")
-        return None
+        """Read from the object's description alone (``kb show`` asks before any geometry is
+        built): primitives with no hollow one on a tagged part have no opening; a mesh file
+        may have one."""
+        obj = ctx.situation.obj
+        if not obj.geometry.primitives:
+            return None
+        tags = set(self.tags)
+        whole = bool(set(obj.tags) & tags)
+        if any(p.is_hollow and (whole or set(obj.parts[p.part].tags) & tags)
+               for p in obj.geometry.primitives if p.part in obj.parts or whole):
+            return None
+        return (f"no opening is modelled on the parts tagged {'/'.join(self.tags)} (a cup, "
+                "bowl or tube primitive, or a hollow mesh)")
 
     def _entered(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
                  pk: np.ndarray) -> tuple[np.ndarray, list]:
