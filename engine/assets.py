@@ -82,17 +82,20 @@ def primitive_cavity(prim: Primitive):
     return _hollow(prim, _placement(prim), cavity=True) if prim.is_hollow else None
 
 
-def object_interior(kb: KB, obj: ObjectSpec, part_mesh: PartMesh | None = None) -> Interior:
+def object_interior(kb: KB | None, obj: ObjectSpec, part_mesh: PartMesh | None = None,
+                    parts: set[str] | None = None) -> Interior:
     """The object's openings as one :class:`geometry.interior.Interior` (object frame, m):
-    the cavities of its hollow primitives; for a mesh file, the volume its convex hull adds
-    in pieces that open along the object's ``up`` axis (all such pieces when it has none;
-    nothing when the mesh is not watertight). ``part_mesh`` saves loading the mesh again.
-    Which objects have an opening that matters is the KB's to say (``open_container``)."""
+    the cavities of its hollow primitives (only those of ``parts`` when given); for a mesh
+    file, the volume its convex hull adds in pieces that open along the object's ``up`` axis
+    (all such pieces when it has none; nothing when the mesh is not watertight).
+    ``part_mesh`` saves loading the mesh again (``kb`` is then not needed). Which objects
+    have an opening that matters is the KB's to say (``open_container``)."""
     from handover.geometry.interior import Interior, mesh_interior
     from handover.geometry.mesh import MeshError
 
     if obj.geometry.primitives:
-        pieces = [primitive_cavity(p) for p in obj.geometry.primitives if p.is_hollow]
+        pieces = [primitive_cavity(p) for p in obj.geometry.primitives
+                  if p.is_hollow and (parts is None or p.part in parts)]  # fmt: skip
         return Interior(pieces)
     pm = part_mesh if part_mesh is not None else object_part_mesh(kb, obj)
     try:

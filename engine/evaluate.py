@@ -207,7 +207,8 @@ def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,
     and the other active rules are listed as not applicable with ``note``. Active rules
     come first in evaluation order, then the inactive ones with their reason. Each entry:
     rule, kind, hard, status (pass | fail | scored | not_applicable), measured, unit,
-    threshold, score, weight, why, source, culture, overrides, safety, note."""
+    threshold, score, weight, why, source, culture, overrides, safety, note, and what the
+    rule's kind adds (:meth:`~handover.engine.kinds.RuleBase.detail`)."""
     gi = np.array([grasp])
     pk = np.array([presentation])
     entries = []
@@ -230,6 +231,7 @@ def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,
             entry["hits"] = collision_targets(float(out.measured[0]), names)
         if c.rule.kind == "location" and c.rule.measure == "clear" and not passed:
             entry["hits"] = list(phase.hands.hits[presentation])
+        entry.update(c.rule.detail(ctx, phase, grasp, presentation))
         entries.append(entry)
     for c in cg.inactive:
         entries.append(_entry(c, "not_applicable", None, None))

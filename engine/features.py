@@ -8,6 +8,7 @@ key, so memoising them never changes an outcome.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -17,6 +18,7 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
     from handover.engine.presentation import ReceiverRegion, ReceiverSites
     from handover.geometry.bodies import Body
+    from handover.geometry.interior import Interior
 
 __all__ = [
     "tag_mask",
@@ -30,6 +32,12 @@ __all__ = [
     "collision_targets",
     "collision_handover",
     "handover_targets",
+    "open_interior",
+    "keep_out_gripper",
+    "keep_out_receiver_hand",
+    "HandFit",
+    "hand_fit",
+    "SITE_RAYS",
 ]
 
 # Bits of a collision rule's measured value: which targets were hit. At the handover, bit
@@ -107,20 +115,15 @@ def hand_model(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites, k
     with the object at ``pose`` (4, 4); empty where that hand has no site."""
     if not sites.valid[k]:
         return []
+    from handover.engine.presentation import hand_approach
+
     rot = pose[:3, :3]
     site = rot @ sites.site[k] + pose[:3, 3]
     axis = rot @ (sites.axis[k] if sites.axis is not None else region.axis)
-    approach = _hand_approach(axis, ctx.situation.toward)
-    return ctx.hand.boxes(site, axis, approach, float(sites.thickness[k]))
-
-
-def _hand_approach(axis: np.ndarray, toward: np.ndarray) -> np.ndarray:
-    """Direction the receiver's hand moves in to grasp: from the receiver toward the robot,
-    made perpendicular to the part's axis; from above when the axis points at the robot."""
-    move = -toward - np.dot(-toward, axis) * axis
-    if np.linalg.norm(move) < 0.3:
-        move = np.array([0.0, 0.0, -1.0]) - axis[2] * axis
-    return move / np.linalg.norm(move)
+    approach = hand_approach(axis, ctx.situation.toward, np.array([0.0, 0.0, 1.0]))
+    depth = float(sites.depth[k]) if sites.depth is not None else None
+    return ctx.hand.boxes(site, axis, approach, float(sites.thickness[k]), depth,
+                          cupped=sites.cupped)
 
 
 def receiver_hand_boxes(ctx: PlanContext, hands: Hands, k: int) -> list:
@@ -164,3 +167,128 @@ def collision_other_gripper(ctx: PlanContext, other: int, gi: np.ndarray) -> np.
     partner = np.repeat(poses[other][None], len(gi), axis=0)
     return grippers_collide(ctx.gripper, poses[gi], widths[gi], partner,
                             np.full(len(gi), widths[other]), paired=True)
+
+
+def open_interior(ctx: PlanContext, tags: tuple[str, ...]) -> Interior:
+    """The openings no hand may enter (object frame): every opening of an object tagged with
+    one of ``tags``, else the cavities of the hollow primitives of the parts so tagged
+    (:func:`engine.assets.object_interior`). Memoised per tags."""
+    from handover.engine.assets import object_interior
+
+    memo = ctx.memo.setdefault("interior", {})
+    key = tuple(sorted(tags))
+    if key not in memo:
+        obj = ctx.situation.obj
+        parts = None if set(obj.tags) & set(tags) else {
+            name for name, part in obj.parts.items() if set(part.tags) & set(tags)}
+        memo[key] = object_interior(None, obj, ctx.part_mesh, parts=parts)
+    return memo[key]
+
+
+def keep_out_gripper(ctx: PlanContext, interior: Interior, key: tuple,
+                     gi: np.ndarray) -> np.ndarray:
+    """(R,) int64 bit mask: which of the gripper's boxes (bit b: ``gripper_boxes().names[b]``)
+    at grasp ``gi`` reach into ``interior`` (object frame). Memoised per candidate under
+    ``key`` (the interior's tags)."""
+    posed = ctx.gripper_boxes()
+    memo = ctx.memo.setdefault("keep_out_gripper", {})
+    known = memo.setdefault(key, np.full(ctx.n, -1, dtype=np.int64))
+    todo = np.unique(gi[known[gi] < 0])
+    if len(todo):
+        mask = np.zeros(len(todo), dtype=np.int64)
+        for b in range(len(posed.names)):
+            enter = interior.boxes_enter(posed.centres[todo, b], posed.rotations[todo],
+                                         posed.extents[b] / 2.0)
+            mask |= np.where(enter, 1 << b, 0)
+        known[todo] = mask
+    return known[gi]
+
+
+def keep_out_receiver_hand(ctx: PlanContext, hands: Hands, interior: Interior,
+                           k: int) -> list[str]:
+    """The receiver's hand boxes (``"right palm"``, ...) that reach into ``interior`` in
+    presentation ``k``."""
+    names, boxes = [], []
+    for hand, sites in zip(hands.receiving, hands.sites, strict=False):
+        for name, ext, pose in hand_model(ctx, hands.region, sites, k, hands.poses[k]):
+            names.append(f"{hand} {name}")
+            boxes.append((ext, np.linalg.inv(hands.poses[k]) @ pose))
+    if not boxes:
+        return []
+    enter = interior.boxes_enter(np.array([b[1][:3, 3] for b in boxes]),
+                                 np.array([b[1][:3, :3] for b in boxes]),
+                                 np.array([b[0] for b in boxes]) / 2.0)
+    return [n for n, e in zip(names, enter, strict=True) if e]
+
+
+SITE_RAYS = 4
+"""Rays cast from a receiver's site across the part (the hand's +-y and +-z) to see that the
+part surrounds it."""
+
+
+@dataclass(frozen=True)
+class HandFit:
+    """How the receiver's hands sit on the object, per presentation (K,) (every hand: the
+    worst). site_gap : m, how far a site lies from the part it is on (0 inside the part, or
+    surrounded by it within the hand's section: the middle of a cup; for a cupping hand, the
+    point where its palm meets the object's face). palm_depth,
+    finger_depth : m, how deep the palm and the finger boxes reach into the object.
+    grips : per presentation, each hand's grip (:meth:`geometry.hand.HumanHand.grip`).
+    """
+
+    site_gap: np.ndarray
+    palm_depth: np.ndarray
+    finger_depth: np.ndarray
+    grips: tuple[tuple[str, ...], ...]
+
+
+def hand_fit(ctx: PlanContext, hands: Hands) -> HandFit:
+    """:class:`HandFit` of ``hands`` in every presentation (memoised per hands)."""
+    from handover.geometry.mesh import ray_first_hits
+    from handover.geometry.penetration import box_depths, surface_gaps
+
+    memo = ctx.memo.setdefault("hand_fit", {})
+    if hands.key in memo:
+        return memo[hands.key]
+    mesh = ctx.part_mesh.mesh
+    k_all = ctx.k
+    gap, palm, fingers = np.zeros(k_all), np.zeros(k_all), np.zeros(k_all)
+    grips: list[list[str]] = [[] for _ in range(k_all)]
+    for sites in hands.sites:
+        ks = np.flatnonzero(sites.valid)
+        centres, rots, halves, owner, is_palm = [], [], [], [], []
+        origins, dirs, reach, palm_points = [], [], [], []
+        for k in ks:
+            inv = np.linalg.inv(hands.poses[k])
+            boxes = hand_model(ctx, hands.region, sites, int(k), hands.poses[k])
+            for name, ext, pose in boxes:
+                local = inv @ pose
+                centres.append(local[:3, 3])
+                rots.append(local[:3, :3])
+                halves.append(ext / 2.0)
+                owner.append(k)
+                is_palm.append(name == "palm")
+            frame = inv @ boxes[0][2]  # every box shares the hand frame's rotation
+            t = float(sites.thickness[k])
+            d = float(sites.depth[k]) if sites.depth is not None else t
+            for axis, half in ((1, t), (2, d)):
+                for sign in (1.0, -1.0):
+                    origins.append(sites.site[k])
+                    dirs.append(sign * frame[:3, axis])
+                    reach.append(half / 2.0)
+            grips[k].append("cup" if sites.cupped else ctx.hand.grip(t, d))
+            # a cupping hand holds the object's face: its site is where the palm meets it
+            palm_points.append(sites.site[k] - (d / 2.0 if sites.cupped else 0.0) * frame[:3, 2])
+        if not len(ks):
+            continue
+        depth = box_depths(mesh, np.array(centres), np.array(rots), np.array(halves))
+        owner_a, palm_a = np.array(owner), np.array(is_palm)
+        np.maximum.at(palm, owner_a[palm_a], depth[palm_a])
+        np.maximum.at(fingers, owner_a[~palm_a], depth[~palm_a])
+        face, dist = ray_first_hits(mesh, np.array(origins), np.array(dirs))
+        within = (face >= 0) & (dist <= np.array(reach) + 1e-3)
+        surrounded = within.reshape(len(ks), SITE_RAYS).all(axis=1) & (not sites.cupped)
+        site_gap = np.where(surrounded, 0.0, surface_gaps(mesh, np.array(palm_points)))
+        gap[ks] = np.maximum(gap[ks], site_gap)
+    memo[hands.key] = HandFit(gap, palm, fingers, tuple(tuple(g) for g in grips))
+    return memo[hands.key]

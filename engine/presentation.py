@@ -21,6 +21,8 @@ import numpy as np
 
 # A compact object's receiver hand stops this far (m) short of the object's middle.
 COMPACT_GAP = 0.005
+MIN_SECTION = 0.002
+"""m: the thinnest section a hand is modelled round (a wire is held like a 2 mm rod)."""
 BAND_TOL = 1e-9
 """m: samples this close outside a hand's band still count (rounding, not geometry)."""
 ISOTROPY = 0.95
@@ -35,6 +37,7 @@ __all__ = [
     "ReceiverSites",
     "receiver_region",
     "hand_axes",
+    "hand_approach",
     "predict_receiver_sites",
     "predict_two_hand_sites",
 ]
@@ -92,6 +95,8 @@ class ReceiverRegion:
     isotropic : the region has no long direction (see ``ISOTROPY``).
     normal : (3,) unit or None. For an isotropic region that is flat (a disc, a plate), the
         normal of its plane; None for one that is round in every direction (a cube).
+    solid : (F, 3) m or None. Surface samples of the whole object: the hand closes round
+        every part in its section, not only the region's (None: the region's points).
     """
 
     points: np.ndarray
@@ -100,6 +105,7 @@ class ReceiverRegion:
     tags: tuple[str, ...]
     isotropic: bool = False
     normal: np.ndarray | None = None
+    solid: np.ndarray | None = None
 
     @property
     def empty(self) -> bool:
@@ -140,7 +146,8 @@ def receiver_region(
             normal = vt[2] / np.linalg.norm(vt[2])
     used = tuple(sorted(want_tags)) if want_tags and (allowed & wanted).any() else ()
     return ReceiverRegion(points=points, parts=face_part[mask], axis=axis, tags=used,
-                          isotropic=isotropic, normal=normal)  # fmt: skip
+                          isotropic=isotropic, normal=normal,
+                          solid=np.asarray(face_centroids, dtype=float))  # fmt: skip
 
 
 def hand_axes(region: ReceiverRegion, rotations: np.ndarray, toward: np.ndarray) -> np.ndarray:
@@ -182,6 +189,9 @@ class ReceiverSites:
     valid : (K,) bool.
     axis : (K, 3) unit, object frame, or None. The direction the hand wraps around, where
         it differs from the region's axis (an edge held by one of two hands).
+    depth : (K,) m, or None (then ``thickness``). Size of the grasped section along the
+        hand's approach (:func:`hand_approach`).
+    cupped : the hand cups a compact object (no part to close round).
     """
 
     site: np.ndarray
@@ -189,6 +199,8 @@ class ReceiverSites:
     thickness: np.ndarray
     valid: np.ndarray
     axis: np.ndarray | None = None
+    depth: np.ndarray | None = None
+    cupped: bool = False
 
 
 def predict_receiver_sites(
@@ -248,24 +260,58 @@ def predict_receiver_sites(
     # half, so one shorter than two hands is cupped too (a 10 cm box, not only a ball).
     if length < grip_width or (not region.tags and length < 2.0 * grip_width):
         # A compact region (a ball, a short box): no handle to close around, so the hand
-        # cups the receiver's half. Site at s*, hand wrapping the horizontal lateral
-        # direction, its thickness the depth of that half along robot->receiver.
-        # The fingers reach from the receiver's face to COMPACT_GAP short of the middle:
-        # hand.boxes puts them over [s_c - t/2 - finger_thickness, s_c + t/2].
+        # cups the receiver's half, wrapping the horizontal lateral direction: its depth the
+        # depth of that half along robot->receiver, from the receiver's face to COMPACT_GAP
+        # short of the middle (the palm on the face, the fingers and thumb up the sides);
+        # its thickness the half's extent across the hand, the site the middle of both.
         up = np.array([0.0, 0.0, 1.0])
         l_obj = np.einsum("kji,j->ki", rotations, np.cross(up, toward))
         half = 0.5 * (s_max - s_min)
-        thickness = np.maximum(half - COMPACT_GAP - finger_thickness, 0.005)
-        centre_s = s_max - thickness / 2.0
+        depth = np.maximum(half - COMPACT_GAP - finger_thickness, 0.005)
+        centre_s = s_max - depth / 2.0
         site = site + (centre_s - np.einsum("ki,ki->k", site, d_obj))[:, None] * d_obj
-        return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj)
-    # Section thickness: spread of the band samples across the hand's axis.
-    for col in range(k):
-        pts = region.points[band[:, col]]
-        pts = pts - np.outer(pts @ axes[col], axes[col])
-        thickness[col] = float(np.ptp(pts, axis=0).max()) if len(pts) > 1 else 0.02
+        across = np.cross(-d_obj, l_obj)  # the hand's y (its approach is -d_obj)
+        y = region.points @ across.T  # (M, K)
+        cap = s >= (s_max - half)[None, :]
+        y_lo = np.where(cap, y, np.inf).min(axis=0)
+        y_hi = np.where(cap, y, -np.inf).max(axis=0)
+        thickness = np.maximum(y_hi - y_lo, MIN_SECTION)
+        mid = 0.5 * (y_lo + y_hi) - np.einsum("ki,ki->k", site, across)
+        site = site + mid[:, None] * across
+        return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj,
+                             depth=depth, cupped=True)
+    # The hand closes round the region's whole section at the band's place along the axis
+    # (every sample within half a grip of it, all round, not only the receiver's half): the
+    # site is the centre of that section's extent across the hand and along its approach,
+    # so it lies on the part's axis (a stem's, a handle's), never beside it in the air.
+    up_obj = np.einsum("kji,j->ki", rotations, np.array([0.0, 0.0, 1.0]))
+    approach = hand_approach(axes, d_obj, up_obj)  # (K, 3)
+    across = np.cross(approach, axes)
+    depth = np.zeros(k)
+    along = np.einsum("ki,ki->k", site, axes)
+    solid = region.points if region.solid is None else region.solid
+    for col in range(k):  # K = 24 presentations
+        section = np.abs(solid @ axes[col] - along[col]) <= grip_width / 2.0 + BAND_TOL
+        pts = solid[section] if section.any() else region.points[band[:, col]]
+        y, z = pts @ across[col], pts @ approach[col]
+        thickness[col] = max(float(np.ptp(y)), MIN_SECTION)
+        depth[col] = max(float(np.ptp(z)), MIN_SECTION)
+        site[col] = (along[col] * axes[col] + 0.5 * (y.min() + y.max()) * across[col]
+                     + 0.5 * (z.min() + z.max()) * approach[col])  # fmt: skip
     return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool),
-                         axis=axes if region.isotropic else None)  # fmt: skip
+                         axis=axes if region.isotropic else None, depth=depth)  # fmt: skip
+
+
+def hand_approach(axis: np.ndarray, toward: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """(..., 3) unit: the direction the receiver's hand moves in to grasp a part whose long
+    direction is ``axis`` (..., 3) unit: from the receiver toward the robot (``-toward``),
+    made perpendicular to the axis; from above (``-up``) when the axis points at the robot.
+    Any frame, as long as ``axis``, ``toward`` (robot -> receiver) and ``up`` share it."""
+    axis, toward, up = (np.asarray(v, dtype=float) for v in (axis, toward, up))
+    move = -toward - np.einsum("...i,...i->...", -toward, axis)[..., None] * axis
+    down = -up - np.einsum("...i,...i->...", -up, axis)[..., None] * axis
+    move = np.where((np.linalg.norm(move, axis=-1) < 0.3)[..., None], down, move)
+    return move / np.linalg.norm(move, axis=-1, keepdims=True)
 
 
 def predict_two_hand_sites(
@@ -310,10 +356,17 @@ def predict_two_hand_sites(
         site = (band.T.astype(float) @ region.points) / counts[:, None]
         part = np.zeros(k, dtype=np.int64)
         thickness = np.zeros(k)
+        depth = np.zeros(k)
         for col in range(k):  # K = 24 presentations
             parts = np.bincount(region.parts[band[:, col]], minlength=n_parts)
             part[col] = int(parts.argmax())
-            hs = h[band[:, col], col]
-            thickness[col] = float(np.ptp(hs)) if len(hs) > 1 else 0.02
-        out.append(ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj))
+            # the hand closes round the edge it holds: the site is the middle of that
+            # section, across (h) and along the approach (s), so the palm rests on its face
+            hs, ss = h[band[:, col], col], s[band[:, col], col]
+            thickness[col] = max(float(np.ptp(hs)), MIN_SECTION)
+            depth[col] = max(float(np.ptp(ss)), MIN_SECTION)
+            site[col] += ((0.5 * (hs.min() + hs.max()) - site[col] @ h_obj[col]) * h_obj[col]
+                          + (0.5 * (ss.min() + ss.max()) - site[col] @ d_obj[col]) * d_obj[col])
+        out.append(ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj,
+                                 depth=depth))
     return out

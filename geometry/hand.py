@@ -1,4 +1,4 @@
-"""A simple human hand, as two boxes wrapped around the part it holds (an obstacle for the
+"""A simple human hand, as boxes wrapped around the part it holds (an obstacle for the
 robot's gripper when the receiver takes the object, the seed's section 3.3).
 
 The hand frame at a grasp site:
@@ -9,17 +9,26 @@ The hand frame at a grasp site:
 - ``y = z x x``: across the part, the side the fingers and thumb pass.
 - origin: the grasp site, the centre of the part's cross-section the hand closes around.
 
-Boxes (extents along x, y, z; centres in that frame), for a part ``thickness`` t:
+Boxes (extents along x, y, z; centres in that frame), for a part section ``thickness`` t
+across (``y``) and ``depth`` d along ``z`` (d = t unless given):
 
-- ``palm``: ``palm = (width, length, thickness)``, against the part: centre
-  ``z = -(t + palm[2]) / 2``.
-- ``fingers``: thumb and fingers closed round the part as one block ``grip_width`` wide
-  along the axis, ``t + 2 * finger_thickness`` across (``y``), and from the palm face
-  ``z = -t / 2`` up to where the fingers reach, ``min(-t/2 + finger_length, t/2 +
-  finger_thickness)``: over the far side of a thin part, only up its sides for a thick one.
+- ``palm``: ``palm = (width, length, thickness)``, resting on the part's near face: centre
+  ``z = -(d + palm[2]) / 2``.
+- wrapping (the default): the fingers and the thumb go round the outside of the part, never
+  through it. ``fingers`` and ``thumb`` are two boxes ``grip_width`` wide along the axis and
+  ``finger_thickness`` thick, beside the section (``y = +-(t + finger_thickness) / 2``), from
+  the palm face ``z = -d/2`` to where they reach, ``min(-d/2 + finger_length, d/2)``; when
+  they reach past the far face (``finger_length >= d + finger_thickness``), ``fingertips``
+  close over it: a box ``t + 2 finger_thickness`` across, from ``z = d/2`` to ``d/2 +
+  finger_thickness``.
+- cupping (``cupped=True``, a ball or a short box with nothing to close round, d the depth
+  of the receiver's cap of it): the palm on the cap's face, ``fingers`` and ``thumb`` up its
+  sides to ``min(-d/2 + finger_length, d/2 + finger_thickness)``, no fingertips.
 
-The fingers block covers the held part itself: a gripper touching it would grasp where the
-hand goes. Lengths in metres.
+:meth:`HumanHand.grip` names the grip a section calls for: ``pinch`` (thinner than
+:data:`PINCH_MAX`: a stem, a pen), ``wrap`` (the fingers reach round the far side),
+``cup`` (they only go up the sides: a 9 cm mug body), ``none`` (wider across than the
+hand's span, ``2 x finger_length``: thumb and fingers cannot bracket it). Lengths in metres.
 """
 
 from __future__ import annotations
@@ -30,7 +39,10 @@ import numpy as np
 
 from handover.geometry.gripper import Box
 
-__all__ = ["HumanHand"]
+__all__ = ["HumanHand", "PINCH_MAX"]
+
+PINCH_MAX = 0.015
+"""m: a section thinner than this is pinched between thumb and fingertips, not wrapped."""
 
 
 def _unit(v: np.ndarray, what: str) -> np.ndarray:
@@ -45,7 +57,8 @@ def _unit(v: np.ndarray, what: str) -> np.ndarray:
 
 @dataclass(frozen=True)
 class HumanHand:
-    """A human hand: palm box plus one block for the fingers and thumb around the part.
+    """A human hand: a palm box, and fingers and thumb round the part (see the module
+    docstring).
 
     palm : (3,) m, the palm's width (across the knuckles, along the held part), length
         (wrist to knuckles) and thickness.
@@ -100,30 +113,52 @@ class HumanHand:
         out[:3, 0], out[:3, 1], out[:3, 2], out[:3, 3] = x, np.cross(z, x), z, site
         return out
 
+    def grip(self, thickness: float, depth: float | None = None) -> str:
+        """The grip a section ``thickness`` (m, across) by ``depth`` (m, along the approach;
+        default ``thickness``) calls for: ``pinch`` | ``wrap`` | ``cup`` | ``none`` (see the
+        module docstring)."""
+        t = float(thickness)
+        d = t if depth is None else float(depth)
+        if t > 2.0 * self.finger_length:  # thumb and fingers cannot bracket it
+            return "none"
+        if max(t, d) < PINCH_MAX:
+            return "pinch"
+        return "wrap" if self.finger_length >= d + self.finger_thickness else "cup"
+
     def boxes(
-        self, site: np.ndarray, axis: np.ndarray, approach: np.ndarray, thickness: float
+        self,
+        site: np.ndarray,
+        axis: np.ndarray,
+        approach: np.ndarray,
+        thickness: float,
+        depth: float | None = None,
+        cupped: bool = False,
     ) -> list[Box]:
-        """The hand holding a part of ``thickness`` (m) at ``site``: ``[("palm", extents, T),
-        ("fingers", extents, T)]`` in the frame of ``site`` (3,), ``axis`` (3,) (the part's
-        long direction) and ``approach`` (3,) (the direction the hand moves towards the part;
-        the palm is on the side it comes from).
+        """The hand holding a part section ``thickness`` (m) across by ``depth`` (m, along
+        the approach; default ``thickness``) centred at ``site`` (3,), ``axis`` (3,) the part's
+        long direction, ``approach`` (3,) the direction the hand moves towards the part (the
+        palm is on the side it comes from). Returns ``[(name, extents (3,), pose (4, 4))]``:
+        ``palm``, then ``fingers``, ``thumb`` and, where they reach over, ``fingertips``
+        (wrapping; no fingertips when ``cupped``). See the module docstring.
         """
         t = float(thickness)
-        if not (np.isfinite(t) and t > 0):
-            raise ValueError(f"thickness must be a positive number, got {thickness}")
+        d = t if depth is None else float(depth)
+        if not (np.isfinite(t) and t > 0 and np.isfinite(d) and d > 0):
+            raise ValueError(f"thickness and depth must be positive numbers, got {thickness}, "
+                             f"{depth}")
         frame = self.frame(site, axis, approach)
-        ft = self.finger_thickness
-        z_lo = -t / 2.0
-        z_hi = min(-t / 2.0 + self.finger_length, t / 2.0 + ft)
-        local = {
-            "palm": ((0.0, 0.0, -(t + self.palm[2]) / 2.0), self.palm),
-            "fingers": (
-                (0.0, 0.0, (z_lo + z_hi) / 2.0),
-                (self.grip_width, t + 2 * ft, z_hi - z_lo),
-            ),
-        }
+        ft, gw, reach = self.finger_thickness, self.grip_width, self.finger_length
+        z_lo = -d / 2.0
+        local: list[tuple[str, tuple, tuple]] = [
+            ("palm", (0.0, 0.0, -(d + self.palm[2]) / 2.0), self.palm)]
+        z_side = min(z_lo + reach, d / 2.0 + ft if cupped else d / 2.0)
+        side = (gw, ft, z_side - z_lo)
+        local.append(("fingers", (0.0, (t + ft) / 2.0, (z_lo + z_side) / 2.0), side))
+        local.append(("thumb", (0.0, -(t + ft) / 2.0, (z_lo + z_side) / 2.0), side))
+        if reach >= d + ft and not cupped:
+            local.append(("fingertips", (0.0, 0.0, (d + ft) / 2.0), (gw, t + 2 * ft, ft)))
         out: list[Box] = []
-        for name, (centre, extents) in local.items():
+        for name, centre, extents in local:
             offset = np.eye(4)
             offset[:3, 3] = centre
             out.append((name, np.array(extents, dtype=float), frame @ offset))

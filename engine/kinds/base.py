@@ -46,6 +46,10 @@ FEATURES: dict[str, tuple[float, str, str]] = {
     "approach": (2.0, "grasp x presentation", "angle of approach a to robot->receiver"),
     "clearance": (3.0, "grasp x presentation", "distance from robot grasp to receiver site"),
     "location": (1.0, "presentation", "the handover location chosen for the presentation"),
+    "hand_fit": (10.0, "presentation", "the receiver's hand on the object: site, palm, fingers"),
+    "keep_out_gripper": (20.0, "grasp", "gripper boxes reaching into the object's opening"),
+    "keep_out_receiver_hand": (20.0, "presentation",
+                               "receiver's hand boxes reaching into the object's opening"),
     "collision_scene": (50.0, "grasp", "gripper against table and obstacles at pick-up"),
     "collision_receiver_hand": (100.0, "grasp x presentation", "gripper against human hand"),
     "collision_other_gripper": (100.0, "grasp pair", "gripper against the other gripper"),
@@ -111,6 +115,11 @@ class RuleBase(KBModel):
                  pk: np.ndarray) -> Outcome:
         """Decide rows ``(gi, pk)`` (both (R,) int) in the attempt phase ``phase``."""
         raise NotImplementedError(self.kind)
+
+    def detail(self, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
+        """Extra fields of this rule's trace entry on one row (what was measured, in more
+        than one number: the contact points, the boxes that entered). Empty by default."""
+        return {}
 
 
 KINDS: dict[str, type[RuleBase]] = {}

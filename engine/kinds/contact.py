@@ -64,6 +64,15 @@ class ContactRule(RuleBase):
             bits.append(f"a part tagged {'/'.join(self.require_tags)}")
         return "; ".join(bits)
 
+    def detail(self, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
+        """The giver's rule shows the two contact points (object frame, m) and the part at
+        each."""
+        if self.who != "giver":
+            return {}
+        c = ctx.candidates
+        return {"contacts": np.round(c.contacts[grasp], 6).tolist(),
+                "contact_parts": [ctx.part_mesh.part_names[int(p)] for p in c.parts[grasp]]}
+
     def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
                  pk: np.ndarray) -> Outcome:
         from handover.engine.features import tag_mask
