@@ -95,7 +95,8 @@ def test_segment_distance_equals_dense_sampling(coords):
     b = p2 + t[:, None] * (q2 - p2)
     sampled = np.linalg.norm(a[:, None] - b[None], axis=2).min()
     step = max(np.linalg.norm(q1 - p1), np.linalg.norm(q2 - p2)) / 400
-    assert ours <= sampled + 1e-12
+    # Crossing segments: a rounding error of 1e-14 m^2 under the square root reads ~1e-7 m.
+    assert ours <= sampled + 1e-6
     assert sampled - ours <= step + 1e-9
 
 
