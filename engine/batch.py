@@ -309,7 +309,7 @@ def _worker_kb(kb_dir: str) -> KB:
     if cached is None or cached[0] != digest:
         from handover.engine.loader import load_kb
 
-        cached = _KB_CACHE[kb_dir] = (digest, load_kb(kb_dir))
+        cached = _KB_CACHE[kb_dir] = (digest, load_kb(kb_dir, urdf=False))
     return cached[1]
 
 

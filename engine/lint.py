@@ -68,18 +68,19 @@ __all__ = [
 ]
 
 
-def lint_kb(kb: KB, failed_kinds: Iterable[str] = ()) -> list[KBIssue]:
+def lint_kb(kb: KB, failed_kinds: Iterable[str] = (), urdf: bool = True) -> list[KBIssue]:
     """Every semantic problem of ``kb``, sorted, each once.
 
     failed_kinds : document kinds (folder names) with a file that did not load; checks that
-    need all documents of such a kind are skipped.
+    need all documents of such a kind are skipped. urdf : parse robots' URDF files too (else
+    only their paths are checked).
     """
     failed = set(failed_kinds)
     issues: list[KBIssue] = []
     for obj in kb.objects.values():
         issues.extend(lint_object(kb, obj))
     issues.extend(lint_cultures(kb, failed))
-    issues.extend(lint_references(kb, failed))
+    issues.extend(lint_references(kb, failed, urdf))
     for test_file in kb.tests.values():
         issues.extend(lint_tests(kb, test_file, failed))
     return sorted(set(issues))
@@ -251,7 +252,7 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
 # ---------------------------------------------------------------- references
 
 
-def lint_references(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
+def lint_references(kb: KB, failed: set[str], urdf: bool = True) -> Iterator[KBIssue]:
     """Receivers' hands, robots' grippers, scene obstacle ids."""
     if "hands" not in failed:
         for receiver in kb.receivers.values():
@@ -288,7 +289,7 @@ def lint_references(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                         "gripper",
                     )
     for robot in kb.robots.values():
-        yield from lint_robot(kb, robot)
+        yield from lint_robot(kb, robot, parse=urdf)
     for scene in kb.scenes.values():
         seen: dict[str, object] = {}
         for k, box in enumerate(scene.obstacles):
@@ -307,7 +308,7 @@ def lint_references(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
 # ---------------------------------------------------------------- robots
 
 
-def lint_robot(kb: KB, robot: RobotSpec) -> Iterator[KBIssue]:
+def lint_robot(kb: KB, robot: RobotSpec, parse: bool = True) -> Iterator[KBIssue]:
     """A robot's URDF: the file exists inside the KB (as mesh files do), parses (a problem is
     reported at the ``urdf`` key with the URDF's own file:line; xacro is not supported), the
     links each arm names exist, each chain has only revolute, continuous, prismatic and fixed
@@ -316,7 +317,7 @@ def lint_robot(kb: KB, robot: RobotSpec) -> Iterator[KBIssue]:
     if robot.urdf is None:
         return
     path_issues = list(lint_mesh_path(kb, robot, robot, robot.urdf, "urdf", what="URDF file"))
-    if path_issues:
+    if path_issues or not parse:
         yield from path_issues
         return
     from handover.engine.robotload import check_robot

@@ -46,8 +46,12 @@ def _kb_files(root: Path) -> Iterator[Path]:
                 yield Path(dirpath) / name
 
 
-def load_kb(root: Path | str | None = None) -> KB:
+def load_kb(root: Path | str | None = None, *, urdf: bool = True) -> KB:
     """Load and check the knowledge base in ``root`` (default: :func:`resolve_kb_dir`).
+
+    urdf : also parse each robot's URDF and check its chains (about a second: yourdfpy and
+    its imports). Planning, which reads only the robots' YAML, passes False; ``handover kb
+    validate`` and a bare ``load_kb`` check everything.
 
     Returns the KB with its warnings. Raises KBError listing every error at once (schema
     and semantic checks, each ``file:line:col``; the warnings are in ``error.warnings``),
@@ -114,7 +118,7 @@ def load_kb(root: Path | str | None = None) -> KB:
             )
     if not files:
         errors.append(KBIssue(str(root), 0, 0, "no KB documents (.yaml files) found"))
-    for issue in lint_kb(kb, failed_kinds=failed):
+    for issue in lint_kb(kb, failed_kinds=failed, urdf=urdf):
         (errors if issue.severity == "error" else kb.warnings).append(issue)
     kb.warnings.sort()
     if errors:

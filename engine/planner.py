@@ -166,7 +166,7 @@ class Planner:
         from handover.engine.graspdb import open_db
         from handover.engine.loader import KB, load_kb
 
-        self.kb = kb if isinstance(kb, KB) else load_kb(kb)
+        self.kb = kb if isinstance(kb, KB) else load_kb(kb, urdf=False)
         self.db = open_db(None if db is True else db, disabled=db is False)
 
     def plan(

@@ -59,7 +59,7 @@ def batch(
     from handover.engine.loader import load_kb
 
     console = Console(stderr=True, highlight=False)
-    kb = load_kb(state.kb_dir)
+    kb = load_kb(state.kb_dir, urdf=False)
     units = expand(kb, objects, cultures, receivers, tasks, scene, mode,
                    check_mesh_scale(mesh_scale))  # fmt: skip
     graspdb = open_db(db, disabled=no_db)

@@ -49,7 +49,8 @@ def grasps(
     from handover.engine.result import dumps
 
     check_mesh_scale(mesh_scale)
-    listing = list_grasps(load_kb(state.kb_dir), target, gripper, roll_step_deg, mesh_scale)
+    kb = load_kb(state.kb_dir, urdf=False)
+    listing = list_grasps(kb, target, gripper, roll_step_deg, mesh_scale)
     if json_out:
         typer.echo(dumps(listing.to_dict(limit)), nl=False)
         return

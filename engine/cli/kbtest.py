@@ -37,7 +37,7 @@ def test(
     from handover.engine.kbtest import case_files, run_tests
     from handover.engine.loader import load_kb
 
-    kb = load_kb(state.kb_dir)
+    kb = load_kb(state.kb_dir, urdf=False)
     report = run_tests(kb, case_files(kb, list(paths or [])), select=select)
     if not report.cases:
         where = "the given paths" if paths else f"{kb.root / 'tests'}"

@@ -73,7 +73,7 @@ def plan(
     from handover.engine.loader import load_kb
     from handover.engine.planner import plan as run_plan
 
-    kb = load_kb(state.kb_dir)
+    kb = load_kb(state.kb_dir, urdf=False)
     query = _query(object_, task, receiver, culture, scene, mode, gripper, mesh_scale)
     planned = run_plan(kb, query, why_not=tuple(why_not), db=open_db(db, disabled=no_db))
     result = planned.result
@@ -115,7 +115,7 @@ def explain_graph(
     from handover.engine.prepare import prepare
     from handover.engine.trace import render_graph
 
-    kb = load_kb(state.kb_dir)
+    kb = load_kb(state.kb_dir, urdf=False)
     ctx = prepare(kb, _query(object_, task, receiver, culture, scene, "auto", None))
     mode = mode.upper()
     if mode not in ("H1G1", "H2G2", "H2G1"):
