@@ -7,7 +7,8 @@ generation and a full plan scale with mesh size (icospheres of 80 to 81,920 face
 cold: an empty database for every run (candidates generated, then stored); warm: the entry
 is there (candidates read). Times are medians of ``--runs`` runs in this process, after one
 untimed run (imports, first-call costs). Targets on the reference machine: a full H1G1 plan
-of every built-in object under 0.5 s cold and under 0.1 s warm.
+of every built-in object under 0.5 s cold and under 0.15 s warm (with the location search
+and the collision tests at the handover), the auto plans included.
 """
 
 from __future__ import annotations
@@ -65,19 +66,19 @@ def bench_objects(kb, modes: list[str], runs: int) -> None:
                 except Exception as e:  # noqa: BLE001 - a benchmark reports and goes on
                     print(f"{oid:<13} {mode:<5} failed: {type(e).__name__}: {e}")
                     continue
-            if mode == "h1g1":
+            if mode == "auto":
                 worst["cold"] = max(worst["cold"], t_cold)
                 worst["warm"] = max(worst["warm"], t_warm)
             result = planned.result
             label = (result.mode or "-") if result.feasible else "none"
             print(f"{oid:<13} {mode:<5} {t_cold:7.3f} {t_warm:7.3f} {t_cold / t_warm:6.1f}x  "
                   f"{label:<6} {result.candidates.get('grasps', 0):>6}")  # fmt: skip
-    if "h1g1" in modes:
+    if "auto" in modes:
         ok_c = "met" if worst["cold"] < 0.5 else "MISSED"
-        ok_w = "met" if worst["warm"] < 0.1 else "MISSED"
+        ok_w = "met" if worst["warm"] < 0.15 else "MISSED"
         print(
-            f"slowest H1G1: cold {worst['cold']:.3f} s (target < 0.5 s: {ok_c}), "
-            f"warm {worst['warm']:.3f} s (target < 0.1 s: {ok_w})"
+            f"slowest auto plan: cold {worst['cold']:.3f} s (target < 0.5 s: {ok_c}), "
+            f"warm {worst['warm']:.3f} s (target < 0.15 s: {ok_w})"
         )
 
 

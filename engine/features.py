@@ -73,13 +73,22 @@ def collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
         return out
     weights = np.left_shift(np.int64(1), HANDOVER_BIT + np.arange(len(targets), dtype=np.int64))
     posed = ctx.gripper_boxes()
+    # Every gripper box lies within ``reach`` of the object frame's origin: targets farther
+    # are never touched and are not tested.
+    half_diag = 0.5 * np.linalg.norm(posed.extents, axis=1).max()
+    reach = float(np.linalg.norm(posed.centres[gi], axis=2).max()) + half_diag
+    centres, radii = targets.spheres()
     for k in np.unique(pk):  # the targets move into the object frame, not every gripper out
         rows = np.flatnonzero(pk == k)
-        local = targets.moved(np.linalg.inv(hands.poses[k]))
+        pose = hands.poses[k]
+        near = np.linalg.norm(centres - pose[:3, 3], axis=1) <= reach + radii
+        if not near.any():
+            continue
+        local = targets.subset(near).moved(np.linalg.inv(pose))
         sel = gi[rows]
         hits = local.posed_hits(
             posed._replace(centres=posed.centres[sel], rotations=posed.rotations[sel]))
-        out[rows] = hits.astype(np.int64) @ weights
+        out[rows] = hits.astype(np.int64) @ weights[near]
     return out
 
 

@@ -261,7 +261,7 @@ class Body:
             return out
         # Bounding spheres first: only pairs whose spheres meet go to the exact tests.
         rad_q = 0.5 * np.linalg.norm(e, axis=1)
-        mid, rad_p = self._spheres()
+        mid, rad_p = self.spheres()
         step = max(1, _CHUNK // n_p)
         for s in range(0, len(c), step):
             gap = np.linalg.norm(c[s : s + step, None] - mid, axis=2)
@@ -311,7 +311,7 @@ class Body:
         ) <= reach  # fmt: skip
         return out
 
-    def _spheres(self) -> tuple[np.ndarray, np.ndarray]:
+    def spheres(self) -> tuple[np.ndarray, np.ndarray]:
         """(P, 3) centres and (P,) radii of spheres holding each primitive."""
         mid = np.concatenate([0.5 * (self.p0 + self.p1), self.poses[:, :3, 3]])
         rad = np.concatenate([0.5 * np.linalg.norm(self.p1 - self.p0, axis=1) + self.radius,
