@@ -73,10 +73,11 @@ def collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
         return out
     weights = np.left_shift(np.int64(1), HANDOVER_BIT + np.arange(len(targets), dtype=np.int64))
     posed = ctx.gripper_boxes()
+    origin, g_reach = gripper_spheres(ctx)
     # Every gripper box lies within ``reach`` of the object frame's origin: targets farther
-    # are never touched and are not tested.
-    half_diag = 0.5 * np.linalg.norm(posed.extents, axis=1).max()
-    reach = float(np.linalg.norm(posed.centres[gi], axis=2).max()) + half_diag
+    # are never touched and are not tested; nor are grippers whose sphere misses every
+    # target's.
+    reach = float(np.linalg.norm(origin[gi], axis=1).max()) + g_reach if len(gi) else 0.0
     centres, radii = targets.spheres()
     for k in np.unique(pk):  # the targets move into the object frame, not every gripper out
         rows = np.flatnonzero(pk == k)
@@ -85,6 +86,11 @@ def collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
         if not near.any():
             continue
         local = targets.subset(near).moved(np.linalg.inv(pose))
+        l_centres, l_radii = local.spheres()
+        gap = np.linalg.norm(origin[gi[rows]][:, None, :] - l_centres[None], axis=2)
+        rows = rows[(gap <= g_reach + l_radii[None, :]).any(axis=1)]
+        if not len(rows):
+            continue
         sel = gi[rows]
         hits = local.posed_hits(
             posed._replace(centres=posed.centres[sel], rotations=posed.rotations[sel]))
@@ -152,19 +158,43 @@ def collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
 
     out = np.zeros(len(gi), dtype=bool)
     # The grippers are posed once in the object frame; each presentation's hands are moved
-    # into it (two boxes per hand, instead of every gripper into the world).
+    # into it (a few boxes per hand, instead of every gripper into the world). A gripper
+    # whose bounding sphere misses the hands' is not box-tested.
     posed = ctx.gripper_boxes()
+    origin, reach = gripper_spheres(ctx)
     for k in np.unique(pk):
         rows = np.flatnonzero(pk == k)
         boxes = receiver_hand_boxes(ctx, hands, int(k))
         if not boxes:
             continue
         world = BoxWorld(boxes).moved(np.linalg.inv(hands.poses[k]))
+        hand_centre = world.centres.mean(axis=0)
+        hand_reach = float((np.linalg.norm(world.centres - hand_centre, axis=1)
+                            + 0.5 * np.linalg.norm(world.extents, axis=1)).max())
+        near = np.linalg.norm(origin[gi[rows]] - hand_centre, axis=1) <= reach + hand_reach
+        rows = rows[near]
+        if not len(rows):
+            continue
         sel = gi[rows]
         out[rows] = world.posed_hits(
             posed._replace(centres=posed.centres[sel], rotations=posed.rotations[sel])
         ).any(axis=1)
     return out
+
+
+def gripper_spheres(ctx: PlanContext) -> tuple[np.ndarray, float]:
+    """(N, 3) grasp origins (object frame) and the radius (m) around each that holds every
+    box of its gripper (memoised)."""
+    if "gripper_spheres" not in ctx.memo:
+        posed = ctx.gripper_boxes()
+        origin = ctx.gripper_poses()[:, :3, 3]
+        if len(origin):
+            spread = np.linalg.norm(posed.centres - origin[:, None, :], axis=2).max()
+            reach = float(spread + 0.5 * np.linalg.norm(posed.extents, axis=1).max())
+        else:
+            reach = 0.0
+        ctx.memo["gripper_spheres"] = (origin, reach)
+    return ctx.memo["gripper_spheres"]
 
 
 def collision_other_gripper(ctx: PlanContext, other: int, gi: np.ndarray) -> np.ndarray:
