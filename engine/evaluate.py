@@ -181,7 +181,8 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
 
     # First failing hard rule in evaluation order (collision rules come last by cost).
     any_fail = fails.any(axis=1)
-    first_fail = np.where(any_fail, np.argmax(fails, axis=1), -1)
+    first_fail = (np.where(any_fail, np.argmax(fails, axis=1), -1) if len(hard)
+                  else np.full(rows, -1, dtype=np.int64))  # no hard rule: nothing fails
 
     score = np.full(rows, np.nan)
     soft_scores = np.full((rows, len(soft)), np.nan)

@@ -263,3 +263,15 @@ def test_the_facade_s_json_is_the_cli_s_byte_for_byte(capsys, args):
     plan = Planner().plan(args[0], **kwargs)
     assert out == plan.to_json()
     assert code == (0 if plan.feasible else 4)
+
+
+def test_a_culture_with_no_hard_rule_plans(planner):
+    """Every rule soft: nothing filters, the best-scored grasp is chosen (no crash on an empty
+    set of hard rules)."""
+    kb = dataclasses.replace(planner.kb, cultures=dict(planner.kb.cultures))
+    kb.cultures["common"] = Culture.model_validate({  # the base culture itself, all soft
+        "id": "common", "name": "Lenient", "rules": [
+            {"id": "good_grip", "kind": "quality", "hard": False, "min_quality": 0.0,
+             "why": "prefer good grasps"}]})  # fmt: skip
+    chosen, _, _ = choose(kb, prepare(kb, Query(object="ball"), planner.db), "h1g1")
+    assert chosen.feasible and chosen.decision.first_fail.max() == -1
