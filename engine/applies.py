@@ -33,6 +33,9 @@ class Applies(KBModel):
     object_tags_any: the object, or one of its parts, carries one of these tags.
     object_tags_none: neither the object nor any part carries any of these tags.
     receiver_roles: the receiver's role is one of these.
+    receiver_age_below: the receiver is younger than this (years; the profile's ``age``, else
+    its role's default).
+    receiver_age_at_least: the receiver is this old or older (years).
     tasks: the query's task is one of these.
     modes: the handover mode under evaluation is one of these.
     min_mass: the object's mass is at least this (kg).
@@ -44,6 +47,8 @@ class Applies(KBModel):
     object_tags_any: list[Tag] = []
     object_tags_none: list[Tag] = []
     receiver_roles: list[Role] = []
+    receiver_age_below: NonNegative | None = None
+    receiver_age_at_least: NonNegative | None = None
     tasks: list[Id] = []
     modes: list[Mode] = []
     min_mass: NonNegative | None = None
@@ -74,6 +79,7 @@ class Facts:
     payload: float | None = None
     max_opening: float | None = None
     role: str | None = None
+    age: float | None = None
     task: object = ...
     mode: str | None = None
 
@@ -97,6 +103,16 @@ def check(applies: Applies, facts: Facts) -> tuple[bool | None, str]:
     if a.receiver_roles:
         checks.append((_tri(facts.role is not None, facts.role in a.receiver_roles),
                        f"receiver role in {'/'.join(a.receiver_roles)} (is {facts.role})"))
+    if a.receiver_age_below is not None:
+        known = facts.age is not None
+        checks.append((_tri(known, known and facts.age < a.receiver_age_below),
+                       f"receiver younger than {a.receiver_age_below:g} years"
+                       + (f" (is {facts.age:g})" if known else "")))
+    if a.receiver_age_at_least is not None:
+        known = facts.age is not None
+        checks.append((_tri(known, known and facts.age >= a.receiver_age_at_least),
+                       f"receiver aged {a.receiver_age_at_least:g} years or more"
+                       + (f" (is {facts.age:g})" if known else "")))
     if a.tasks:
         checks.append((_tri(facts.task is not ..., facts.task in a.tasks),
                        f"task in {'/'.join(a.tasks)} (is {facts.task})"))
@@ -144,6 +160,10 @@ def describe(applies: Applies) -> str:
         said.append(f"object not tagged {'/'.join(a.object_tags_none)}")
     if a.receiver_roles:
         said.append(f"receiver is {'/'.join(a.receiver_roles)}")
+    if a.receiver_age_below is not None:
+        said.append(f"receiver younger than {a.receiver_age_below:g} years")
+    if a.receiver_age_at_least is not None:
+        said.append(f"receiver aged {a.receiver_age_at_least:g} years or more")
     if a.tasks:
         said.append(f"task is {'/'.join(a.tasks)}")
     if a.modes:

@@ -128,6 +128,7 @@ def query_facts(ctx: PlanContext, mode: str) -> Facts:
     f, s = ctx.facts, ctx.situation
     return Facts(tags=f.tags, mass=f.mass, size=f.size, min_width=f.min_width,
                  payload=f.payload, max_opening=f.max_opening, role=s.receiver.role,
+                 age=s.receiver.years,
                  task=s.task_id, mode=mode)
 
 

@@ -294,9 +294,17 @@ East Asia; elder: the same less ~5 cm lost by 70-80 years (Sorkin et al., Am J E
 1999); child: the WHO 2007 growth reference median at about 5 years (1.10 m)."""
 
 
+ROLE_AGE: dict[str, float] = {"adult": 35.0, "elder": 75.0, "child": 5.0, "superior": 45.0}
+"""years, a receiver's age when the profile gives none (rules with ``receiver_age_below`` /
+``receiver_age_at_least`` read it). A child without an age is taken as 5, the age of the
+default child stature (1.10 m): the strictest child rules hold unless the profile says
+otherwise."""
+
+
 class ReceiverProfile(KBModel):
     """Who receives: role, dominant hand, posture (standing or seated), stature (m; the body
-    and its reach are sized from it), and the hand model the robot keeps clear of."""
+    and its reach are sized from it), age (years; rules may depend on it), and the hand model
+    the robot keeps clear of."""
 
     id: Id
     name: str
@@ -304,7 +312,13 @@ class ReceiverProfile(KBModel):
     dominant_hand: Literal["left", "right"] = "right"
     posture: Literal["standing", "seated"] = "standing"
     stature: Annotated[float, Field(gt=0.3, le=2.6, allow_inf_nan=False)] | None = None
+    age: Annotated[float, Field(ge=0, le=130, allow_inf_nan=False)] | None = None
     hand: Id = "adult_hand"
+
+    @property
+    def years(self) -> float:
+        """years: the age given, else the role's default (:data:`ROLE_AGE`)."""
+        return self.age if self.age is not None else ROLE_AGE[self.role]
 
     @property
     def height(self) -> float:

@@ -11,7 +11,7 @@ candidate it rejects, in recordings), ``summary`` (one line for the catalogue) a
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 import numpy as np
 from pydantic import Field
@@ -80,7 +80,10 @@ class RuleBase(KBModel):
     ``why`` (shown in traces), ``safety`` (overriding it needs ``override_safety``),
     ``applies`` (conditions), ``overrides`` (ids of rules of the extended cultures this rule
     replaces), ``override_safety`` (the reason, required when an overridden rule is a safety
-    rule).
+    rule), ``fallback`` (what the robot does instead when this rule forbids every handover:
+    ``place`` sets the object down within the receiver's reach; none: refuse or report
+    infeasible), ``warn`` (a warning the result carries whenever the rule is active, e.g.
+    that an adult should supervise).
     """
 
     id: Id
@@ -92,6 +95,8 @@ class RuleBase(KBModel):
     applies: Applies = Field(default_factory=Applies)
     overrides: list[Id] = []
     override_safety: str | None = None
+    fallback: Literal["place"] | None = None
+    warn: str | None = None
 
     colour: ClassVar[tuple[int, int, int]] = (128, 128, 128)
     summary: ClassVar[str] = ""
