@@ -166,6 +166,11 @@ def build_result(
     robot_grasps = [grasp_record(ctx, c.hand, c.grasp, c.phase.hands.poses[c.presentation],
                                  attempt.score)
                     for c in attempt.chosen]
+    if attempt.feasible:  # the arm and its joint values, where a mode decided the arm
+        from handover.engine.arms import arm_record
+
+        for rec, c in zip(robot_grasps, attempt.chosen, strict=True):
+            rec.update(arm_record(ctx, c.phase, c.grasp, c.presentation))
     human: list[dict] = []
     trace: list[dict] = []
     regrasp = None

@@ -77,6 +77,9 @@ class Phase:
     scene is an obstacle at the initial pose). receiver_present : the receiver's hands are
     there (not while the robot passes the object between its own hands). other_grasp : the
     candidate the robot's other gripper holds at the same time, an obstacle (or None).
+    arm : the robot arm holding this grasp (``left`` | ``right``) once a mode has decided
+    it, else None (the ``reach`` rule then screens every arm's reachability map; with an arm
+    it judges by exact inverse kinematics, see :mod:`handover.engine.arms`).
     """
 
     mode: str
@@ -84,6 +87,7 @@ class Phase:
     pickup: bool = True
     receiver_present: bool = True
     other_grasp: int | None = None
+    arm: str | None = None
 
     def but(self, **changes) -> Phase:
         """A copy with ``changes`` (phases are values)."""

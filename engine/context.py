@@ -24,6 +24,7 @@ from handover.engine.query import Situation
 from handover.engine.world import Locations, World, build_world, candidate_locations, place
 
 if TYPE_CHECKING:
+    from handover.engine.robot import RobotArms
     from handover.geometry.candidates import CandidateSet
     from handover.geometry.collision import BoxWorld
     from handover.geometry.gripper import Gripper, PosedBoxes
@@ -125,6 +126,16 @@ class PlanContext:
         if "world" not in self.memo:
             self.memo["world"] = build_world(self.situation, self.scene_box_list, self.kb_root)
         return self.memo["world"]
+
+    @property
+    def arms(self) -> RobotArms | None:
+        """The robot's arms (:func:`handover.engine.robot.plan_arms`), None for a robot
+        without a URDF (a floating gripper per hand) or a context without a KB folder."""
+        if "arms" not in self.memo:
+            from handover.engine.robot import plan_arms
+
+            self.memo["arms"] = plan_arms(self.kb_root, self.situation.robot)
+        return self.memo["arms"]
 
     def locations(self, hand: str) -> Locations:
         """The candidate handover locations around the receiver's ``hand`` (memoised)."""

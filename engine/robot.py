@@ -21,7 +21,7 @@ radians (metres for prismatic joints).
   map; in-process maps are kept too. Without a folder, maps live in the process only.
 - :meth:`RobotArms.reachable` screens poses with the map; :meth:`RobotArms.solve` is exact
   damped-least-squares IK with seeded restarts (same input, same answer; a target's answer
-  may depend on the other targets of the batch through the restarts drawn).
+  does not depend on the other targets of the batch).
 - :meth:`RobotArms.collisions` names what an arm's links touch at configurations: world boxes,
   bodies (the receiver's), the robot's own body (except the link the arm is mounted on) and
   the other arm.
@@ -54,7 +54,7 @@ if TYPE_CHECKING:
     from handover.engine.graspdb import GraspDB
     from handover.engine.store import KB
 
-__all__ = ["RobotArms", "Solution", "reach_dir", "robot_arms"]
+__all__ = ["RobotArms", "Solution", "plan_arms", "reach_dir", "robot_arms"]
 
 REACH_FOLDER = "reach"
 """The folder of reachability maps inside the grasp database's folder."""
@@ -64,6 +64,13 @@ IK_RESTARTS = 10
 reachable poses; 5 restarts 3 %, 20 restarts 0.3 %)."""
 
 _MAPS: dict[tuple, ReachMap] = {}
+
+SEED_LIBRARY = 4096
+"""Configurations per arm whose grasp poses seed inverse kinematics (the nearest first)."""
+
+PLAN_MAP = {"erode": 1}
+"""The maps a plan screens with: the default build, its rim eroded by one voxel (precision
+against inverse kinematics 0.94 instead of 0.83, recall 0.93; see ``ReachMap.build``)."""
 
 
 def reach_dir(db: GraspDB | None) -> Path | None:
@@ -109,6 +116,7 @@ class RobotArms:
     body: Body
     reach_dir: Path | None = None
     map_params: dict = field(default_factory=dict)
+    _library: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def load(
@@ -188,9 +196,10 @@ class RobotArms:
         """The arm's reachability map: from this process, else from ``reach_dir``, else built
         (and saved there)."""
         arm = self.arm(side)
-        key = (None if self.reach_dir is None else str(self.reach_dir), self.model.content_hash,
-               arm.chain.base_link, arm.chain.tip_link, arm.tcp.round(12).tobytes(),
-               tuple(sorted(self.map_params.items())))  # fmt: skip
+        # A map depends on the URDF, the chain, the tcp and the build only: one per process
+        # whatever folder it is cached in.
+        key = (self.model.content_hash, arm.chain.base_link, arm.chain.tip_link,
+               arm.tcp.round(12).tobytes(), tuple(sorted(self.map_params.items())))
         if key not in _MAPS:
             if self.reach_dir is None:
                 _MAPS[key] = ReachMap.build(arm.kin, **self.map_params)
@@ -205,6 +214,23 @@ class RobotArms:
         arm = self.arm(side)
         return self.reach_map(side).reachable(self._to_base(arm, poses_world))
 
+    def reachable_at(self, side: str, points: np.ndarray, approaches: np.ndarray) -> np.ndarray:
+        """(m,) bool: :meth:`reachable` for grasp positions points (m, 3) with approach
+        directions approaches (m, 3, unit), world, m (no 4x4 poses needed)."""
+        arm = self.arm(side)
+        rot, t = arm.base[:3, :3], arm.base[:3, 3]
+        local = (np.asarray(points, dtype=float).reshape(-1, 3) - t) @ rot
+        return self.reach_map(side).lookup(local, np.asarray(approaches, float).reshape(-1, 3)
+                                           @ rot)
+
+    def reach_index(self, side: str, points: np.ndarray) -> np.ndarray:
+        """(m,) in [0, 1]: the fraction of approach directions the arm's map holds at world
+        positions points (m, 3), m (0: the arm reaches there in no way)."""
+        arm = self.arm(side)
+        local = (np.asarray(points, dtype=float).reshape(-1, 3) - arm.base[:3, 3]) \
+            @ arm.base[:3, :3]
+        return self.reach_map(side).reach_index(local)
+
     def solve(
         self,
         side: str,
@@ -215,12 +241,51 @@ class RobotArms:
     ) -> Solution:
         """Joint values putting the arm's grasp frame at poses (m, 4, 4), world, m.
 
-        seed : (dof,) or (m, dof) first guess (default: the middle of each joint's range),
-        then up to ``restarts`` seeded random restarts for the targets not reached.
+        seed : (dof,) or (m, dof) first guess, then (for the targets not reached) the
+        ``restarts`` configurations of the seed library whose poses lie nearest; without a
+        seed, the ``restarts + 1`` nearest. A target's answer depends on it alone (not on
+        the others asked with it); the same input gives the same answer.
         """
         arm = self.arm(side)
-        result = arm.kin.ik(self._to_base(arm, poses_world), seed=seed, restarts=restarts)
+        targets = self._to_base(arm, poses_world)
+        if seed is not None:
+            start = np.broadcast_to(np.asarray(seed, dtype=float).reshape(-1, arm.dof),
+                                    (len(targets), arm.dof))
+            result = arm.kin.ik_from(targets, start[:, None, :])
+            if restarts and not result.success.all():  # then from the library
+                again = np.flatnonzero(~result.success)
+                alt = arm.kin.ik_from(targets[again], self._nearest(side, targets[again],
+                                                                    restarts))
+                take = again[alt.success]
+                q, ok = result.q.copy(), result.success.copy()
+                pe, re = result.position_error.copy(), result.rotation_error.copy()
+                q[take], ok[take] = alt.q[alt.success], True
+                pe[take], re[take] = alt.position_error[alt.success], \
+                    alt.rotation_error[alt.success]
+                return Solution(q, ok, pe, re)
+            return Solution(result.q, result.success, result.position_error,
+                            result.rotation_error)
+        result = arm.kin.ik_from(targets, self._nearest(side, targets, restarts + 1))
         return Solution(result.q, result.success, result.position_error, result.rotation_error)
+
+    def _nearest(self, side: str, targets: np.ndarray, count: int) -> np.ndarray:
+        """(m, count, dof) starts for targets (m, 4, 4), base frame: the configurations of the
+        arm's seed library (:data:`SEED_LIBRARY` drawn within the limits, seed 0) whose grasp
+        poses lie nearest each target (metres of position plus 0.1 m per radian-like unit of
+        the rotations' Frobenius distance), nearest first."""
+        arm = self.arm(side)
+        if side not in self._library:
+            rng = np.random.default_rng(0)
+            q = arm.kin.random_configurations(SEED_LIBRARY, rng)
+            self._library[side] = (q, arm.kin.fk(q))
+        q, poses = self._library[side]
+        d = np.linalg.norm(targets[:, None, :3, 3] - poses[None, :, :3, 3], axis=2)
+        d += 0.1 * np.linalg.norm((targets[:, None, :3, :3] - poses[None, :, :3, :3])
+                                  .reshape(len(targets), len(poses), 9), axis=2)
+        count = min(count, len(q))
+        near = np.argpartition(d, count - 1, axis=1)[:, :count]
+        order = np.take_along_axis(d, near, axis=1).argsort(axis=1, kind="stable")
+        return q[np.take_along_axis(near, order, axis=1)]
 
     # ------------------------------------------------------------------ collisions
 
@@ -298,3 +363,31 @@ def robot_arms(
     if not spec.arms:
         return None
     return RobotArms.load(kb, spec, reach_dir=reach_dir(db), map_params=map_params)
+
+
+def plan_arms(kb_root: Path | str | None, spec: RobotSpec) -> RobotArms | None:
+    """The arms a plan uses: ``spec``'s (a robot document of the KB folder ``kb_root``), None
+    without arms or without a folder. Maps are cached in ``reach/`` of the default grasp
+    database folder (``$HANDOVER_DB`` or the user's cache), whatever database the plan reads
+    its candidates from: a map depends on the URDF, the chain and the tcp only and takes
+    seconds to build, so every database shares it. Loaded once per process and robot."""
+    from handover.engine.graspdb import open_db
+    from handover.engine.store import KB
+
+    if not spec.arms or kb_root is None:
+        return None
+    import hashlib
+
+    kb = KB(root=Path(kb_root), robots={spec.id: spec})  # paths and error positions only
+    try:
+        digest = hashlib.sha256(kb.relative_path(spec, spec.urdf).read_bytes()).hexdigest()
+    except OSError:
+        digest = ""  # RobotArms.load says what is wrong
+    key = (str(kb_root), spec.model_dump_json(), digest)
+    if key not in _PLAN_ARMS:
+        _PLAN_ARMS[key] = RobotArms.load(kb, spec, reach_dir=reach_dir(open_db()),
+                                         map_params=PLAN_MAP)
+    return _PLAN_ARMS[key]
+
+
+_PLAN_ARMS: dict[tuple, RobotArms] = {}

@@ -39,6 +39,9 @@ _CHUNK = 4096
 # proportional to the error, down to _DAMPING_MIN x damping.
 _DAMPING_ERROR = 0.1
 _DAMPING_MIN = 0.1
+# Runs from given starts (ik_from, shared restarts): a run more than 1 cm off that gains less
+# than 10 % in this many iterations is stuck (on a joint limit, stretched out) and stops.
+_PATIENCE = 10
 
 
 @dataclass(frozen=True, eq=False)
@@ -254,6 +257,7 @@ class Kinematics:
         rotation_tolerance: float = 1e-3,
         damping: float = 0.05,
         max_step: float = 0.5,
+        shared_restarts: bool = False,
     ) -> IKResult:
         """Joint values reaching each target pose, by damped least squares.
 
@@ -265,6 +269,10 @@ class Kinematics:
         max_iterations : per start. position_tolerance : m. rotation_tolerance : rad.
         damping : m, the damping factor lambda of ``dq = J^T (J J^T + lambda^2 I)^-1 e``.
         max_step : rad, the largest change of any joint in one iteration.
+        shared_restarts : every target not reached from its seed restarts from the same
+            ``restarts`` configurations (drawn once), all in one batch: a target's answer
+            does not depend on the other targets asked with it, and a few targets cost
+            about two runs.
         """
         targets = np.asarray(targets, dtype=float)
         if targets.ndim == 2:
@@ -281,18 +289,23 @@ class Kinematics:
         if restarts < 0 or max_iterations < 1:
             raise RobotModelError("restarts must be >= 0 and max_iterations >= 1")
         rng = np.random.default_rng(rng_seed)
+        shared = self.random_configurations(restarts, rng) if shared_restarts else None
         best_q = self.clamp(start)
         best_pos = np.full(m, np.inf)
         best_rot = np.full(m, np.inf)
         success = np.zeros(m, dtype=bool)
         attempts = np.zeros(m, dtype=np.int64)
         rows = np.arange(m)
+        if shared is not None and restarts:  # the seed, then every restart in one batch
+            return self._ik_shared(targets, start, shared, max_iterations, position_tolerance,
+                                   rotation_tolerance, damping, max_step)
         for attempt in range(restarts + 1):
             if attempt:
                 rows = np.flatnonzero(~success)
                 if len(rows) == 0:
                     break
-                start = self.random_configurations(len(rows), rng)
+                start = (self.random_configurations(len(rows), rng) if shared is None
+                         else np.tile(shared[attempt - 1], (len(rows), 1)))
             q, pos_err, rot_err = self._solve(
                 targets[rows], self.clamp(start), max_iterations,
                 position_tolerance, rotation_tolerance, damping, max_step,
@@ -310,14 +323,105 @@ class Kinematics:
             success[rows[ok]] = True
         return IKResult(best_q, success, best_pos, best_rot, attempts)
 
-    def _solve(self, targets, q, iterations, pos_tol, rot_tol, damping, max_step):
+    def ik_from(
+        self,
+        targets: np.ndarray,
+        starts: np.ndarray,
+        *,
+        first: int = 2,
+        max_iterations: int = 100,
+        position_tolerance: float = 1e-4,
+        rotation_tolerance: float = 1e-3,
+        damping: float = 0.05,
+        max_step: float = 0.5,
+    ) -> IKResult:
+        """:meth:`ik` of targets (m, 4, 4) from given starts (m, r, dof) per target, e.g.
+        the configurations whose poses lie nearest each target: the ``first`` starts of
+        every target in one batch, then the others for the targets not reached, in one
+        batch. A target's answer is its first start (in order) that reaches it, else the
+        closest attempt; it depends on that target and its starts only."""
+        targets = np.asarray(targets, dtype=float).reshape(-1, 4, 4)
+        starts = np.asarray(starts, dtype=float)
+        m, r = starts.shape[:2]
+        if starts.shape != (len(targets), r, self.dof) or r < 1:
+            raise RobotModelError(f"starts must have shape (m, r, {self.dof}), "
+                                  f"got {starts.shape}")  # fmt: skip
+        q = np.repeat(self.clamp(starts[:, 0]), 1, axis=0)
+        pos_err = np.full(m, np.inf)
+        rot_err = np.full(m, np.inf)
+        ok = np.zeros(m, dtype=bool)
+        attempts = np.zeros(m, dtype=np.int64)
+        for lo, hi in ((0, min(first, r)), (min(first, r), r)):
+            rows = np.flatnonzero(~ok)
+            if hi <= lo or not len(rows):
+                continue
+            n = hi - lo
+            flat = self.clamp(starts[rows, lo:hi].reshape(-1, self.dof))
+            q2, p2, r2 = self._solve(np.repeat(targets[rows], n, axis=0), flat, max_iterations,
+                                     position_tolerance, rotation_tolerance, damping, max_step,
+                                     _PATIENCE, np.repeat(np.arange(len(rows)), n))
+            q2 = q2.reshape(len(rows), n, self.dof)
+            p2, r2 = p2.reshape(len(rows), n), r2.reshape(len(rows), n)
+            good = (p2 <= position_tolerance) & (r2 <= rotation_tolerance)
+            cost = p2 / position_tolerance + r2 / rotation_tolerance
+            pick = np.where(good.any(axis=1), np.argmax(good, axis=1), np.argmin(cost, axis=1))
+            cols = np.arange(len(rows))
+            closer = good.any(axis=1) | (cost[cols, pick] < pos_err[rows] / position_tolerance
+                                         + rot_err[rows] / rotation_tolerance)  # fmt: skip
+            take = rows[closer]
+            q[take] = q2[cols, pick][closer]
+            pos_err[take] = p2[cols, pick][closer]
+            rot_err[take] = r2[cols, pick][closer]
+            ok[take] = good.any(axis=1)[closer]
+            attempts[rows] += n
+        return IKResult(q, ok, pos_err, rot_err, attempts)
+
+    def _ik_shared(self, targets, start, shared, iterations, pos_tol, rot_tol, damping,
+                   max_step) -> IKResult:
+        """:meth:`ik` with ``shared_restarts``: every target from its seed, then the targets
+        not reached from each of the ``shared`` configurations (r, dof), all restarts in one
+        batch (a few targets then cost about one run); a target's answer is the seed's if it
+        reaches it, else the first restart that does, else the closest attempt."""
+        m, r = len(targets), len(shared)
+        q, pos_err, rot_err = self._solve(targets, self.clamp(start), iterations, pos_tol,
+                                          rot_tol, damping, max_step, _PATIENCE)
+        ok = (pos_err <= pos_tol) & (rot_err <= rot_tol)
+        attempts = np.ones(m, dtype=np.int64)
+        rows = np.flatnonzero(~ok)
+        if len(rows):
+            starts = np.tile(self.clamp(shared), (len(rows), 1))  # row-major: (rows * r)
+            q2, p2, r2 = self._solve(np.repeat(targets[rows], r, axis=0), starts, iterations,
+                                     pos_tol, rot_tol, damping, max_step, _PATIENCE)
+            q2 = q2.reshape(len(rows), r, self.dof)
+            p2, r2 = p2.reshape(len(rows), r), r2.reshape(len(rows), r)
+            good = (p2 <= pos_tol) & (r2 <= rot_tol)
+            cost = p2 / pos_tol + r2 / rot_tol
+            pick = np.where(good.any(axis=1), np.argmax(good, axis=1), np.argmin(cost, axis=1))
+            cols = np.arange(len(rows))
+            closer = good.any(axis=1) | (cost[cols, pick] < pos_err[rows] / pos_tol
+                                         + rot_err[rows] / rot_tol)  # fmt: skip
+            take = rows[closer]
+            q[take] = q2[cols, pick][closer]
+            pos_err[take] = p2[cols, pick][closer]
+            rot_err[take] = r2[cols, pick][closer]
+            ok[take] = good.any(axis=1)[closer]
+            attempts[rows] += r
+        return IKResult(q, ok, pos_err, rot_err, attempts)
+
+    def _solve(self, targets, q, iterations, pos_tol, rot_tol, damping, max_step,
+               patience: int = 0, groups: np.ndarray | None = None):
         """One damped-least-squares run from q (k, dof) for each target; returns the final
-        q (k, dof), position errors (k,) and rotation errors (k,)."""
+        q (k, dof), position errors (k,) and rotation errors (k,). patience : when > 0, a
+        run still more than 1 cm off that gained less than 10 % in ``patience`` iterations
+        (stuck on a joint limit) stops there. groups : (k,) int, runs of the same target
+        (different starts): once one of them reaches it, the others stop."""
         k = len(q)
         q = q.copy()
         pos_err = np.full(k, np.inf)
         rot_err = np.full(k, np.inf)
         active = np.arange(k)
+        solved = None if groups is None else np.zeros(int(groups.max()) + 1 if k else 0, bool)
+        before = np.full(k, np.inf)  # with patience: each run's error when last compared
         t_pos = targets[:, :3, 3]
         t_rot = targets[:, :3, :3]
         for iteration in range(iterations + 1):
@@ -331,17 +435,23 @@ class Kinematics:
             pos_err[active] = pe
             rot_err[active] = re
             done = (pe <= pos_tol) & (re <= rot_tol)
+            if groups is not None:
+                solved[groups[active[done]]] = True
+                done = done | solved[groups[active]]
+            if patience and iteration % patience == 0:
+                cost = pe / pos_tol + re / rot_tol
+                done |= (pe > 0.01) & (cost > 0.9 * before[active])
+                before[active] = cost
             if iteration == iterations or done.all():
                 break
             keep = ~done
             active, qa, jac = active[keep], qa[keep], jac[keep]
             e_pos, r, rt, pe = e_pos[keep], r[keep], rt[keep], pe[keep]
             # Orientation error: 0.5 * sum_i r_i x rt_i (axis * sin(angle) for small angles).
-            e_rot = 0.5 * (
-                np.cross(r[:, :, 0], rt[:, :, 0])
-                + np.cross(r[:, :, 1], rt[:, :, 1])
-                + np.cross(r[:, :, 2], rt[:, :, 2])
-            )
+            # sum_i a_i x b_i = vee(B A^T - A B^T), one product instead of three crosses.
+            m = rt @ np.swapaxes(r, 1, 2)
+            e_rot = 0.5 * np.stack([m[:, 2, 1] - m[:, 1, 2], m[:, 0, 2] - m[:, 2, 0],
+                                    m[:, 1, 0] - m[:, 0, 1]], axis=1)  # fmt: skip
             scale = np.minimum(1.0, 0.2 / np.maximum(pe, 1e-12))  # at most 0.2 m per step
             err = np.concatenate([e_pos * scale[:, None], e_rot], axis=1)
             # Damping shrinks with the error (Levenberg-Marquardt-like): strong far from the

@@ -38,7 +38,8 @@ def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
     cg = attempt.graph
     for c in attempt.chosen:
         if c.stage == "pick":
-            entries = trace_row(cg, ctx, c.phase, c.grasp, 0, rules=first_rules(cg.hard),
+            entries = trace_row(cg, ctx, c.phase, c.grasp, c.presentation,
+                                rules=first_rules(cg.hard),
                                 note=FIRST_NOTE)
         else:
             entries = trace_row(cg, ctx, c.phase, c.grasp, c.presentation)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from handover.engine.arms import CONFIRM_LIMIT, choose_row, reach_rule
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import compile
 from handover.engine.evaluate import evaluate, infeasible_reason
@@ -27,7 +28,17 @@ def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
     if len(ranking) == 0:
         return Attempt("H1G1", False, infeasible_reason(decision, "H1G1"), cg, decision, phase)
     best = int(ranking[0])
+    held = phase
+    if reach_rule(cg, ctx) is not None:  # the best row an arm holds exactly, and that arm
+        found, check, failures = choose_row(ctx, phase, decision, ranking)
+        if found is None:
+            return Attempt("H1G1", False, f"H1G1: no arm holds any of the best "
+                           f"{min(len(ranking), CONFIRM_LIMIT)} candidates (reach): "
+                           + "; ".join(failures[:3]), cg, decision, phase,
+                           extra={"arm_failures": failures})
+        best, held = found, phase.but(arm=check.side)
     i, k = int(decision.gi[best]), int(decision.pk[best])
-    hand = hand_at(phase.hands.poses[k], ctx.candidates.centre[i], ctx.situation.robot.hands)
-    return Attempt("H1G1", True, None, cg, decision, phase, (Chosen(hand, i, k, phase),),
+    hand = held.arm or hand_at(phase.hands.poses[k], ctx.candidates.centre[i],
+                               ctx.situation.robot.hands)
+    return Attempt("H1G1", True, None, cg, decision, phase, (Chosen(hand, i, k, held),),
                    float(decision.score[best]))

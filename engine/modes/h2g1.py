@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.arms import choose_pair_h2g1, reach_rule, side_reaches
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import ConstraintGraph, compile
 from handover.engine.evaluate import evaluate, infeasible_reason
@@ -42,6 +43,8 @@ SIDE_BAND = 0.25
 BALANCE_WEIGHT = 0.5
 # How many of the best rows per side and presentation are paired.
 SIDE_POOL = 48
+# With arms: how many of the best pairs of each presentation are offered to the arms.
+ARM_PAIRS = 16
 
 
 def receiver_hand_count(cg: ConstraintGraph) -> tuple[int, str]:
@@ -99,10 +102,15 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     span = np.maximum(t_max - t_min, 1e-9)[pk]
     left = t >= t_max[pk] - SIDE_BAND * span
     right = t <= t_min[pk] + SIDE_BAND * span
+    if reach_rule(cg, ctx) is not None:  # each side's rows: those its own arm's map holds
+        left &= side_reaches(ctx, phase, "left", gi, pk)
+        right &= side_reaches(ctx, phase, "right", gi, pk)
     com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
     poses, widths = ctx.gripper_poses(), ctx.candidates.width
     both_pick = facts.mass > facts.payload  # too heavy for one hand to lift alone
     best = None
+    found: list[tuple] = []  # with arms: the best pairs of each presentation, for the arms
+    arms = reach_rule(cg, ctx) is not None
     checked = colliding = unpickable = 0
     for k in np.unique(pk):  # at most 24 presentations; pairs within one are vectorised
         li = ranking[(pk == k) & left][:SIDE_POOL]
@@ -128,6 +136,13 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
             pick_l[:, None] | pick_r[None, :])
         unpickable += int((~hit & ~lifts).sum())
         score = np.where(hit | ~lifts, -np.inf, score)
+        if arms:
+            flat_all = np.argsort(-score, axis=None, kind="stable")[:ARM_PAIRS]
+            for fl in flat_all:
+                a, b = divmod(int(fl), score.shape[1])
+                if np.isfinite(score[a, b]):
+                    found.append((float(score[a, b]), int(gl[a]), int(gr[b]), int(k),
+                                  float(off[a, b])))
         flat = int(np.argmax(score))
         a, b = divmod(flat, score.shape[1])
         if np.isfinite(score[a, b]) and (best is None or score[a, b] > best[0] + 1e-12):
@@ -140,15 +155,30 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
                        f"H2G1: no pair of grasps at the far left and far right ({checked} pairs "
                        f"checked, {colliding} with colliding grippers, {unpickable} that "
                        f"{lift} cannot take from the table)", cg, decision, phase, extra=extra)
+    arm = {"left": None, "right": None}
+    if arms:  # the best pair the left and right arms hold exactly
+        found.sort(key=lambda p: -p[0])  # stable: presentations in order on a tie
+        idx = np.unique([i for p in found for i in p[1:3]])
+        free = dict(zip(idx.tolist(), (~collision_scene(ctx, idx)).tolist(), strict=True))
+        best, lifts, failures = choose_pair_h2g1(ctx, phase, found, free, both_pick)
+        if best is None:
+            return Attempt("H2G1", False, "H2G1: the arms hold none of the best pairs of "
+                           "grasps (reach): " + "; ".join(failures[:3]), cg, decision, phase,
+                           extra=extra | {"arm_failures": failures})
+        arm = {"left": "left", "right": "right"}
     score, i_left, i_right, k, off = best
     picks = ~collision_scene(ctx, np.array([i_left, i_right]))
     extra["balance_offset_m"] = off
     extra["pickup_hands"] = [h for h, ok in zip(("left", "right"), picks, strict=True) if ok]
     if not both_pick:  # one hand lifts it; the other joins at the presentation
         extra["pickup_hands"] = extra["pickup_hands"][:1]
+    if arms:
+        extra["pickup_hands"] = lifts
     lifts = extra["pickup_hands"]
     chosen = (
-        Chosen("left", i_left, k, phase.but(pickup="left" in lifts, other_grasp=i_right)),
-        Chosen("right", i_right, k, phase.but(pickup="right" in lifts, other_grasp=i_left)),
+        Chosen("left", i_left, k, phase.but(pickup="left" in lifts, other_grasp=i_right,
+                                            arm=arm["left"])),
+        Chosen("right", i_right, k, phase.but(pickup="right" in lifts, other_grasp=i_left,
+                                              arm=arm["right"])),
     )
     return Attempt("H2G1", True, None, cg, decision, phase, chosen, score, extra=extra)

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.arms import choose_pair_h2g2, reach_rule
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import CompiledRule, compile
 from handover.engine.evaluate import evaluate, evaluate_rule, infeasible_reason
@@ -43,7 +44,7 @@ def first_rules(hard: list[CompiledRule]) -> list[CompiledRule]:
     keep = []
     for c in hard:
         kind = c.rule.kind
-        if kind in ("quality", "torque", "collision"):
+        if kind in ("quality", "torque", "collision", "reach"):
             keep.append(c)
         elif kind == "contact" and c.rule.who == "giver" and c.rule.safety:
             keep.append(c)
@@ -161,15 +162,25 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
         return Attempt("H2G2", False,
                        f"H2G2: every first grasp collides with the best {len(pool)} second "
                        f"grasps at the midair pose ({rule})", cg, decision, second, extra=extra)
-    m = int(col[0])
-    f = int(firsts[int(np.argmax(free[:, m]))])
+    arm1 = arm2 = None
+    if reach_rule(cg, ctx) is not None:  # arms that hold both grasps exactly
+        found, failures = choose_pair_h2g2(ctx, first, second, firsts, seconds,
+                                           decision.pk[pool], free)
+        if found is None:
+            return Attempt("H2G2", False, "H2G2: no pair of arms holds a feasible pair of "
+                           "grasps (reach): " + "; ".join(failures[:3]), cg, decision, second,
+                           extra=extra | {"arm_failures": failures})
+        m, f, arm1, arm2 = found
+    else:
+        m = int(col[0])
+        f = int(firsts[int(np.argmax(free[:, m]))])
     row = int(pool[m])
     i2, k = int(decision.gi[row]), int(decision.pk[row])
-    first_hand = hand_at(ctx.initial, ctx.candidates.centre[f])
-    second_hand = "left" if first_hand == "right" else "right"
+    first_hand = arm1 or hand_at(ctx.initial, ctx.candidates.centre[f])
+    second_hand = arm2 or ("left" if first_hand == "right" else "right")
     extra.update(first=f, first_hand=first_hand, midair=midair_pose(ctx, second.hands.poses[k]),
                  rows_skipped=m)
-    chosen = (Chosen(first_hand, f, k, first.but(other_grasp=i2), stage="pick"),
-              Chosen(second_hand, i2, k, second.but(other_grasp=f)))
+    chosen = (Chosen(first_hand, f, k, first.but(other_grasp=i2, arm=arm1), stage="pick"),
+              Chosen(second_hand, i2, k, second.but(other_grasp=f, arm=arm2)))
     return Attempt("H2G2", True, None, cg, decision, second, chosen,
                    float(decision.score[row]), extra=extra)
