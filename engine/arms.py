@@ -108,11 +108,13 @@ def stage_poses(ctx: PlanContext, phase: Phase, gi: np.ndarray,
     return {s: _objects(ctx, phase, s, pk) @ grips for s in stages(phase)}
 
 
-def screen(ctx: PlanContext, phase: Phase, gi: np.ndarray,
-           pk: np.ndarray) -> tuple[tuple[str, ...], np.ndarray]:
+def screen(ctx: PlanContext, phase: Phase, gi: np.ndarray, pk: np.ndarray,
+           whole: bool = False) -> tuple[tuple[str, ...], np.ndarray]:
     """The arms judged (``phase.arm``, else every arm) and (R, S, T) bool: whether arm s's
     reachability map holds row r's gripper at stage t (:func:`screened_stages`). Positions and
-    approaches only, one lookup per row, stage and arm."""
+    approaches only, one lookup per row, stage and arm, in the maps' cores (their rims, where
+    inverse kinematics mostly fails, eroded: :data:`~handover.engine.robot.CORE`), or with
+    ``whole`` in the whole maps."""
     arms = ctx.arms
     sides = (phase.arm,) if getattr(phase, "arm", None) else arms.sides
     names = screened_stages(phase)
@@ -133,7 +135,7 @@ def screen(ctx: PlanContext, phase: Phase, gi: np.ndarray,
             approach = np.einsum("rij,rj->ri", rot, grips[gi, :3, 2])
             back = None
         for s, side in enumerate(sides):
-            hit = arms.reachable_at(side, points, approach)
+            hit = arms.reachable_at(side, points, approach, core=not whole)
             out[:, s, t] = hit if back is None else hit[back]
     return sides, out
 
@@ -305,10 +307,11 @@ def choose_row(ctx: PlanContext, phase: Phase, decision, ranking: np.ndarray,
                limit: int = CONFIRM_LIMIT) -> tuple[int | None, ArmCheck | None, list[str]]:
     """The best row of ``ranking`` (indices into the decision's rows) that an arm holds
     exactly, with its check and the failures met; ties of score go by the world pose
-    (:func:`world_order`). At most ``limit`` (row, arm) checks; (None, None, failures)."""
+    (:func:`world_order`); each row's arms nearest first among those whose whole map holds
+    it. At most ``limit`` (row, arm) checks; (None, None, failures)."""
     gi, pk = decision.gi, decision.pk
     order = world_order(ctx, phase, ranking, gi, pk, decision.score)
-    _, mapped = screen(ctx, phase, gi[order[:limit]], pk[order[:limit]])
+    _, mapped = screen(ctx, phase, gi[order[:limit]], pk[order[:limit]], whole=True)
     mapped = mapped.all(axis=2)
     failures: list[str] = []
     skip: set = set()
@@ -367,8 +370,10 @@ def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.n
     """H2G2's first feasible pair whose arms hold both grasps exactly: the second grasp (the
     columns of ``free`` (F, M) in order: ``seconds`` (M,) grasps in ``presentations`` (M,))
     by one arm at the midair regrasp and the handover, the first grasp (``firsts`` (F,), in
-    order) by the other arm at pick-up and midair. Returns ((column, first grasp, first
-    arm, second arm) or None, failures met); at most ``limit`` exact checks."""
+    order, those its map's core holds first, then those only its whole map holds) by the
+    other arm at
+    pick-up and midair. Returns ((column, first grasp, first arm, second arm) or None,
+    failures met); at most ``limit`` exact checks."""
     sides = ctx.arms.sides
     failures: list[str] = []
     if len(sides) < 2:
@@ -378,7 +383,7 @@ def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.n
     for m in np.flatnonzero(free.any(axis=0)):
         i2, k = int(seconds[m]), int(presentations[m])
         gi2, pk2 = np.array([i2]), np.array([k])
-        _, mapped2 = screen(ctx, second, gi2, pk2)
+        _, mapped2 = screen(ctx, second, gi2, pk2, whole=True)
         partners = firsts[free[:, m]]
         for side2 in preferred_sides(ctx, second, i2, k):
             if tried >= limit:
@@ -387,14 +392,17 @@ def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.n
                 continue
             side1 = next(s for s in sides if s != side2)
             held1 = first.but(arm=side1)
-            _, mapped1 = screen(ctx, held1, partners, np.full(len(partners), k))
+            _, core1 = screen(ctx, held1, partners, np.full(len(partners), k))
+            _, mapped1 = screen(ctx, held1, partners, np.full(len(partners), k), whole=True)
+            deep = core1[:, 0].all(axis=1)
             tried += 1
             c2 = confirm(ctx, second.but(arm=side2), side2, gi2, pk2)[0]
             if not c2.ok:
                 failures.append(f"grasp {i2}: {c2.failure()}")
                 continue
             here = 0
-            for f in partners[mapped1[:, 0].all(axis=1)]:
+            held = mapped1[:, 0].all(axis=1)
+            for f in np.concatenate([partners[deep], partners[held & ~deep]]):
                 if (side1, int(f)) in skip:
                     continue
                 if here >= FIRST_TRIES or tried >= limit:
@@ -462,3 +470,36 @@ def side_reaches(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
     if side not in ctx.arms.sides:
         return np.zeros(len(gi), dtype=bool)
     return screen(ctx, phase.but(arm=side), gi, pk)[1][:, 0].all(axis=1)
+
+
+
+def reach_reason(ctx: PlanContext, attempt) -> str | None:
+    """For an infeasible attempt whose reason names an active hard ``reach`` rule: which arm
+    cannot reach what, on a row that rule rejected (one it alone rejected, if any), e.g.
+    "reach (arm_reaches), grasp 12: the left arm cannot reach 0.52, 0.31, 0.05 with approach
+    (0.00, 0.00, -1.00) at pick-up; the right arm ..."; None otherwise."""
+    decision, reason = attempt.decision, attempt.reason or ""
+    if decision is None or attempt.graph is None or ctx.arms is None:
+        return None
+    reach = next((c.id for c in decision.hard if c.rule.kind == "reach"), None)
+    if attempt.extra.get("first_feasible") == 0 and reach in attempt.extra.get(
+            "first_rejected_by", {}):  # H2G2: no first grasp can be picked up
+        first = attempt.phase.but(pickup=True, receiver_present=False)
+        grasps = np.arange(ctx.n)
+        _, mapped = screen(ctx, first, grasps, np.zeros(ctx.n, dtype=np.int64))
+        missed = grasps[~mapped.all(axis=2).any(axis=1)]
+        if len(missed):
+            i = int(missed[0])
+            return f"reach ({reach}), grasp {i}: {reach_words(ctx, first, i, 0)}"
+    h = next((n for n, c in enumerate(decision.hard)
+              if c.rule.kind == "reach" and c.id in reason), None)
+    if h is None or not decision.fails[:, h].any():
+        return None
+    alone = decision.fails[:, h] & (decision.fails.sum(axis=1) == 1)
+    rows = np.flatnonzero(alone if alone.any() else decision.fails[:, h])
+    rows = world_order(ctx, attempt.phase, rows, decision.gi, decision.pk,
+                       np.zeros(len(decision.gi)))
+    r = int(rows[0])
+    words = reach_words(ctx, attempt.phase, int(decision.gi[r]), int(decision.pk[r]))
+    return f"reach ({decision.hard[h].id}), grasp {int(decision.gi[r])}: {words}" if words \
+        else None

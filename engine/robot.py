@@ -35,7 +35,7 @@ also run by ``handover kb validate``). Loading and checking live in
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, NamedTuple
 
@@ -68,9 +68,11 @@ _MAPS: dict[tuple, ReachMap] = {}
 SEED_LIBRARY = 4096
 """Configurations per arm whose grasp poses seed inverse kinematics (the nearest first)."""
 
-PLAN_MAP = {"erode": 1}
-"""The maps a plan screens with: the default build, its rim eroded by one voxel (precision
-against inverse kinematics 0.94 instead of 0.83, recall 0.93; see ``ReachMap.build``)."""
+CORE = {"erode": 1}
+"""The map's core (:meth:`RobotArms.reach_map` with ``core``): its rim eroded by one voxel,
+precision against inverse kinematics 0.94 instead of 0.83 for a recall of 0.93 instead of
+0.995 (``ReachMap.build``). Plans screen every row with the cores; exact checks of an arm
+the core rejects but the whole map holds come after (:mod:`handover.engine.arms`)."""
 
 
 def reach_dir(db: GraspDB | None) -> Path | None:
@@ -192,9 +194,13 @@ class RobotArms:
 
     # ------------------------------------------------------------------ reachability and IK
 
-    def reach_map(self, side: str) -> ReachMap:
+    def reach_map(self, side: str, core: bool = False) -> ReachMap:
         """The arm's reachability map: from this process, else from ``reach_dir``, else built
-        (and saved there)."""
+        (and saved there). core : the map with its rim eroded (:data:`CORE`)."""
+        if core:
+            params = {**self.map_params, **CORE}
+            if params != self.map_params:
+                return replace(self, map_params=params).reach_map(side)
         arm = self.arm(side)
         # A map depends on the URDF, the chain, the tcp and the build only: one per process
         # whatever folder it is cached in.
@@ -214,14 +220,16 @@ class RobotArms:
         arm = self.arm(side)
         return self.reach_map(side).reachable(self._to_base(arm, poses_world))
 
-    def reachable_at(self, side: str, points: np.ndarray, approaches: np.ndarray) -> np.ndarray:
+    def reachable_at(self, side: str, points: np.ndarray, approaches: np.ndarray,
+                     core: bool = False) -> np.ndarray:
         """(m,) bool: :meth:`reachable` for grasp positions points (m, 3) with approach
-        directions approaches (m, 3, unit), world, m (no 4x4 poses needed)."""
+        directions approaches (m, 3, unit), world, m (no 4x4 poses needed). core : ask the
+        map's core (:data:`CORE`)."""
         arm = self.arm(side)
         rot, t = arm.base[:3, :3], arm.base[:3, 3]
         local = (np.asarray(points, dtype=float).reshape(-1, 3) - t) @ rot
-        return self.reach_map(side).lookup(local, np.asarray(approaches, float).reshape(-1, 3)
-                                           @ rot)
+        return self.reach_map(side, core).lookup(
+            local, np.asarray(approaches, float).reshape(-1, 3) @ rot)
 
     def reach_index(self, side: str, points: np.ndarray) -> np.ndarray:
         """(m,) in [0, 1]: the fraction of approach directions the arm's map holds at world
@@ -385,8 +393,7 @@ def plan_arms(kb_root: Path | str | None, spec: RobotSpec) -> RobotArms | None:
         digest = ""  # RobotArms.load says what is wrong
     key = (str(kb_root), spec.model_dump_json(), digest)
     if key not in _PLAN_ARMS:
-        _PLAN_ARMS[key] = RobotArms.load(kb, spec, reach_dir=reach_dir(open_db()),
-                                         map_params=PLAN_MAP)
+        _PLAN_ARMS[key] = RobotArms.load(kb, spec, reach_dir=reach_dir(open_db()))
     return _PLAN_ARMS[key]
 
 

@@ -148,11 +148,16 @@ class Locations:
 
     points : (L, 3) m, world. measures : name -> (L,) values (see :data:`LOCATION_MEASURES`;
     ``clear`` is per presentation and computed later). hand : the receiving hand.
+    arm_reach : (L,) in [0, 1] for a robot with arms (else None): the largest fraction of
+    approach directions an arm's reachability map holds at the location or half the object's
+    size nearer the robot (where the robot's grasp lies); 0: no arm reaches there in any way,
+    and the location is not chosen (:func:`place`).
     """
 
     points: np.ndarray
     measures: dict[str, np.ndarray]
     hand: str
+    arm_reach: np.ndarray | None = None
 
 
 def candidate_locations(ctx: PlanContext, world: World, hand: str) -> Locations:
@@ -172,7 +177,19 @@ def candidate_locations(ctx: PlanContext, world: World, hand: str) -> Locations:
         "lateral": grid.lateral,
         "robot_reach": horizontal / robot.reach,
     }
-    return Locations(points=grid.points, measures=measures, hand=hand)
+    return Locations(points=grid.points, measures=measures, hand=hand,
+                     arm_reach=_arm_reach(ctx, grid.points))
+
+
+def _arm_reach(ctx: PlanContext, points: np.ndarray) -> np.ndarray | None:
+    """See :attr:`Locations.arm_reach` (None without arms)."""
+    arms = ctx.arms
+    if arms is None or not len(points):
+        return None
+    toward = np.asarray(ctx.situation.toward, dtype=float)
+    nearer = points - 0.5 * ctx.facts.size * toward
+    return np.max([np.maximum(arms.reach_index(side, points), arms.reach_index(side, nearer))
+                   for side in arms.sides], axis=0)
 
 
 # How many of the best locations are tested for collisions per presentation in each round:
@@ -225,6 +242,10 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
         passed, _ = r.judge(locs.measures[r.measure])
         ok &= passed
         fails += ~passed
+    if locs.arm_reach is not None:  # where no arm reaches in any way, nothing is offered
+        reached = locs.arm_reach > 0
+        ok &= reached
+        fails += ~reached
     total = sum(r.weight for r in soft)
     score = np.zeros(L)
     for r in soft:

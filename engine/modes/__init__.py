@@ -90,6 +90,11 @@ def _reason_with_targets(ctx: PlanContext, attempt: Attempt) -> str | None:
                             [c for c in attempt.graph.order if c.rule.kind == "location"])
     if where:
         reason = f"{reason}. Where to offer it: {where}"
+    from handover.engine.arms import reach_reason
+
+    arms = reach_reason(ctx, replace(attempt, reason=reason))
+    if arms:
+        reason = f"{reason}. {arms}"
     return reason
 
 

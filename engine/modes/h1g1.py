@@ -33,8 +33,9 @@ def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
         found, check, failures = choose_row(ctx, phase, decision, ranking)
         if found is None:
             return Attempt("H1G1", False, f"H1G1: no arm holds any of the best "
-                           f"{min(len(ranking), CONFIRM_LIMIT)} candidates (reach): "
-                           + "; ".join(failures[:3]), cg, decision, phase,
+                           f"{min(len(ranking), CONFIRM_LIMIT)} candidates "
+                           f"({reach_rule(cg, ctx).id}): "
+                           + ("; ".join(failures[:3]) or "no arm's reachability map holds them"), cg, decision, phase,
                            extra={"arm_failures": failures})
         best, held = found, phase.but(arm=check.side)
     i, k = int(decision.gi[best]), int(decision.pk[best])

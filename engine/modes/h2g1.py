@@ -162,8 +162,9 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
         free = dict(zip(idx.tolist(), (~collision_scene(ctx, idx)).tolist(), strict=True))
         best, lifts, failures = choose_pair_h2g1(ctx, phase, found, free, both_pick)
         if best is None:
-            return Attempt("H2G1", False, "H2G1: the arms hold none of the best pairs of "
-                           "grasps (reach): " + "; ".join(failures[:3]), cg, decision, phase,
+            rule = reach_rule(cg, ctx).id
+            return Attempt("H2G1", False, f"H2G1: the arms hold none of the best pairs of "
+                           f"grasps ({rule}): " + ("; ".join(failures[:3]) or "no arm's reachability map holds the grasps of any pair"), cg, decision, phase,
                            extra=extra | {"arm_failures": failures})
         arm = {"left": "left", "right": "right"}
     score, i_left, i_right, k, off = best

@@ -167,8 +167,9 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
         found, failures = choose_pair_h2g2(ctx, first, second, firsts, seconds,
                                            decision.pk[pool], free)
         if found is None:
-            return Attempt("H2G2", False, "H2G2: no pair of arms holds a feasible pair of "
-                           "grasps (reach): " + "; ".join(failures[:3]), cg, decision, second,
+            rule = reach_rule(cg, ctx).id
+            return Attempt("H2G2", False, f"H2G2: no pair of arms holds a feasible pair of "
+                           f"grasps ({rule}): " + ("; ".join(failures[:3]) or "no arm's reachability map holds the grasps of any feasible pair"), cg, decision, second,
                            extra=extra | {"arm_failures": failures})
         m, f, arm1, arm2 = found
     else:
