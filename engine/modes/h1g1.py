@@ -32,10 +32,11 @@ def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
     if reach_rule(cg, ctx) is not None:  # the best row an arm holds exactly, and that arm
         found, check, failures = choose_row(ctx, phase, decision, ranking)
         if found is None:
+            said = "; ".join(failures[:3]) or "no arm's reachability map holds them"
             return Attempt("H1G1", False, f"H1G1: no arm holds any of the best "
                            f"{min(len(ranking), CONFIRM_LIMIT)} candidates "
                            f"({reach_rule(cg, ctx).id}): "
-                           + ("; ".join(failures[:3]) or "no arm's reachability map holds them"), cg, decision, phase,
+                           + said, cg, decision, phase,
                            extra={"arm_failures": failures})
         best, held = found, phase.but(arm=check.side)
     i, k = int(decision.gi[best]), int(decision.pk[best])

@@ -163,8 +163,9 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
         best, lifts, failures = choose_pair_h2g1(ctx, phase, found, free, both_pick)
         if best is None:
             rule = reach_rule(cg, ctx).id
+            said = "; ".join(failures[:3]) or "no arm's map holds the grasps of any pair"
             return Attempt("H2G1", False, f"H2G1: the arms hold none of the best pairs of "
-                           f"grasps ({rule}): " + ("; ".join(failures[:3]) or "no arm's reachability map holds the grasps of any pair"), cg, decision, phase,
+                           f"grasps ({rule}): " + said, cg, decision, phase,
                            extra=extra | {"arm_failures": failures})
         arm = {"left": "left", "right": "right"}
     score, i_left, i_right, k, off = best

@@ -168,8 +168,9 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
                                            decision.pk[pool], free)
         if found is None:
             rule = reach_rule(cg, ctx).id
+            said = "; ".join(failures[:3]) or "no arm's map holds a feasible pair"
             return Attempt("H2G2", False, f"H2G2: no pair of arms holds a feasible pair of "
-                           f"grasps ({rule}): " + ("; ".join(failures[:3]) or "no arm's reachability map holds the grasps of any feasible pair"), cg, decision, second,
+                           f"grasps ({rule}): " + said, cg, decision, second,
                            extra=extra | {"arm_failures": failures})
         m, f, arm1, arm2 = found
     else:
