@@ -206,10 +206,9 @@ def pose_words(pose: np.ndarray) -> str:
 def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
             pk: np.ndarray) -> list[ArmCheck]:
     """Exact checks of rows ``(gi, pk)`` ((R,) int) held by the arm ``side`` through the
-    stages of ``phase``: IK per stage, the first from the middle of the joint ranges, each
-    later one seeded by the previous stage's answer (then from the middle), with seeded
-    restarts; a stage not reached as planned is tried with the fingers swapped. Memoised per
-    (arm, row, stages, hands)."""
+    stages of ``phase``: IK per stage from the nearest of the arm's sampled poses, with
+    restarts (:meth:`~handover.engine.robot.RobotArms.solve`); a stage not reached as planned
+    is tried with the fingers swapped. Memoised per (arm, row, stages, hands)."""
     from handover.engine.robot import IK_RESTARTS
 
     arms = ctx.arms
@@ -230,30 +229,22 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
         swapped = np.zeros((n, len(names)), dtype=bool)
         pos_err = np.full((n, len(names)), np.inf)
         rot_err = np.full((n, len(names)), np.inf)
-        seed = None
         for t, stage in enumerate(names):
-            # From the previous stage's answer alone (the arm moves on), then from the middle
-            # of the ranges with restarts; as planned and with the fingers swapped at once.
-            starts = ([(seed, 0)] if seed is not None else []) + [(None, IK_RESTARTS)]
-            for start, restarts in starts:
-                todo_r = np.flatnonzero(~ok[:, t])
+            # From the nearest sampled poses (with restarts), as planned, then with the
+            # fingers swapped for the rows not reached.
+            for flip in (False, True):  # (a row an earlier stage failed is not pursued)
+                todo_r = np.flatnonzero(~ok[:, t] & ok[:, :t].all(axis=1))
                 if not len(todo_r):
                     break
-                both = np.concatenate([poses[stage][todo_r], poses[stage][todo_r] @ FLIP])
-                sol = arms.solve(side, both, restarts=restarts, seed=None if start is None
-                                 else np.concatenate([start[todo_r], start[todo_r]]))
-                for flip in (False, True):
-                    part = slice(len(todo_r), None) if flip else slice(0, len(todo_r))
-                    s_ok, s_q = sol.ok[part], sol.q[part]
-                    s_pe, s_re = sol.position_error[part], sol.rotation_error[part]
-                    better = ~ok[todo_r, t] & (s_ok | (s_pe < pos_err[todo_r, t]))
-                    take = todo_r[better]
-                    q[take, t] = s_q[better]
-                    pos_err[take, t] = s_pe[better]
-                    rot_err[take, t] = s_re[better]
-                    ok[take, t] = s_ok[better]
-                    swapped[take, t] = flip
-            seed = q[:, t]
+                target = poses[stage][todo_r] @ FLIP if flip else poses[stage][todo_r]
+                sol = arms.solve(side, target, restarts=IK_RESTARTS)
+                better = sol.ok | (sol.position_error < pos_err[todo_r, t])
+                take = todo_r[better]
+                q[take, t] = sol.q[better]
+                pos_err[take, t] = sol.position_error[better]
+                rot_err[take, t] = sol.rotation_error[better]
+                ok[take, t] = sol.ok[better]
+                swapped[take, t] = flip
         for r, u in enumerate(todo):
             memo[unique[u]] = ArmCheck(side, names, np.stack([poses[s][r] for s in names])
                                        if names else np.zeros((0, 4, 4)), q[r], ok[r],
@@ -304,11 +295,12 @@ def world_order(ctx: PlanContext, phase: Phase, rows: np.ndarray, gi: np.ndarray
 
 
 def choose_row(ctx: PlanContext, phase: Phase, decision, ranking: np.ndarray,
-               limit: int = CONFIRM_LIMIT) -> tuple[int | None, ArmCheck | None, list[str]]:
+               limit: int | None = None) -> tuple[int | None, ArmCheck | None, list[str]]:
     """The best row of ``ranking`` (indices into the decision's rows) that an arm holds
     exactly, with its check and the failures met; ties of score go by the world pose
     (:func:`world_order`); each row's arms nearest first among those whose whole map holds
     it. At most ``limit`` (row, arm) checks; (None, None, failures)."""
+    limit = CONFIRM_LIMIT if limit is None else limit
     gi, pk = decision.gi, decision.pk
     order = world_order(ctx, phase, ranking, gi, pk, decision.score)
     _, mapped = screen(ctx, phase, gi[order[:limit]], pk[order[:limit]], whole=True)
@@ -366,7 +358,7 @@ FIRST_TRIES = 4
 
 def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.ndarray,
                      seconds: np.ndarray, presentations: np.ndarray, free: np.ndarray,
-                     limit: int = CONFIRM_LIMIT) -> tuple[tuple | None, list[str]]:
+                     limit: int | None = None) -> tuple[tuple | None, list[str]]:
     """H2G2's first feasible pair whose arms hold both grasps exactly: the second grasp (the
     columns of ``free`` (F, M) in order: ``seconds`` (M,) grasps in ``presentations`` (M,))
     by one arm at the midair regrasp and the handover, the first grasp (``firsts`` (F,), in
@@ -374,6 +366,7 @@ def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.n
     other arm at
     pick-up and midair. Returns ((column, first grasp, first arm, second arm) or None,
     failures met); at most ``limit`` exact checks."""
+    limit = CONFIRM_LIMIT if limit is None else limit
     sides = ctx.arms.sides
     failures: list[str] = []
     if len(sides) < 2:
@@ -420,13 +413,14 @@ def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.n
 
 def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
                      picks: dict[int, bool], both_pick: bool,
-                     limit: int = CONFIRM_LIMIT) -> tuple[tuple | None, list[str], list[str]]:
+                     limit: int | None = None) -> tuple[tuple | None, list[str], list[str]]:
     """H2G1's best pair (``pairs``: (score, left grasp, right grasp, presentation, ...) best
     first) whose arms hold it exactly: the left arm its left grasp and the right arm its right
     grasp at the handover, and the lifting arm (both when ``both_pick``) at pick-up too,
     among the hands whose gripper is free at pick-up (``picks``: grasp -> bool). Returns
     (the pair or None, the lifting hands, failures met); at most ``limit`` exact checks, a
     grasp an arm failed to hold in a presentation not tried again."""
+    limit = CONFIRM_LIMIT if limit is None else limit
     failures: list[str] = []
     failed: set[tuple[str, int, int]] = set()  # (arm, grasp, presentation) not held
     checks = 0
