@@ -59,6 +59,9 @@ CONFIRM_LIMIT = 24
 """(row, arm) pairs a mode checks by exact inverse kinematics before it gives up."""
 FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])
 """Half a turn about the approach ``a``: the same grasp with the fingers swapped."""
+FLIP_WITHIN = 0.01
+"""m: a stage whose inverse kinematics ended nearer than this to the position is tried with
+the fingers swapped."""
 
 
 def reach_rule(cg: ConstraintGraph, ctx: PlanContext) -> CompiledRule | None:
@@ -231,9 +234,12 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
         rot_err = np.full((n, len(names)), np.inf)
         for t, stage in enumerate(names):
             # From the nearest sampled poses (with restarts), as planned, then with the
-            # fingers swapped for the rows not reached.
-            for flip in (False, True):  # (a row an earlier stage failed is not pursued)
-                todo_r = np.flatnonzero(~ok[:, t] & ok[:, :t].all(axis=1))
+            # fingers swapped for the rows whose position was reached but not the rotation
+            # (the same position: the swap only turns the wrist). A row an earlier stage
+            # failed is not pursued.
+            for flip in (False, True):
+                todo_r = np.flatnonzero(~ok[:, t] & ok[:, :t].all(axis=1)
+                                        & (~flip | (pos_err[:, t] < FLIP_WITHIN)))
                 if not len(todo_r):
                     break
                 target = poses[stage][todo_r] @ FLIP if flip else poses[stage][todo_r]
