@@ -365,3 +365,15 @@ def test_the_shipped_robot_s_body_is_its_urdf_s_fixed_links(builtin_kb):
     for name, ext, pose in boxes_y:
         np.testing.assert_allclose(ext, urdf_boxes[name][1], atol=1e-6)
         np.testing.assert_allclose(pose, urdf_boxes[name][2], atol=1e-6)
+
+
+def test_a_target_s_ik_answer_does_not_depend_on_the_others_asked_with_it(idro):
+    """The same target, asked alone or in a batch of others, gets the same joint values (a
+    plan's answer for a row must not depend on which rows were checked with it)."""
+    rng = np.random.default_rng(21)
+    targets = idro.fk("right", idro.arm("right").kin.random_configurations(12, rng))
+    together = idro.solve("right", targets)
+    for k in (0, 5, 11):
+        alone = idro.solve("right", targets[k : k + 1])
+        assert_allclose(alone.q[0], together.q[k], atol=0)
+        assert alone.ok[0] == together.ok[k]

@@ -118,3 +118,31 @@ def test_damaged_map_file_is_our_error_and_cached_rebuilds_it(sweep, tmp_path):
         ReachMap.cached(sweep, tmp_path, "h", sampels=5)
     with pytest.raises(RobotModelError, match=r"\(m, 4, 4\)"):
         built.reachable(np.eye(4))
+
+
+def test_eroding_keeps_the_core_and_drops_the_rim(sweep):
+    """A map eroded by one voxel holds a subset of the map's bits, and loses the one-voxel-thin
+    circle of the one-joint arm entirely (it has no inside); the reach index counts the
+    approach bins a voxel holds."""
+    full = ReachMap.build(sweep, samples=20_000, voxel=0.05, direction_tolerance=0)
+    core = ReachMap.build(sweep, samples=20_000, voxel=0.05, direction_tolerance=0, erode=1)
+    assert not (core.bits & ~full.bits).any()
+    assert full.bits.any() and not core.bits.any()
+    angles = np.linspace(-3.0, 3.0, 13)
+    radial = np.stack([np.cos(angles), np.sin(angles), np.zeros_like(angles)], axis=1)
+    index = full.reach_index(0.5 * radial)
+    assert (index > 0).all() and (index <= 3 / len(full.directions)).all()  # a few bins
+    assert (full.reach_index(0.2 * radial) == 0).all()
+    poses = _poses(0.5 * radial, radial)
+    assert_array_equal(full.lookup(poses[:, :3, 3], poses[:, :3, 2]), full.reachable(poses))
+
+
+def test_a_block_s_core_is_its_inside(left):
+    """On the shipped arm, the core keeps poses deep in the workspace and is a subset of the
+    whole map; eroding never adds a bit."""
+    full = ReachMap.build(left, samples=400_000, voxel_tolerance=1, direction_tolerance=4)
+    core = ReachMap.build(left, samples=400_000, voxel_tolerance=1, direction_tolerance=4,
+                          erode=1)  # fmt: skip
+    assert not (core.bits & ~full.bits).any() and core.bits.sum() < full.bits.sum()
+    fresh = left.fk(left.random_configurations(500, np.random.default_rng(7)))
+    assert core.reachable(fresh).mean() >= 0.8
