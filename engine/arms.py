@@ -201,7 +201,7 @@ class ArmCheck:
 
 def pose_words(pose: np.ndarray) -> str:
     """'x, y, z with approach (ax, ay, az)' of a gripper pose (4, 4), world, m."""
-    p, a = pose[:3, 3], pose[:3, 2]
+    p, a = np.round(pose[:3, 3], 2) + 0.0, np.round(pose[:3, 2], 2) + 0.0  # no "-0.00"
     return (f"{p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f} with approach "
             f"({a[0]:.2f}, {a[1]:.2f}, {a[2]:.2f})")
 
