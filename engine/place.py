@@ -310,8 +310,12 @@ def _positions(ctx: PlanContext, cg: ConstraintGraph, rotations: np.ndarray,
         elif not on_top[m].any():
             why.append("it does not fit on the table top")
         elif not len(orders[m]):
-            why.append("no place on the table top is within the receiver's and the robot's "
-                       "reach")
+            reach = measures["receiver_reach"][m][on_top[m]].min()
+            robot = measures["robot_reach"][m][on_top[m]].min()
+            why.append(f"no place on the table top is within the receiver's and the robot's "
+                       f"reach (the nearest for the receiver at {reach:.2f} of their arm's "
+                       f"reach from the shoulder, {reach * lm.arm_reach:.2f} m; for the robot "
+                       f"at {robot:.2f} of its reach)")
         else:
             why.append(f"wherever it fits within reach it hits {', '.join(hits[m])}")
     picked = {name: v[np.arange(m_count), best] for name, v in measures.items()}
@@ -407,7 +411,7 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
         found = where["found"]
         placed_any += int(found.sum())
         if not found.any():
-            last_reason = "; ".join(sorted(set(w for w in where["why"] if w)))
+            last_reason = f"the best orientation: {where['why'][0]}"
             continue
         sel, poses = sel[found], where["poses"][found]
         measured = {k: v[found] for k, v in where["measured"].items()}
