@@ -126,8 +126,8 @@ def fallback_rules(kb: KB, ctx: PlanContext, tried: list[Attempt]) -> list[Compi
 def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
     """The outcome of a query (README "Outcomes"):
 
-    - ``refuse``: an active hard ``refuse`` rule applies: no mode is tried; with
-      ``fallback: place`` the object is set down instead (``place``) when it can be.
+    - ``refuse``: an active hard ``refuse`` rule applies: no mode is tried; when every such
+      rule names ``fallback: place`` the object is set down instead (``place``) if it can be.
     - ``handover``: a mode is feasible (:func:`engine.modes.choose`).
     - ``place``: no mode is feasible, a hard rule naming ``fallback: place`` blocked it
       (:func:`fallback_rules`) and a placement is found (:mod:`engine.place`).
@@ -144,7 +144,8 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
         tried = [Attempt(m, False, f"{m}: not tried: rule {first.id} refuses to hand it "
                          f"over ({first.source})") for m in modes]
         attempt = Attempt(modes[0], False, why, graph=cg)
-        fallback = [c for c in refusing if c.rule.fallback == "place"]
+        every = all(c.rule.fallback == "place" for c in refusing)
+        fallback = list(refusing) if every else []
         placement = plan_placement(kb, ctx, fallback) if fallback else None
         if placement is not None and placement.feasible:
             return Decided("place", attempt, tried, f"set down instead: {why}", refusing,
@@ -199,7 +200,8 @@ class HumanGrasp:
 
 
 class Plan:
-    """A planned handover, feasible or not, with every decision explained.
+    """A planned handover, a placement, a refusal or an infeasible query (``outcome``), with
+    every decision explained.
 
     ``to_dict()`` / ``to_json()`` are the result ``handover plan --json`` prints (byte for
     byte); ``record(path)`` writes the rerun recording.
@@ -216,6 +218,8 @@ class Plan:
 
     @property
     def outcome(self) -> str:
+        """``handover``, ``place`` (set down on the table: ``object_pose`` is the placed
+        pose, ``robot_grasps`` the grasp that sets it down), ``refuse`` or ``infeasible``."""
         return self.result.outcome
 
     @property
@@ -228,7 +232,8 @@ class Plan:
 
     @property
     def object_pose(self) -> np.ndarray | None:
-        """(4, 4) object -> world at the handover (None when infeasible)."""
+        """(4, 4) object -> world at the handover, or placed on the table (None when refused
+        or infeasible)."""
         pose = self.result.object_pose
         return None if pose is None else np.asarray(pose, dtype=float)
 
@@ -271,7 +276,8 @@ class Plan:
         return Path(path)
 
     def __repr__(self) -> str:
-        what = self.mode if self.feasible else f"infeasible: {self.reason}"
+        outcome = self.outcome
+        what = self.mode if outcome == "handover" else f"{outcome}: {self.reason}"
         return f"<Plan {self.result.object}: {what}>"
 
 

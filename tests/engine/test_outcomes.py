@@ -108,6 +108,12 @@ CAREFUL = ("id: careful\nname: Careful\nrules:\n" + EDGE_RULES
 CAREFUL_PLACE = ("id: careful_place\nname: Careful, sets it down\nrules:\n" + EDGE_RULES
                  + "    fallback: place\n"
                  + "    why: A child under 8 is not handed an edged tool; it is set down.\n")
+MIXED = (CAREFUL_PLACE.replace("id: careful_place", "id: mixed")
+         + """  - id: no_edges_under_five
+    kind: refuse
+    applies: {object_tags_any: [edge], receiver_age_below: 5}
+    why: Not even set down near a child under 5.
+""")
 WEIGHTS = """\
 id: weights
 name: Weights with two hands or set down
@@ -128,6 +134,7 @@ def kb_dir(tmp_path_factory) -> Path:
     files = {"objects/paring_knife.yaml": PARING_KNIFE, "objects/slug.yaml": SLUG,
              "receivers/toddler.yaml": TODDLER, "receivers/sitter.yaml": SITTER,
              "etiquette/careful.yaml": CAREFUL, "etiquette/careful_place.yaml": CAREFUL_PLACE,
+             "etiquette/mixed.yaml": MIXED,
              "etiquette/weights.yaml": WEIGHTS}
     for name, text in files.items():
         (root / name).write_text(text, encoding="utf-8")
@@ -221,6 +228,15 @@ def test_the_cli_exits_4_on_a_refusal_and_says_refused(capsys, kb_dir):
     assert code == 4
     assert "REFUSED: rule no_edges_under_eight" in text
     assert "A child under 8 is not handed an edged tool." in text
+
+
+def test_a_refusal_without_fallback_wins_over_one_with(planner):
+    """Two rules refuse; only one would let the robot set it down: refused, both named."""
+    plan = planner.plan("paring_knife", receiver="toddler", culture="mixed")
+    assert plan.outcome == "refuse"
+    assert "no_edges_under_eight" in plan.reason and "no_edges_under_five" in plan.reason
+    assert {r["rule"] for r in plan.to_dict()["refused"]} == {"no_edges_under_eight",
+                                                             "no_edges_under_five"}
 
 
 # ---------------------------------------------------------------- place
