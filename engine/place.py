@@ -344,6 +344,11 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
     if s.scene.support is None:
         return PlacementPlan(False, f"place: scene '{s.scene.id}' has no table to set the "
                              "object down on")
+    from handover.engine.modes import beyond_reach
+
+    far = beyond_reach(ctx)
+    if far:
+        return PlacementPlan(False, f"place: {far}")
     if ctx.facts.mass > ctx.facts.payload + 1e-12:
         return PlacementPlan(False, f"place: one gripper sets it down, and the object's "
                              f"{ctx.facts.mass:g} kg exceed one hand's payload of "

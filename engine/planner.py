@@ -151,7 +151,8 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
             return Decided("place", attempt, tried, f"set down instead: {why}", refusing,
                            fallback, placement)
         if placement is not None:
-            attempt = replace(attempt, reason=f"{why}; setting it down instead (fallback of "
+            attempt = replace(attempt, reason=f"{why.rstrip('.')}; setting it down instead "
+                              f"(fallback of "
                               f"{', '.join(c.id for c in fallback)}) failed: "
                               f"{placement.reason}")
         return Decided("refuse", attempt, tried, "refused", refusing, fallback, placement)
@@ -167,7 +168,8 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
         return Decided("place", attempt, tried,
                        f"set down instead: no mode is feasible and {named} names fallback: "
                        "place", fallback=fallback, placement=placement)
-    attempt = replace(attempt, reason=f"{attempt.reason}; setting it down instead (fallback "
+    attempt = replace(attempt, reason=f"{(attempt.reason or '').rstrip('.')}; setting it "
+                      f"down instead (fallback "
                       f"of {named}) failed: {placement.reason}")
     return Decided("infeasible", attempt, tried, why, fallback=fallback, placement=placement)
 
