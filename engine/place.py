@@ -21,13 +21,16 @@ on the scene's table, within the receiver's reach, the way a careful person woul
    within their arm's reach from the shoulder of their dominant hand (and within the
    culture's hard ``receiver_reach`` location rule), and the object's centre is within the
    robot's reach. The soft location rules on ``receiver_reach`` and ``lateral`` choose among
-   them; the best positions are tested for the object hitting an obstacle or a body.
+   them; the best positions are tested for the object hitting an obstacle or a body. The
+   ``location`` rules on these measures and on ``clear`` are then in the trace with the
+   values where it is set down (``robot_reach``: of the object's centre); those on ``height``
+   and ``front`` are not judged (a table's height is what it is).
 4. **The robot's grasp.** Every grasp candidate is judged in each placed pose by the rules
    that concern the robot's grasp (:data:`PLACE_KINDS`: its contacts, quality, torque, its
    approach from the robot's side or above, nothing in an opening, and ``collision``: at
    pick-up, and at the placement against the table, obstacles and bodies). The rules about
-   the receiver's hand, the handover location and the mode are not judged (the receiver
-   takes the object off the table). The best row wins; the orientations are tried in rounds
+   the receiver's hand and the mode are not judged (the receiver takes the object off the
+   table). The best row wins; the orientations are tried in rounds
    (:data:`ROUNDS`), best first, so a plan costs a few orientations, not all of them.
 
 One gripper sets the object down, so the object must not weigh more than one hand's payload.
@@ -189,8 +192,12 @@ def _yawed(rests: np.ndarray, toward: np.ndarray, axes: list[np.ndarray]
 
 
 def _judged(c: CompiledRule) -> bool:
-    """Whether a compiled rule is judged for a placement (see :data:`PLACE_KINDS`)."""
+    """Whether a compiled rule is judged for a placement (see :data:`PLACE_KINDS`; the
+    ``location`` rules on :data:`PLACE_MEASURES` and ``clear``, measured where it is set
+    down)."""
     rule = c.rule
+    if rule.kind == "location":
+        return rule.measure in (*PLACE_MEASURES, "clear")
     if rule.kind not in PLACE_KINDS:
         return False
     return rule.kind != "contact" or rule.who == "giver"
