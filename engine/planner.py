@@ -256,6 +256,18 @@ class Plan:
                 for h in self.result.human_grasps]
 
     @property
+    def placement(self) -> dict | None:
+        """With ``place``: where and how the object is set down (the JSON ``placement``:
+        ``object_pose``, ``position``, ``robot_grasp``, ``why``, ``rules``, ...)."""
+        return self.result.to_dict().get("placement")
+
+    @property
+    def refused(self) -> list[dict]:
+        """The rules that refused to hand the object to this receiver (``rule``, ``source``,
+        ``why``, ``fallback``); empty unless a rule refused."""
+        return list(self.result.to_dict().get("refused", []))
+
+    @property
     def trace(self) -> list[dict]:
         """Every rule of every chosen grasp: status, measured, threshold, why, source."""
         return self.result.to_dict()["trace"]

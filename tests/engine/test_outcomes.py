@@ -208,7 +208,8 @@ def test_a_refuse_rule_refuses_with_the_rule_and_its_why(planner):
     assert "no_edges_under_eight" in plan.reason
     assert "A child under 8 is not handed an edged tool." in plan.reason
     data = plan.to_dict()
-    assert [r["rule"] for r in data["refused"]] == ["no_edges_under_eight"]
+    assert [r["rule"] for r in data["refused"]] == ["no_edges_under_eight"] == [
+        r["rule"] for r in plan.refused]
     assert data["refused"][0]["source"].startswith("etiquette/careful.yaml:")
     assert data["robot_grasps"] == [] and data["object_pose"] is None
     # no mode was tried, and each says why
@@ -259,7 +260,7 @@ def test_the_placed_knife_rests_on_the_table_top(kb_dir, placed):
     top = scene["support"]["position"][2]
     cx, cy = scene["support"]["position"][:2]
     sx, sy = scene["support"]["size"]
-    pose = np.asarray(placed.to_dict()["placement"]["object_pose"])
+    pose = np.asarray(placed.placement["object_pose"])
     np.testing.assert_allclose(pose, placed.object_pose, atol=1e-6)
     pts = np.concatenate(list(_corners(KNIFE_BOXES, pose).values()))
     assert abs(pts[:, 2].min() - top) <= 0.002
@@ -332,6 +333,15 @@ def test_a_dense_slug_no_two_grippers_can_hold_is_set_down(kb_dir, planner):
     assert abs(pts[:, 2].min() - scene["support"]["position"][2]) <= 0.002
     shoulder, reach = _shoulder_and_reach(1.7, scene, "seated")
     assert np.linalg.norm(pts.mean(axis=0) - shoulder) <= reach
+
+
+def test_when_the_fallback_cannot_be_placed_either_the_reason_says_both(planner):
+    """A standing adult 1 m from the robot cannot reach the table top with a straight arm:
+    the slug is neither handed over nor set down, and the reason says why each failed."""
+    plan = planner.plan("slug", receiver="adult", culture="weights")
+    assert plan.outcome == "infeasible" and plan.placement is None
+    assert "H2G1" in plan.reason and "dense_two_hands" in plan.reason
+    assert "setting it down instead" in plan.reason and "reach" in plan.reason
 
 
 def test_without_a_fallback_rule_nothing_is_placed(planner):
