@@ -339,20 +339,83 @@ def _placement_hands(poses: np.ndarray, measured: dict, found: np.ndarray) -> Ha
                  hits=tuple(() for _ in range(m_count)), receiving=())
 
 
+def _oriented(ctx: PlanContext, judged: list[CompiledRule], rotations: np.ndarray
+              ) -> tuple[np.ndarray, dict[str, int], np.ndarray]:
+    """The orientations (M, 3, 3) the hard ``axis`` rules of ``judged`` allow (M,) bool,
+    how many each hard axis rule removed (first failure), and the soft axis rules' weighted
+    score (M,) in [0, 1]."""
+    pctx = _place_context(ctx, rotations)
+    m_count = len(rotations)
+    phase = Phase("place", hands=_placement_hands(np.tile(np.eye(4), (m_count, 1, 1)), {},
+                                                  np.ones(m_count, bool)))
+    rows = (np.zeros(m_count, dtype=np.int64), np.arange(m_count, dtype=np.int64))
+    ok = np.ones(m_count, dtype=bool)
+    failed: dict[str, int] = {}
+    score, total = np.zeros(m_count), 0.0
+    for c in judged:
+        if c.rule.kind != "axis":
+            continue
+        out = c.rule.evaluate(pctx, phase, *rows)
+        if c.rule.hard:
+            if (~out.passed & ok).any():
+                failed[c.id] = int((~out.passed & ok).sum())
+            ok &= out.passed
+        else:
+            score += c.rule.weight * out.score
+            total += c.rule.weight
+    return ok, failed, score / total if total > 0 else score
+
+
+def _chosen(cg: ConstraintGraph, judged: list[CompiledRule], because: list[CompiledRule],
+            rctx: PlanContext, phase: Phase, decision, site: dict | None, tip_deg: float,
+            com: np.ndarray, considered: dict) -> PlacementPlan:
+    """The placement of the best row of ``decision`` (over ``rctx``'s orientations, in
+    ``phase``): its attempt with the trace of its grasp, its pose and record. ``site``: the
+    receiver's site on it (object frame), completed here with its world position."""
+    from handover.engine.evaluate import trace_row
+    from handover.engine.modes.common import hand_at
+
+    row = int(decision.ranking()[0])
+    i, k = int(decision.gi[row]), int(decision.pk[row])
+    pose = phase.hands.poses[k]
+    hand = hand_at(pose, rctx.candidates.centre[i], rctx.situation.robot.hands)
+    trace = trace_row(cg, rctx, phase, i, k, rules=judged, note=NOT_JUDGED)
+    causes = {c.id for c in because}
+    for e in trace:
+        if e["rule"] in causes:
+            e["note"] = "forbids handing it over and names fallback: place"
+    trace = [{"grasp": i, "hand": hand, "stage": "place", **e} for e in trace]
+    attempt = Attempt("place", True, None, replace(cg, order=judged), decision, phase,
+                      (Chosen(hand, i, k, phase, stage="place"),), float(decision.score[row]),
+                      extra={"trace": trace})
+    if site is not None:
+        site = site | {"position_world": pose[:3, :3] @ site["position"] + pose[:3, 3]}
+    values = {name: float(v[k]) for name, v in phase.hands.measured.items() if name != "clear"}
+    why = (f"set down on the table (its rest tips over at {tip_deg:.0f} deg), the receiver's "
+           f"grasp site at {values['receiver_reach']:.2f} of their arm's reach from the "
+           f"shoulder, the object at {values['robot_reach']:.2f} of the robot's reach; "
+           "oriented by the axis rules and held by the best grasp that passes every hard rule "
+           "of the robot's grasp")
+    record = {"object_pose": pose, "position": pose[:3, :3] @ com + pose[:3, 3],
+              "orientation": k, "tip_deg": tip_deg,
+              "receiver_site": None if site is None else site["position_world"],
+              "measured": values, "why": why, "considered": considered}
+    return PlacementPlan(True, None, rctx, attempt, pose, i, k, hand, site, record)
+
+
 def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> PlacementPlan:
     """Plan setting the object down (see the module docstring) because the rules
     ``because`` (compiled, each naming ``fallback: place``) forbid handing it over."""
     from handover.engine.compiler import compile
-    from handover.engine.evaluate import evaluate, infeasible_reason, trace_row
-    from handover.engine.modes.common import hand_at, receiver_roles
+    from handover.engine.evaluate import evaluate, infeasible_reason
+    from handover.engine.modes import beyond_reach
+    from handover.engine.modes.common import receiver_roles
     from handover.engine.presentation import predict_receiver_sites, receiver_region
 
     s = ctx.situation
     if s.scene.support is None:
         return PlacementPlan(False, f"place: scene '{s.scene.id}' has no table to set the "
                              "object down on")
-    from handover.engine.modes import beyond_reach
-
     far = beyond_reach(ctx)
     if far:
         return PlacementPlan(False, f"place: {far}")
@@ -371,30 +434,9 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
     rotations, rest_of = _yawed(rests, s.toward, axes)
     cg = compile(kb, ctx, "H1G1")
     judged = [c for c in cg.order if _judged(c)]
-    place_cg = replace(cg, order=judged)
-    pctx = _place_context(ctx, rotations)
-    none = np.zeros(len(rotations), dtype=np.int64)
-    every = np.arange(len(rotations), dtype=np.int64)
-    phase0 = Phase("place", hands=_placement_hands(np.tile(np.eye(4), (len(rotations), 1, 1)),
-                                                   {}, np.ones(len(rotations), bool)),
-                   pickup=True, receiver_present=True)
-    ok = np.ones(len(rotations), dtype=bool)
-    failed_axis: dict[str, int] = {}
-    soft_score = np.zeros(len(rotations))
-    soft_total = 0.0
-    for c in judged:
-        if c.rule.kind != "axis":
-            continue
-        out = c.rule.evaluate(pctx, phase0, none, every)
-        if c.rule.hard:
-            failed = ~out.passed & ok
-            if failed.any():
-                failed_axis[c.id] = int(failed.sum())
-            ok &= out.passed
-        else:
-            soft_score += c.rule.weight * out.score
-            soft_total += c.rule.weight
-    considered = {"rests": len(rests), "orientations": len(rotations)}
+    ok, failed_axis, score = _oriented(ctx, judged, rotations)
+    considered = {"rests": len(rests), "orientations": len(rotations),
+                  "passing_axis_rules": int(ok.sum())}
     if not ok.any():
         said = ", ".join(f"{rid} ({n})" for rid, n in failed_axis.items())
         return PlacementPlan(False, f"place: no stable resting orientation passes the hard "
@@ -406,7 +448,6 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
         region, rotations, s.toward, grip_width=s.hand.grip_width,
         where=s.task.receiver_site if s.task is not None else "middle",
         finger_thickness=s.hand.finger_thickness)
-    score = soft_score / soft_total if soft_total > 0 else np.zeros(len(rotations))
     order = np.flatnonzero(ok)
     order = order[np.lexsort((order, -np.round(tips[rest_of[order]], 9),
                               -np.round(score[order], 9)))]
@@ -428,47 +469,21 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
         sel, poses = sel[found], where["poses"][found]
         measured = {k: v[found] for k, v in where["measured"].items()}
         rctx = _place_context(ctx, rotations[sel])
-        phase = Phase("place", hands=_placement_hands(poses, measured, np.ones(len(sel), bool)),
-                      pickup=True, receiver_present=True)
-        decision = evaluate(place_cg, rctx, phase)
+        phase = Phase("place", hands=_placement_hands(poses, measured, np.ones(len(sel), bool)))
+        decision = evaluate(replace(cg, order=judged), rctx, phase)
         ranking = decision.ranking()
         if not len(ranking):
             last_reason = infeasible_reason(decision, "place").removeprefix("place: ")
             continue
-        row = int(ranking[0])
-        i, k = int(decision.gi[row]), int(decision.pk[row])
-        hand = hand_at(poses[k], ctx.candidates.centre[i], s.robot.hands)
-        chosen = Chosen(hand, i, k, phase, stage="place")
-        attempt = Attempt("place", True, None, place_cg, decision, phase, (chosen,),
-                          float(decision.score[row]))
-        trace = trace_row(cg, rctx, phase, i, k, rules=judged, note=NOT_JUDGED)
-        causes = {c.id for c in because}
-        for e in trace:
-            if e["rule"] in causes:
-                e["note"] = "forbids handing it over and names fallback: place"
-        trace = [{"grasp": i, "hand": hand, "stage": "place", **e} for e in trace]
-        attempt = replace(attempt, extra={"trace": trace})
-        m = int(sel[k])
+        considered |= {"placed_orientations": placed_any, "rows": int(decision.n_rows),
+                       "kept": int(decision.kept.sum())}
+        m = sel[decision.pk[int(ranking[0])]]
         site = None
         if sites.valid[m]:
-            local = sites.site[m]
-            site = {"hand": s.receiver.dominant_hand, "position": local,
-                    "position_world": poses[k][:3, :3] @ local + poses[k][:3, 3],
+            site = {"hand": s.receiver.dominant_hand, "position": sites.site[m],
                     "part": ctx.part_mesh.part_names[int(sites.part[m])], "model": []}
-        considered |= {"stable_orientations": int(ok.sum()), "placed_orientations": placed_any,
-                       "rows": int(decision.n_rows), "kept": int(decision.kept.sum())}
-        values = {name: float(v[k]) for name, v in measured.items()}
-        why = (f"set down on the table (rest tipping at {tips[rest_of[m]]:.0f} deg), the "
-               f"receiver's grasp site at {values['receiver_reach']:.2f} of their arm's reach "
-               f"from the shoulder, the object at {values['robot_reach']:.2f} of the robot's "
-               "reach; oriented by the axis rules and held by the best grasp that passes every "
-               "hard rule of the robot's grasp")
-        record = {"object_pose": poses[k],
-                  "position": poses[k][:3, :3] @ com + poses[k][:3, 3],
-                  "orientation": k, "tip_deg": float(tips[rest_of[m]]),
-                  "receiver_site": None if site is None else site["position_world"],
-                  "measured": values, "why": why, "considered": considered}
-        return PlacementPlan(True, None, rctx, attempt, poses[k], i, k, hand, site, record)
+        return _chosen(cg, judged, because, rctx, phase, decision, site, float(tips[rest_of[m]]),
+                       com, considered)
     reason = last_reason or "no orientation could be placed"
     if placed_any == 0:
         reason = f"nowhere on the table top: {reason}"
