@@ -59,8 +59,9 @@ __all__ = [
     "MIN_TIP_DEG",
 ]
 
-SUPPORT_TOL = 0.002
-"""m: hull points this close to the table carry the object (its support polygon)."""
+SUPPORT_TOL = 2e-4
+"""m: hull points this close to the table carry the object (its support polygon): a rigid
+object on a rigid table, so a curved surface's nearly flat patch does not count as a face."""
 MIN_TIP_DEG = 15.0
 """Degrees the object must be tilted to tip over its support's nearest edge, at least."""
 MAX_RESTS = 6
@@ -120,6 +121,19 @@ def _down_rotation(n: np.ndarray) -> np.ndarray:
     return np.eye(3) + vx + vx @ vx / (1.0 + c)
 
 
+def _hull(vertices: np.ndarray):
+    """The convex hull (trimesh) of ``vertices`` (V, 3), or None when they span no volume
+    (a flat or degenerate mesh rests on no face of its own)."""
+    import trimesh
+
+    with np.errstate(invalid="ignore", divide="ignore"):  # a flat hull has no volume
+        try:
+            hull = trimesh.convex.convex_hull(np.asarray(vertices, dtype=float))
+        except (ValueError, RuntimeError):  # scipy's QhullError is a RuntimeError
+            return None
+        return hull if len(hull.faces) >= 4 and abs(hull.volume) > 1e-12 else None
+
+
 def resting_rotations(vertices: np.ndarray, com: np.ndarray,
                       limit: int = MAX_RESTS) -> tuple[np.ndarray, np.ndarray]:
     """The object's stable rests on a flat table, most stable first.
@@ -131,9 +145,10 @@ def resting_rotations(vertices: np.ndarray, com: np.ndarray,
     rests (a sphere).
     """
     import shapely
-    import trimesh
 
-    hull = trimesh.convex.convex_hull(np.asarray(vertices, dtype=float))
+    hull = _hull(vertices)
+    if hull is None:
+        return np.zeros((0, 3, 3)), np.zeros(0)
     hv = np.asarray(hull.vertices, dtype=float)
     grouped = {int(f) for facet in hull.facets for f in facet}
     normals = [hull.face_normals[facet[0]] for facet in hull.facets]
@@ -451,7 +466,7 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
     order = np.flatnonzero(ok)
     order = order[np.lexsort((order, -np.round(tips[rest_of[order]], 9),
                               -np.round(score[order], 9)))]
-    hull = np.asarray(mesh.convex_hull.vertices, dtype=float)
+    hull = np.asarray(_hull(vertices).vertices, dtype=float)  # rests exist: so does the hull
     edges = np.cumsum((0, *ROUNDS))
     last_reason = None
     placed_any = 0

@@ -396,3 +396,24 @@ def test_the_recording_shows_a_placement_like_a_handover_and_a_refusal_as_text(
     errors = [t["text"] for t in summary["trace"] if t["level"] == "ERROR"]
     assert errors and errors[0].startswith("refused: rule no_edges_under_eight")
     assert any("Refused" in d["text"] for d in summary["documents"])
+
+
+# ---------------------------------------------------------------- resting on a table
+
+
+def test_a_box_rests_on_its_largest_face_first_and_a_ball_nowhere():
+    """The stable rests of a brick: its two largest faces first (tipping over the long edge
+    takes atan(half width / half height) = 63 deg), the end faces last; a ball rolls."""
+    import trimesh
+
+    from handover.engine.place import MIN_TIP_DEG, resting_rotations
+
+    brick = trimesh.creation.box((0.10, 0.06, 0.03))
+    rotations, tips = resting_rotations(brick.vertices, np.zeros(3))
+    assert len(rotations) == 6
+    vertical = np.abs(rotations[:2, 2, :])  # which object axis each rest puts vertical
+    np.testing.assert_allclose(vertical, [[0, 0, 1], [0, 0, 1]], atol=1e-9)
+    np.testing.assert_allclose(tips[:2], np.degrees(np.arctan2(0.03, 0.015)), atol=1e-6)
+    assert (np.diff(tips) <= 1e-9).all() and (tips >= MIN_TIP_DEG).all()
+    ball = trimesh.creation.icosphere(subdivisions=3, radius=0.03)
+    assert len(resting_rotations(ball.vertices, np.zeros(3))[0]) == 0
