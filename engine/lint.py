@@ -15,12 +15,13 @@ Errors:
   - a rule overriding a rule id that none of the extended cultures has, or one already
     overridden in the same culture; a rule id that repeats a rule in force without
     ``overrides``; a rule overriding a ``safety`` rule without ``override_safety``;
-  - a rule naming a tag that no object or part carries (``applies.object_tags_any``/``none``,
-    ``forbid_tags``, ``require_tags``). This is an error, not a warning, because a misspelt
-    tag silently disables a rule, safety rules included; add the object before the rule, or
-    use a tag an object already carries;
-  - an ``axis`` rule naming an axis no object defines, a rule's ``applies.tasks`` naming a task
-    no object has;
+  - a rule naming a tag that no object or part carries and no culture's ``vocabulary``
+    documents (``applies.object_tags_any``/``none``, ``forbid_tags``, ``require_tags``, a
+    ``keep_out`` or ``pinch`` rule's ``tags``). This is an error, not a warning, because a
+    misspelt tag silently disables a rule, safety rules included; add the object before the
+    rule, or document the tag in a vocabulary (the hazard tags of ``common``);
+  - an ``axis`` rule naming an axis no object defines and no vocabulary documents, a rule's
+    ``applies.tasks`` naming a task no object has;
   - a receiver's ``hand`` or a robot's (or an arm's) ``gripper`` that does not exist; two
     obstacles with one id in a scene;
   - a robot's ``urdf`` that is missing, outside the KB, xacro, or does not parse (the URDF's
@@ -37,6 +38,8 @@ Warnings:
   - a safety rule overridden with ``override_safety`` ("safety rule X overridden by Y: why");
     ``override_safety`` on a rule that overrides no safety rule;
   - a robot's ``reach`` beyond what its arms reach at full stretch;
+  - a tag on an object or a part that no rule of any culture names, no task wants for the
+    receiver and no vocabulary documents (a typo, or a hazard nobody handles), at the tag;
   - an object part that no geometry belongs to; an ``axis`` rule that applies to an object
     lacking that axis; a document whose id differs from its file name (loader); a file
     outside the KB folders (loader).
