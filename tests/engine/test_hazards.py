@@ -363,8 +363,10 @@ def test_a_three_year_old_is_not_handed_a_knife_or_a_hot_mug(planner, obj):
     assert "no_hazards_to_young_children" in plan.reason
 
 
-def test_the_age_decides_not_the_role(planner):
-    # an adult written with the child's role and hand is handed the hot mug
-    plan = planner.plan("hot_mug", receiver="grown_child")
+@pytest.mark.parametrize("receiver", ["adult", "grown_child"])
+def test_an_adult_is_handed_the_hot_mug_by_its_handle(planner, receiver):
+    # the age decides, not the role: an adult written with the child's role and hand too
+    plan = planner.plan("hot_mug", receiver=receiver)
     assert plan.feasible, plan.reason
+    assert plan.to_dict()["human_grasps"]
     assert all(h["part"] == "handle" for h in plan.to_dict()["human_grasps"])
