@@ -395,9 +395,12 @@ def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,
         entry = _entry(c, status, out, passed)
         if out.unit == "part index" and entry["measured"] is not None and entry["measured"] >= 0:
             entry["measured_part"] = ctx.part_mesh.part_names[int(entry["measured"])]
-        if c.rule.kind == "collision" and not passed:
+        if c.rule.kind == "collision":  # measured: what the gripper hit, named
             names = handover_targets(ctx, phase.hands).names if phase is not None else ()
-            entry["hits"] = collision_targets(float(out.measured[0]), names)
+            hits = collision_targets(float(out.measured[0]), names)
+            entry["measured"] = ", ".join(hits) if hits else "nothing"
+            if not passed:
+                entry["hits"] = hits
         if c.rule.kind == "location" and c.rule.measure == "clear" and not passed:
             entry["hits"] = list(phase.hands.hits[presentation])
         entry.update(c.rule.detail(ctx, phase, grasp, presentation))
