@@ -34,7 +34,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Decision", "evaluate", "evaluate_rule", "complete", "infeasible_reason", "trace_row",
-    "ROW_LIMIT", "PHYSICAL_KINDS",
+    "ROW_LIMIT", "PHYSICAL_KINDS", "minimal_patterns",
 ]
 
 # Rule kinds that state what is physically possible (the gripper, the receiver's hand and
@@ -126,7 +126,7 @@ class Decision:
         and no other row fails only a part of it (lifting a part lets nothing through)."""
         if self.kept.any() or self.n_rows == 0:
             return []
-        patterns, counts, _ = _patterns(self.exact().fails)
+        patterns, counts, _ = minimal_patterns(self.exact().fails)
         keys = {
             tuple(self.hard[h].id for h in np.flatnonzero(pattern)): int(count)
             for pattern, count in zip(patterns, counts, strict=True)
@@ -135,7 +135,7 @@ class Decision:
         return ranked[:limit]
 
 
-def _patterns(fails: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def minimal_patterns(fails: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The minimal failure patterns of the failing rows of ``fails`` (R, H) bool: (U, H)
     bool patterns no other row's pattern is a proper part of, (U,) rows with each, and (R,)
     int, each row's index into them (-1: not a minimal pattern, or no failure)."""
@@ -190,7 +190,7 @@ def infeasible_reason(decision: Decision, mode: str) -> str:
     if decision.n_rows == 0:
         return f"{mode}: the object has no geometric grasp for this gripper"
     exact = decision.exact()
-    patterns, counts, row_index = _patterns(exact.fails)
+    patterns, counts, row_index = minimal_patterns(exact.fails)
     hard = exact.hard
     names = _target_names(decision)
     sets = []

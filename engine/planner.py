@@ -34,11 +34,13 @@ __all__ = ["plan", "Planner", "Plan", "RobotGrasp", "HumanGrasp"]
 
 
 def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
-         mesh: trimesh.Trimesh | None = None) -> Plan:
+         mesh: trimesh.Trimesh | None = None, what_if: bool = False) -> Plan:
     """Plan a handover, choosing the mode (``auto``) or using the forced one.
 
     db : the grasp database (``handover.engine.graspdb.GraspDB``) or None to generate.
     mesh : an object given as a mesh (object frame, metres) instead of ``query.object``.
+    what_if : for an infeasible plan, list the verified changes that would make it feasible
+    (``result.what_if``, :mod:`handover.engine.whatif`).
     Returns the :class:`Plan` (feasible or not) with its context and chosen attempt.
     """
     from handover.engine.assemble import build_result
@@ -47,7 +49,12 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
 
     ctx = prepare(kb, query, db, mesh=mesh)
     attempt, tried, why = choose(kb, ctx, query.mode)
-    return Plan(build_result(ctx, attempt, tried, why, why_not), ctx, attempt)
+    result = build_result(ctx, attempt, tried, why, why_not)
+    if what_if:
+        from handover.engine.whatif import what_if as changes
+
+        result.what_if = changes(kb, query, ctx, attempt, tried, db=db, mesh=mesh)
+    return Plan(result, ctx, attempt)
 
 
 @dataclass(frozen=True)
@@ -182,10 +189,12 @@ class Planner:
         robot: str | None = None,
         mesh_scale: float = 1.0,
         why_not: tuple[int, ...] = (),
+        what_if: bool = False,
     ) -> Plan:
         """Plan handing ``obj`` (an object id of the KB, a mesh file, or a trimesh mesh in
         metres) to ``receiver`` of ``culture``; None takes the defaults (adult, common, the
-        object's default task, the table scene)."""
+        object's default task, the table scene). what_if: an infeasible plan lists the
+        verified changes that would make it feasible (``to_dict()["what_if"]``)."""
         mesh = None
         name = obj
         if not isinstance(obj, (str, Path)):
@@ -196,4 +205,5 @@ class Planner:
             scene=scene or DEFAULTS["scene"], mode=mode, gripper=gripper,
             robot=robot or DEFAULTS["robot"], mesh_scale=mesh_scale,
         )
-        return plan(self.kb, query, why_not=tuple(why_not), db=self.db, mesh=mesh)
+        return plan(self.kb, query, why_not=tuple(why_not), db=self.db, mesh=mesh,
+                    what_if=what_if)

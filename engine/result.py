@@ -85,6 +85,7 @@ class PlanResult:
     handover_point: dict | None = None
     bodies: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    what_if: list[dict] | None = None
 
     @property
     def outcome(self) -> str:
@@ -125,6 +126,8 @@ class PlanResult:
         )
         if self.why_not:
             out["why_not"] = self.why_not
+        if self.what_if is not None:
+            out["what_if"] = self.what_if
         return to_jsonable(out)
 
     def to_json(self) -> str:
