@@ -69,9 +69,10 @@ class Decision:
     first_fail: np.ndarray
     soft_scores: np.ndarray
     measured: dict[str, np.ndarray] = field(default_factory=dict)
-    # (ctx, phase) the table was judged in: what :meth:`exact` completes it with.
+    # (ctx, phase, graph) the table was judged in: what :meth:`exact` completes it with.
     judged_in: tuple | None = field(default=None, repr=False, compare=False)
     _exact: Decision | None = field(default=None, repr=False, compare=False)
+    _sets: list | None = field(default=None, repr=False, compare=False)
 
     def exact(self) -> Decision:
         """This table with every hard rule judged on every row (the collision rules too,
@@ -80,7 +81,7 @@ class Decision:
         if self.judged_in is None or self.checked.all():
             return self
         if self._exact is None:
-            self._exact = complete(self, *self.judged_in)
+            self._exact = complete(self, *self.judged_in[:2])
         return self._exact
 
     @property
@@ -123,17 +124,10 @@ class Decision:
         the number of rows each lets through: smallest set first, then most rows, then ids.
 
         Judged on the :meth:`exact` table: each set is exactly the rules some row fails,
-        and no other row fails only a part of it (lifting a part lets nothing through)."""
-        if self.kept.any() or self.n_rows == 0:
-            return []
-        patterns, counts, _ = minimal_patterns(self.exact().fails)
-        keys = {
-            tuple(self.hard[h].id for h in np.flatnonzero(pattern)): int(count)
-            for pattern, count in zip(patterns, counts, strict=True)
-        }
-        ranked = sorted(keys.items(), key=lambda kv: (len(kv[0]), -kv[1], kv[0]))
-        return ranked[:limit]
-
+        and no row fails only a part of it. Where lifting a set moves the receiver's hands
+        (a contact or location rule), the set is checked by judging the rows again without
+        it (:func:`verified_sets`)."""
+        return [(ids, n) for ids, n, _ in verified_sets(self)[:limit]]
 
 def minimal_patterns(fails: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The minimal failure patterns of the failing rows of ``fails`` (R, H) bool: (U, H)
@@ -159,6 +153,101 @@ def minimal_patterns(fails: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
     row_index = np.full(n_rows, -1, dtype=np.int64)
     row_index[failing] = index[np.asarray(inverse).ravel()]
     return patterns[minimal], counts[minimal], row_index
+
+
+# How many of the smallest failure patterns are checked as blocking sets.
+SETS_CHECKED = 12
+
+
+def verified_sets(decision: Decision) -> list[tuple[tuple[str, ...], int, np.ndarray]]:
+    """The blocking sets of an infeasible ``decision`` (memoised): (rule ids in evaluation
+    order, rows that pass every hard rule once the set is lifted, (n,) int rows of the exact
+    table that fail exactly the set), smallest set first, then most rows, then ids.
+
+    The smallest :data:`SETS_CHECKED` minimal failure patterns of the exact table are the
+    candidates. Lifting a set whose rules leave the receiver's hands where they are lets
+    through exactly the rows with that pattern. A set whose lifting moves them (a contact
+    rule changes which parts the people hold, a location rule where the object is offered)
+    is judged again without it: if nothing passes then, the rules that block the rows
+    judged anew join the set; rules not needed are dropped, so every set listed is
+    blocking and minimal when the plan is made again without its rules."""
+    if decision._sets is not None:
+        return decision._sets
+    if decision.kept.any() or decision.n_rows == 0:
+        decision._sets = []
+        return []
+    exact = decision.exact()
+    patterns, counts, row_index = minimal_patterns(exact.fails)
+    hard_ids = [c.id for c in exact.hard]
+    cand = sorted(
+        ((tuple(hard_ids[h] for h in np.flatnonzero(p)), int(n), u)
+         for u, (p, n) in enumerate(zip(patterns, counts, strict=True))),
+        key=lambda t: (len(t[0]), -t[1], t[0]),
+    )[:SETS_CHECKED]
+    out: dict[tuple[str, ...], tuple[int, np.ndarray]] = {}
+    for ids, count, u in cand:
+        rows = np.flatnonzero(row_index == u)
+        if decision.judged_in is None or len(decision.judged_in) < 3:
+            out.setdefault(ids, (count, rows))
+            continue
+        found = _check_set(decision, set(ids))
+        if found is None:
+            continue
+        ids2, n = found
+        ids2 = tuple(i for i in hard_ids if i in ids2)
+        if ids2 != ids:
+            mask = np.isin(np.arange(len(hard_ids)), [hard_ids.index(i) for i in ids2])
+            rows = np.flatnonzero(exact.fails.any(axis=1)
+                                  & ~(exact.fails & ~mask[None, :]).any(axis=1))
+        if ids2 not in out:
+            out[ids2] = (n, rows)
+    ranked = sorted(out.items(), key=lambda kv: (len(kv[0]), -kv[1][0], kv[0]))
+    decision._sets = [(ids, n, rows) for ids, (n, rows) in ranked]
+    return decision._sets
+
+
+def _lifted(decision: Decision, removed: set[str]) -> tuple[int, Decision | None]:
+    """How many rows pass every hard rule once ``removed`` rules are lifted from the
+    decision's graph, and the decision judged anew (None when the receiver's hands stay
+    where they are and the exact table answers)."""
+    from handover.engine.modes.common import hands_for
+
+    ctx, phase, cg = decision.judged_in
+    hard = decision.hard
+    cg2 = replace(cg, order=[c for c in cg.order if c.id not in removed])
+    hands = phase.hands
+    if phase is not None and any(c.rule.kind in ("contact", "location") for c in cg.order
+                                 if c.id in removed):
+        hands = hands_for(cg2, ctx, len(phase.hands.sites))
+    if phase is None or hands is phase.hands:
+        keep = [h for h, c in enumerate(hard) if c.id not in removed]
+        fails = decision.exact().fails[:, keep]
+        return int((~fails.any(axis=1)).sum()), None
+    again = evaluate(cg2, ctx, phase.but(hands=hands))
+    return int(again.kept.sum()), again
+
+
+def _check_set(decision: Decision, ids: set[str]) -> tuple[set[str], int] | None:
+    """``ids`` made blocking (rules the rows judged anew fail join it, once) and minimal
+    (rules not needed leave it), with the rows it lets through; None when it cannot be."""
+    n, again = _lifted(decision, ids)
+    if n == 0 and again is not None:
+        extra = verified_sets(again)[:1] if not again.kept.any() else []
+        if not extra:
+            return None
+        ids = ids | set(extra[0][0])
+        n, _ = _lifted(decision, ids)
+    if n == 0:
+        return None
+    changed = True
+    while changed and len(ids) > 1:
+        changed = False
+        for r in sorted(ids):
+            m, _ = _lifted(decision, ids - {r})
+            if m > 0:
+                ids, n, changed = ids - {r}, m, True
+                break
+    return ids, n
 
 
 def complete(decision: Decision, ctx: PlanContext, phase: Phase) -> Decision:
@@ -190,17 +279,15 @@ def infeasible_reason(decision: Decision, mode: str) -> str:
     if decision.n_rows == 0:
         return f"{mode}: the object has no geometric grasp for this gripper"
     exact = decision.exact()
-    patterns, counts, row_index = minimal_patterns(exact.fails)
-    hard = exact.hard
+    by_id = {c.id: c for c in exact.hard}
     names = _target_names(decision)
     sets = []
-    for u, (pattern, count) in enumerate(zip(patterns, counts, strict=True)):
-        rules = [hard[h] for h in np.flatnonzero(pattern)]
-        rows = np.flatnonzero(row_index == u)
+    for ids, count, rows in verified_sets(decision):
+        rules = [by_id[i] for i in ids]
         kinds = {c.rule.kind for c in rules}
         rank = 0 if kinds <= set(PHYSICAL_KINDS) else 2 if any(
             c.rule.safety for c in rules) else 1
-        sets.append((rank, len(rules), -int(count), tuple(c.id for c in rules), rules, rows))
+        sets.append((rank, len(rules), -int(count), ids, rules, rows))
     sets.sort(key=lambda s: s[:4])
     shown = _pick_sets(sets)
     text = [f"{mode}: no candidate passes every hard rule"]
@@ -216,7 +303,9 @@ def infeasible_reason(decision: Decision, mode: str) -> str:
         elif rank == 2:
             label += " [safety: " + ", ".join(c.id for c in rules if c.rule.safety) + "]"
         parts.append(f"{label} ({-neg} candidate{'s' if -neg != 1 else ''})")
-    text.append("; smallest blocking rule sets: " + "; ".join(parts))
+    text.append("; smallest blocking rule sets: " + "; ".join(parts) if parts else
+                f"; no set among the {SETS_CHECKED} smallest failure patterns lets a candidate "
+                "through once lifted")
     return "".join(text)
 
 
@@ -235,7 +324,7 @@ def _target_names(decision: Decision) -> tuple[str, ...]:
     """The world's targets at the handover of the phase ``decision`` was judged in."""
     if decision.judged_in is None:
         return ()
-    ctx, phase = decision.judged_in
+    ctx, phase = decision.judged_in[:2]
     return handover_targets(ctx, phase.hands).names if phase is not None else ()
 
 
@@ -261,7 +350,7 @@ def _geometric_causes(exact: Decision, judged_in: tuple | None, sets: list[tuple
     hand that do not both fit (on the rows every other rule leaves)."""
     if judged_in is None:
         return []
-    ctx, phase = judged_in
+    ctx, phase = judged_in[:2]
     out = []
     giver = [h for h, c in enumerate(exact.hard)
              if c.rule.kind == "contact" and getattr(c.rule, "who", "") == "giver"]
@@ -365,7 +454,7 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
     return Decision(
         gi=gi, pk=pk, hard=hard, soft=soft, fails=fails, checked=checked, kept=alive,
         score=score, first_fail=first_fail, soft_scores=soft_scores, measured=measured,
-        judged_in=(ctx, phase),
+        judged_in=(ctx, phase, cg),
     )  # fmt: skip
 
 

@@ -103,7 +103,7 @@ def _rule_sets(tried: list[Attempt]) -> list[tuple[list, bool, dict]]:
     """The blocking sets of every mode tried, each once: (compiled rules, safety, what each
     rule measured on the rows the set blocks), without a safety rule first, then by size
     and rows."""
-    from handover.engine.evaluate import minimal_patterns
+    from handover.engine.evaluate import verified_sets
 
     seen: dict[tuple[str, ...], tuple[int, list, bool, dict]] = {}
     for a in tried:
@@ -111,11 +111,9 @@ def _rule_sets(tried: list[Attempt]) -> list[tuple[list, bool, dict]]:
         if d is None or d.n_rows == 0 or d.kept.any():
             continue
         exact = d.exact()
-        patterns, counts, row_index = minimal_patterns(exact.fails)
-        for u, (pattern, count) in enumerate(zip(patterns, counts, strict=True)):
-            rules = [exact.hard[h] for h in np.flatnonzero(pattern)]
-            ids = tuple(c.id for c in rules)
-            rows = np.flatnonzero(row_index == u)
+        by_id = {c.id: c for c in exact.hard}
+        for ids, count, rows in verified_sets(d):
+            rules = [by_id[i] for i in ids]
             measured = {c.id: exact.measured[c.id][rows] for c in rules
                         if c.id in exact.measured}
             best = seen.get(ids)
