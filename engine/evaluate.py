@@ -75,11 +75,12 @@ class Decision:
     _sets: list | None = field(default=None, repr=False, compare=False)
 
     def exact(self) -> Decision:
-        """This table with every hard rule judged on every row (the collision rules too,
-        where the fast path skipped them; memoised). Only explanations of an infeasible
-        attempt ask for it; ``kept``, ``score`` and ``first_fail`` are the same."""
+        """This table with every hard rule judged on every row that matters (the collision
+        rules too, where the fast path skipped them; :func:`complete`; memoised). Only
+        explanations of an infeasible attempt ask for it; ``kept``, ``score`` and
+        ``first_fail`` are the same."""
         if self.judged_in is None or self.checked.all():
-            return self
+            return self  # every rule judged on every row (or nothing to judge it with)
         if self._exact is None:
             self._exact = complete(self, *self.judged_in[:2])
         return self._exact
@@ -251,22 +252,46 @@ def _check_set(decision: Decision, ids: set[str]) -> tuple[set[str], int] | None
 
 
 def complete(decision: Decision, ctx: PlanContext, phase: Phase) -> Decision:
-    """``decision`` with every collision rule judged on the rows the fast path skipped (one
-    batch per rule), so ``fails`` is exact on every row; the rest is unchanged."""
+    """``decision`` with the rules the fast path skipped (collision rules on rows another
+    rule had removed) judged on every row that matters (batched per rule), so the minimal
+    failure patterns, their row counts and the fewest failures of any row are exact.
+
+    A row whose known failures already hold, as a proper part, the whole failure pattern
+    of a fully judged row cannot be minimal whatever it would still fail: it is left as it
+    is. Rows are completed in order of how many rules they are known to fail, so every
+    pattern that could make a row irrelevant is known before the row is looked at."""
     fails, checked = decision.fails.copy(), decision.checked.copy()
     measured = dict(decision.measured)
-    for h, c in enumerate(decision.hard):
-        todo = np.flatnonzero(~checked[:, h])
-        if not len(todo):
-            continue
-        out = evaluate_rule(c, ctx, phase, decision.gi[todo], decision.pk[todo])
-        fails[todo, h] = ~out.passed
-        checked[todo, h] = True
-        values = np.array(measured.get(c.id, np.full(decision.n_rows, np.nan)), dtype=float)
-        values[todo] = out.measured
-        measured[c.id] = values
+    n_rows, n_hard = fails.shape
+    todo_rows = ~checked.all(axis=1)
+    if not todo_rows.any() or decision.kept.any():  # a kept row: no set blocks anything
+        return decision
+    known = (fails & checked).sum(axis=1)
+    weights = (np.left_shift(np.int64(1), np.arange(n_hard, dtype=np.int64))
+               if n_hard <= 62 else None)
+    for level in np.unique(known[todo_rows]):
+        rows = np.flatnonzero(todo_rows & (known == level))
+        if weights is not None and level > 0:
+            done = np.flatnonzero(checked.all(axis=1) & fails.any(axis=1))
+            full = np.unique(fails[done].astype(np.int64) @ weights)
+            full = full[np.bitwise_count(full) < level] if len(full) else full
+            if len(full):
+                codes, inverse = np.unique((fails[rows] & checked[rows]).astype(np.int64)
+                                           @ weights, return_inverse=True)
+                covered = ((full[None, :] & ~codes[:, None]) == 0).any(axis=1)
+                rows = rows[~covered[np.asarray(inverse).ravel()]]
+        for h, c in enumerate(decision.hard):
+            todo = rows[~checked[rows, h]]
+            if not len(todo):
+                continue
+            out = evaluate_rule(c, ctx, phase, decision.gi[todo], decision.pk[todo])
+            fails[todo, h] = ~out.passed
+            checked[todo, h] = True
+            values = np.array(measured.get(c.id, np.full(n_rows, np.nan)), dtype=float)
+            values[todo] = out.measured
+            measured[c.id] = values
     return replace(decision, fails=fails, checked=checked, measured=measured, judged_in=None,
-                   _exact=None)
+                   _exact=None, _sets=None)
 
 
 def infeasible_reason(decision: Decision, mode: str) -> str:
