@@ -180,15 +180,16 @@ def verified_sets(decision: Decision) -> list[tuple[tuple[str, ...], int, np.nda
     exact = decision.exact()
     patterns, counts, row_index = minimal_patterns(exact.fails)
     hard_ids = [c.id for c in exact.hard]
+    verify = decision.judged_in is not None and len(decision.judged_in) == 3
     cand = sorted(
         ((tuple(hard_ids[h] for h in np.flatnonzero(p)), int(n), u)
          for u, (p, n) in enumerate(zip(patterns, counts, strict=True))),
         key=lambda t: (len(t[0]), -t[1], t[0]),
-    )[:SETS_CHECKED]
+    )[:SETS_CHECKED if verify else None]
     out: dict[tuple[str, ...], tuple[int, np.ndarray]] = {}
     for ids, count, u in cand:
         rows = np.flatnonzero(row_index == u)
-        if decision.judged_in is None or len(decision.judged_in) < 3:
+        if not verify:  # a table without its graph: the patterns are the answer
             out.setdefault(ids, (count, rows))
             continue
         found = _check_set(decision, set(ids))
