@@ -72,14 +72,16 @@ def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
 
 def progress(attempt: Attempt) -> tuple[float, int]:
     """How far an infeasible attempt got: (the fewest hard rules any of its rows fails, on
-    the exact table; how many rows fail that few). (0, rows kept) when rows passed every
-    hard rule and the mode failed later (pairing, pick-up); (inf, 0) when nothing was
-    judged (the mode was not tried, or the robot lacks hands)."""
+    the exact table; how many rows fail that few). Rows that passed every hard rule in a
+    mode that failed later: (0, rows kept) when it got to pairing grasps (``pairs_checked``),
+    else (1, rows kept): failing to find a pair (or a first grasp) counts as one rule more.
+    (inf, 0) when nothing was judged (the mode was not tried, or the robot lacks hands)."""
     d = attempt.decision
     if d is None or d.n_rows == 0:
         return float("inf"), 0
     if d.kept.any():
-        return 0.0, int(d.kept.sum())
+        paired = attempt.extra.get("pairs_checked", 0) > 0
+        return (0.0 if paired else 1.0), int(d.kept.sum())
     counts = d.exact().fails.sum(axis=1)
     fewest = int(counts.min())
     return float(fewest), int((counts == fewest).sum())
