@@ -394,7 +394,7 @@ def _geometric_causes(exact: Decision, judged_in: tuple | None, sets: list[tuple
         if rank != 0:
             continue
         hit = _set_hits(exact, rules, rows, names)
-        if "receiver_hand" in hit and hands is not None and hands.sites:
+        if hit.startswith("receiver_hand") and hands is not None and hands.sites:
             parts = hands.sites[0].part[exact.pk[rows]]
             parts = parts[parts >= 0]
             part = (ctx.part_mesh.part_names[int(np.bincount(parts).argmax())]
@@ -403,8 +403,8 @@ def _geometric_causes(exact: Decision, judged_in: tuple | None, sets: list[tuple
                        f"{' + '.join(ids)} hits {hit} on the candidates every other rule "
                        "leaves")
         elif hit:
-            out.append(f"the gripper collides where every other rule would let it go: "
-                       f"{' + '.join(ids)} hits {hit}")
+            out.append(f"where every other rule would let it go, the gripper hits "
+                       f"{hit.split(' (')[0]} ({' + '.join(ids)} hits {hit})")
         else:
             out.append(f"the receiver's hand does not fit where every other rule would let "
                        f"it: {' + '.join(ids)} ({-neg} candidates)")
