@@ -117,3 +117,46 @@ def test_every_reported_blocking_set_is_blocking_and_minimal(generated):
     # the generator makes infeasible cases (else this test proves nothing)
     print(f"{infeasible} infeasible of {len(objects)}; {checked} blocking sets checked")
     assert infeasible >= CASES // 4 and checked >= infeasible
+
+
+CAN = """\
+id: can
+name: A closed can
+mass: 0.3
+geometry:
+  primitives:
+    - {shape: cylinder, part: body, radius: 0.033, height: 0.12, position: [0, 0, 0.06]}
+parts:
+  body: {tags: [body]}
+axes:
+  up: [0, 0, 1]
+"""
+
+
+def test_why_not_says_tie_or_names_the_deciding_rule(tmp_path):
+    from handover.engine.planner import Planner
+
+    root = tmp_path / "kb"
+    shutil.copytree(KB_DIR, root)
+    (root / "objects" / "can.yaml").write_text(CAN)
+    planner = Planner(kb=root, db=False)
+    plan = planner.plan("can")
+    assert plan.feasible
+    d, chosen = plan.attempt.decision, plan.attempt.chosen[0]
+    best = chosen.grasp * plan.context.k + chosen.presentation
+    in_k = d.kept & (d.pk == chosen.presentation) & (d.gi != chosen.grasp)
+    tied = np.flatnonzero(in_k & np.isclose(d.score, d.score[best], atol=1e-12, rtol=0))
+    lower = np.flatnonzero(in_k & (d.score < d.score[best] - 1e-6))
+    assert len(tied) and len(lower)  # a can is symmetric: many grasps score alike
+    asked = (int(d.gi[tied[0]]), int(d.gi[lower[0]]))
+    answers = planner.plan("can", why_not=asked).to_dict()["why_not"]
+    assert "tied with the chosen grasp" in answers[0]["verdict"]
+    assert "tie-break (row order" in answers[0]["verdict"]
+    assert "<" not in answers[0]["verdict"]
+    verdict = answers[1]["verdict"]
+    assert f"scores {d.score[lower[0]]:.3f} < {d.score[best]:.3f}" in verdict
+    rule = verdict.split("the deciding rule: ")[1].split()[0]
+    theirs = {e["rule"]: e["score"] for e in plan.trace}
+    mine = {e["rule"]: e["score"] for e in answers[1]["trace"]}
+    assert f"scores it {mine[rule]:.3f} against the chosen grasp's {theirs[rule]:.3f}" in verdict
+    assert mine[rule] < theirs[rule]
