@@ -34,7 +34,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "Decision", "evaluate", "evaluate_rule", "complete", "infeasible_reason", "trace_row",
-    "ROW_LIMIT", "PHYSICAL_KINDS", "minimal_patterns",
+    "ROW_LIMIT", "PHYSICAL_KINDS", "minimal_patterns", "verified_sets", "QUICK_REASONS",
 ]
 
 # Rule kinds that state what is physically possible (the gripper, the receiver's hand and
@@ -157,7 +157,10 @@ def minimal_patterns(fails: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 # How many of the smallest failure patterns are checked as blocking sets.
-SETS_CHECKED = 12
+SETS_CHECKED = 8
+# A context whose memo holds this key True plans without explaining infeasible attempts
+# (--what-if asks many plans only whether they are feasible).
+QUICK_REASONS = "quick_reasons"
 
 
 def verified_sets(decision: Decision) -> list[tuple[tuple[str, ...], int, np.ndarray]]:
@@ -259,8 +262,8 @@ def complete(decision: Decision, ctx: PlanContext, phase: Phase) -> Decision:
 
     A row whose known failures already hold, as a proper part, the whole failure pattern
     of a fully judged row cannot be minimal whatever it would still fail: it is left as it
-    is. Rows are completed in order of how many rules they are known to fail, so every
-    pattern that could make a row irrelevant is known before the row is looked at."""
+    is. The rows that fail fewest known rules are completed first; the patterns they give
+    (with those of the rows the fast path judged fully) then leave out the rest."""
     fails, checked = decision.fails.copy(), decision.checked.copy()
     measured = dict(decision.measured)
     n_rows, n_hard = fails.shape
@@ -270,16 +273,19 @@ def complete(decision: Decision, ctx: PlanContext, phase: Phase) -> Decision:
     known = (fails & checked).sum(axis=1)
     weights = (np.left_shift(np.int64(1), np.arange(n_hard, dtype=np.int64))
                if n_hard <= 62 else None)
-    for level in np.unique(known[todo_rows]):
-        rows = np.flatnonzero(todo_rows & (known == level))
-        if weights is not None and level > 0:
+    levels = np.unique(known[todo_rows])
+    # Two batches (each rule's cost is mostly per call): the rows that fail fewest known
+    # rules, then every other row no pattern known by then makes irrelevant.
+    for batch in ([levels[:1], levels[1:]] if len(levels) > 1 else [levels]):
+        rows = np.flatnonzero(todo_rows & np.isin(known, batch))
+        if weights is not None:
             done = np.flatnonzero(checked.all(axis=1) & fails.any(axis=1))
             full = np.unique(fails[done].astype(np.int64) @ weights)
-            full = full[np.bitwise_count(full) < level] if len(full) else full
-            if len(full):
+            if len(full) and len(rows):
                 codes, inverse = np.unique((fails[rows] & checked[rows]).astype(np.int64)
                                            @ weights, return_inverse=True)
-                covered = ((full[None, :] & ~codes[:, None]) == 0).any(axis=1)
+                covered = (((full[None, :] & ~codes[:, None]) == 0)
+                           & (full[None, :] != codes[:, None])).any(axis=1)
                 rows = rows[~covered[np.asarray(inverse).ravel()]]
         for h, c in enumerate(decision.hard):
             todo = rows[~checked[rows, h]]
@@ -304,6 +310,9 @@ def infeasible_reason(decision: Decision, mode: str) -> str:
     named while another set blocks as well."""
     if decision.n_rows == 0:
         return f"{mode}: the object has no geometric grasp for this gripper"
+    ctx = decision.judged_in[0] if decision.judged_in is not None else None
+    if ctx is not None and ctx.memo.get(QUICK_REASONS):  # only feasibility is asked
+        return f"{mode}: no candidate passes every hard rule"
     exact = decision.exact()
     by_id = {c.id: c for c in exact.hard}
     names = _target_names(decision)
