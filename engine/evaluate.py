@@ -412,8 +412,8 @@ def _geometric_causes(exact: Decision, judged_in: tuple | None, sets: list[tuple
                        f"{' + '.join(ids)} hits {hit} on the candidates every other rule "
                        "leaves")
         elif hit:
-            out.append(f"where every other rule would let it go, the gripper hits "
-                       f"{hit.split(' (')[0]} ({' + '.join(ids)} hits {hit})")
+            out.append(f"where every other rule would let it go, the gripper hits {hit} "
+                       f"({' + '.join(ids)})")
         else:
             out.append(f"the receiver's hand does not fit where every other rule would let "
                        f"it: {' + '.join(ids)} ({-neg} candidates)")
