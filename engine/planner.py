@@ -54,7 +54,7 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
     d = decide(kb, ctx, query.mode)
     result = build_result(ctx, d.attempt, d.tried, d.mode_reason, why_not, outcome=d.outcome,
                           placement=d.placement, refused=d.refused, fallback=d.fallback)
-    if what_if and not d.attempt.feasible:
+    if what_if:  # a handover has nothing to change: []
         from handover.engine.whatif import what_if as changes
 
         result.what_if = changes(kb, query, ctx, d.attempt, d.tried, db=db, mesh=mesh)

@@ -110,7 +110,7 @@ def _render_what_if(data: dict, console) -> None:
     """Print ``--what-if``'s verified changes, smallest first (safety rules marked)."""
     from rich.markup import escape
 
-    if data.get("what_if") is None:  # a handover: nothing to change
+    if data.get("what_if") is None or data["outcome"] == "handover":
         return
     changes = data["what_if"]
     if not changes:
