@@ -92,9 +92,7 @@ def bench_objects(kb, modes: list[str], runs: int) -> None:
 
 
 def bench_explain(kb, runs: int) -> None:
-    from dataclasses import replace
-
-    from handover.engine.evaluate import infeasible_reason, verified_sets
+    from handover.engine.evaluate import QUICK_REASONS
     from handover.engine.modes import attempt_mode
     from handover.engine.prepare import prepare
 
@@ -106,31 +104,33 @@ def bench_explain(kb, runs: int) -> None:
     kb.cultures["common"] = common.model_copy(update={"rules": [*common.rules, far]})
     print(f"\n## Explaining an infeasible attempt (median of {runs}, seconds; the worst "
           "forced mode)")
-    print(f"{'object':<13} {'mode':<5} {'explain':>8} {'rows':>7} {'feasible':>8}")
+    print("attempt: the mode's plan without the explanation; explain: what the explanation")
+    print("adds (each on a fresh context: nothing memoised from the other)")
+    print(f"{'object':<13} {'mode':<5} {'attempt':>8} {'explain':>8} {'rows':>7}")
     worst_all = 0.0
     with tempfile.TemporaryDirectory() as tmp:
         db = GraspDB(Path(tmp) / "db")
         for oid in sorted(kb.objects):
-            worst = (0.0, "-", 0, False)
+            worst = (0.0, 0.0, "-", 0)
             for mode in ("h1g1", "h2g2", "h2g1"):
-                ctx = prepare(kb, Query(object=oid, mode=mode), db)
-                attempt = attempt_mode(kb, ctx, mode.upper())
-                d = attempt.decision
-                if d is None:
-                    continue
-
-                def explain(d=d, attempt=attempt, mode=mode):
-                    fresh = replace(d, _exact=None, _sets=None)
-                    if attempt.feasible or fresh.kept.any():
-                        return fresh.exact()
-                    verified_sets(fresh)
-                    return infeasible_reason(fresh, mode.upper())
-
-                t, _, _ = timed(explain, runs)
-                if t >= worst[0]:
-                    worst = (t, mode, d.n_rows, attempt.feasible)
-            worst_all = max(worst_all, worst[0])
-            print(f"{oid:<13} {worst[1]:<5} {worst[0]:8.3f} {worst[2]:>7} {str(worst[3]):>8}")
+                query = Query(object=oid, mode=mode)
+                prepare(kb, query, db)  # the database entry
+                quick, full, rows = [], [], 0
+                for _ in range(runs):
+                    for explain, times in ((False, quick), (True, full)):
+                        ctx = prepare(kb, query, db)
+                        if not explain:
+                            ctx.memo[QUICK_REASONS] = True
+                        t = time.perf_counter()
+                        attempt = attempt_mode(kb, ctx, mode.upper())
+                        times.append(time.perf_counter() - t)
+                        rows = attempt.decision.n_rows if attempt.decision is not None else 0
+                t_quick = statistics.median(quick)
+                t_explain = max(0.0, statistics.median(full) - t_quick)
+                if t_explain >= worst[1]:
+                    worst = (t_quick, t_explain, mode, rows)
+            worst_all = max(worst_all, worst[1])
+            print(f"{oid:<13} {worst[2]:<5} {worst[0]:8.3f} {worst[1]:8.3f} {worst[3]:>7}")
     ok = "met" if worst_all < 0.3 else "MISSED"
     print(f"slowest explanation: {worst_all:.3f} s (target < 0.3 s: {ok})")
 
