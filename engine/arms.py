@@ -358,7 +358,7 @@ def reach_words(ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -
     return "; ".join(said)
 
 
-FIRST_TRIES = 4
+FIRST_TRIES = 12
 """H2G2: first grasps tried with one second grasp and one assignment of the arms."""
 
 
