@@ -165,7 +165,7 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
         sites = (predict_receiver_sites(
             region, ctx.rotations, s.toward, grip_width=s.hand.grip_width,
             where=s.task.receiver_site if s.task is not None else "middle",
-            finger_thickness=s.hand.finger_thickness,
+            finger_thickness=s.hand.finger_thickness, hand=ctx.hand, mesh=mesh,
         ),)
     receiving = (s.receiver.dominant_hand,) if count == 1 else (
         s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")

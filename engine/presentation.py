@@ -28,8 +28,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    import trimesh
+
     from handover.engine.applies import Facts
     from handover.engine.schema import RuleBase, Task
+    from handover.geometry.hand import HumanHand
 
 # A compact object's receiver hand stops this far (m) short of the object's middle.
 COMPACT_GAP = 0.005
@@ -444,8 +447,10 @@ class ReceiverSites:
     axis : (K, 3) unit, object frame, or None. The direction the hand wraps around, where
         it differs from the region's axis (an edge held by one of two hands).
     depth : (K,) m, or None (then ``thickness``). Size of the grasped section along the
-        hand's approach (:func:`hand_approach`).
+        hand's approach.
     cupped : the hand cups a compact object (no part to close round).
+    approach : (K, 3) unit, object frame, or None (then :func:`hand_approach`). The
+        direction the hand moves in, turned where it would not fit as it comes.
     """
 
     site: np.ndarray
@@ -455,6 +460,7 @@ class ReceiverSites:
     axis: np.ndarray | None = None
     depth: np.ndarray | None = None
     cupped: bool = False
+    approach: np.ndarray | None = None
 
 
 def predict_receiver_sites(
@@ -464,6 +470,8 @@ def predict_receiver_sites(
     grip_width: float,
     where: str = "middle",
     finger_thickness: float = 0.02,
+    hand: HumanHand | None = None,
+    mesh: trimesh.Trimesh | None = None,
 ) -> ReceiverSites:
     """The seed's C for every presentation.
 
@@ -476,7 +484,14 @@ def predict_receiver_sites(
     holds too): the hand pinches its receiver cap, from the receiver's face to
     ``COMPACT_GAP`` short of the middle, so the robot can hold it across the middle.
 
+    The hand comes from the receiver, toward the robot; where its boxes would then reach
+    into the object (a mug's handle to the receiver's side: the palm across the body), it
+    turns to fit (:func:`_fitted`): about the part's axis, or, cupping, about the vertical
+    (the palm on the handle's outer face).
+
     rotations : (K, 3, 3) object -> world. grip_width : m, the hand's width along the part.
+    hand : the receiver's hand model; mesh : the object (object frame, m). Without both, the
+        hand never turns.
     """
     k = len(rotations)
     site = np.full((k, 3), np.nan)
@@ -512,36 +527,145 @@ def predict_receiver_sites(
     # A part the receiver is meant to hold (a handle) takes the hand around it. An object
     # with no such part is held by the robot as well: the hand may only take the receiver's
     # half, so one shorter than two hands is cupped too (a 10 cm box, not only a ball).
+    band_site = site
     if length < grip_width or (not region.tags and length < 2.0 * grip_width):
         # A compact region (a ball, a short box): no handle to close around, so the hand
-        # cups the receiver's half, wrapping the horizontal lateral direction: its depth the
-        # depth of that half along robot->receiver, from the receiver's face to COMPACT_GAP
-        # short of the middle (the palm on the face, the fingers and thumb up the sides);
-        # its thickness the half's extent across the hand, the site the middle of both.
+        # cups the half facing it: see :func:`_cupped`.
         up = np.array([0.0, 0.0, 1.0])
         l_obj = np.einsum("kji,j->ki", rotations, np.cross(up, toward))
-        half = 0.5 * (s_max - s_min)
-        depth = np.maximum(half - COMPACT_GAP - finger_thickness, 0.005)
-        centre_s = s_max - depth / 2.0
-        site = site + (centre_s - np.einsum("ki,ki->k", site, d_obj))[:, None] * d_obj
-        across = np.cross(-d_obj, l_obj)  # the hand's y (its approach is -d_obj)
-        y = region.points @ across.T  # (M, K)
-        cap = s >= (s_max - half)[None, :]
-        y_lo = np.where(cap, y, np.inf).min(axis=0)
-        y_hi = np.where(cap, y, -np.inf).max(axis=0)
-        thickness = np.maximum(y_hi - y_lo, MIN_SECTION)
-        mid = 0.5 * (y_lo + y_hi) - np.einsum("ki,ki->k", site, across)
-        site = site + mid[:, None] * across
-        return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj,
-                             depth=depth, cupped=True)
-    # The hand closes round the region's whole section at the band's place along the axis
-    # (every sample within half a grip of it, all round, not only the receiver's half): the
-    # site is the centre of that section's extent across the hand and along its approach,
-    # so it lies on the part's axis (a stem's, a handle's), never beside it in the air.
-    up_obj = np.einsum("kji,j->ki", rotations, np.array([0.0, 0.0, 1.0]))
-    approach = hand_approach(axes, d_obj, up_obj)  # (K, 3)
+        up_obj = np.einsum("kji,j->ki", rotations, up)
+
+        def measure(turn: float) -> ReceiverSites:
+            # the hand turns about the vertical: its approach, and the direction it wraps
+            spin = _spin(up_obj, turn)
+            return _cupped(region, band_site, part, np.einsum("kij,kj->ki", spin, -d_obj),
+                           np.einsum("kij,kj->ki", spin, l_obj), finger_thickness)
+    else:
+        up_obj = np.einsum("kji,j->ki", rotations, np.array([0.0, 0.0, 1.0]))
+        default = hand_approach(axes, d_obj, up_obj)  # (K, 3)
+
+        def measure(turn: float) -> ReceiverSites:
+            # the hand turns about the part's axis
+            approach = np.einsum("kij,kj->ki", _spin(axes, turn), default)
+            return _wrapped(region, band_site, part, axes, approach, band, grip_width)
+    return _fitted(measure, hand, mesh)
+
+
+APPROACH_TURNS_DEG = (0.0, 45.0, -45.0, 90.0, -90.0)
+"""degrees: the turns of the receiver's hand tried, in order, where it does not fit as it
+comes (about the part's axis for a hand that wraps it; about the vertical for one that cups
+a compact part): it keeps to the receiver's side (a quarter turn at most)."""
+HAND_GIVE = 0.005
+"""m: how deep a hand's box may reach into the object and still fit (soft tissue gives a few
+millimetres; the ``hand_fit`` rule judges with its own ``max_depth_m``)."""
+
+
+def _spin(axes: np.ndarray, deg: float) -> np.ndarray:
+    """(K, 3, 3): rotations by ``deg`` about each of ``axes`` (K, 3) unit."""
+    from handover.geometry.frames import rotation_about_axis
+
+    return rotation_about_axis(axes, np.full(len(axes), np.radians(deg)))
+
+
+def _fitted(measure, hand, mesh) -> ReceiverSites:
+    """The receiver's sites with each presentation's hand turned (``APPROACH_TURNS_DEG``,
+    ``measure(turn)`` giving the sites of every presentation at that turn) to the first turn
+    at which its boxes reach at most ``HAND_GIVE`` into ``mesh`` (the least deep where none
+    does). Without a hand model or a mesh: the untouched first turn."""
+    first = measure(APPROACH_TURNS_DEG[0])
+    if hand is None or mesh is None or not first.valid.any():
+        return first
+    from handover.geometry.penetration import box_depths
+
+    chosen = first
+    best = _box_depths(first, hand, mesh, np.flatnonzero(first.valid), box_depths)
+    todo = np.flatnonzero(first.valid)[best[first.valid] > HAND_GIVE]
+    for turn in APPROACH_TURNS_DEG[1:]:
+        if not len(todo):
+            break
+        other = measure(turn)
+        depth = _box_depths(other, hand, mesh, todo, box_depths)
+        better = todo[depth[todo] < best[todo]]
+        if len(better):
+            chosen = _take(chosen, other, better)
+            best[better] = depth[better]
+        todo = todo[best[todo] > HAND_GIVE]
+    return chosen
+
+
+def _box_depths(sites: ReceiverSites, hand, mesh, ks: np.ndarray, box_depths) -> np.ndarray:
+    """(K,) m: how deep the hand's deepest box reaches into ``mesh`` in presentations ``ks``
+    (object frame; inf elsewhere)."""
+    out = np.full(len(sites.site), np.inf)
+    centres, rots, halves, owner = [], [], [], []
+    for k in ks:
+        depth = None if sites.depth is None else float(sites.depth[k])
+        for _, ext, pose in hand.boxes(sites.site[k], sites.axis[k], sites.approach[k],
+                                       float(sites.thickness[k]), depth, cupped=sites.cupped):
+            centres.append(pose[:3, 3])
+            rots.append(pose[:3, :3])
+            halves.append(ext / 2.0)
+            owner.append(k)
+    if owner:
+        depth = box_depths(mesh, np.array(centres), np.array(rots), np.array(halves))
+        out[ks] = 0.0
+        np.maximum.at(out, np.array(owner), depth)
+    return out
+
+
+def _take(into: ReceiverSites, other: ReceiverSites, ks: np.ndarray) -> ReceiverSites:
+    """``into`` with presentations ``ks`` taken from ``other``."""
+    def mix(a, b):
+        if a is None:
+            return None
+        out = np.array(a, copy=True)
+        out[ks] = b[ks]
+        return out
+    return ReceiverSites(mix(into.site, other.site), mix(into.part, other.part),
+                         mix(into.thickness, other.thickness), mix(into.valid, other.valid),
+                         axis=mix(into.axis, other.axis), depth=mix(into.depth, other.depth),
+                         cupped=into.cupped, approach=mix(into.approach, other.approach))
+
+
+def _cupped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, approach: np.ndarray,
+            axis: np.ndarray, finger_thickness: float) -> ReceiverSites:
+    """The hand cupping a compact region, coming along ``approach`` (K, 3) and wrapping
+    ``axis`` (K, 3) (both object frame, unit, perpendicular): it takes the half facing it,
+    its depth that half's along the approach, from the face it meets to ``COMPACT_GAP``
+    short of the middle (the palm on the face, the fingers and thumb up the sides); its
+    thickness the half's extent across the hand, the site the middle of both (along the
+    axis: ``site``'s, the band's middle)."""
+    k = len(site)
+    facing = -approach  # from the object toward the hand
+    s = region.points @ facing.T  # (M, K)
+    s_min, s_max = s.min(axis=0), s.max(axis=0)
+    half = 0.5 * (s_max - s_min)
+    depth = np.maximum(half - COMPACT_GAP - finger_thickness, 0.005)
+    centre_s = s_max - depth / 2.0
+    site = site + (centre_s - np.einsum("ki,ki->k", site, facing))[:, None] * facing
+    across = np.cross(approach, axis)  # the hand's y
+    y = region.points @ across.T  # (M, K)
+    cap = s >= (s_max - half)[None, :]
+    y_lo = np.where(cap, y, np.inf).min(axis=0)
+    y_hi = np.where(cap, y, -np.inf).max(axis=0)
+    thickness = np.maximum(y_hi - y_lo, MIN_SECTION)
+    mid = 0.5 * (y_lo + y_hi) - np.einsum("ki,ki->k", site, across)
+    site = site + mid[:, None] * across
+    return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=axis,
+                         depth=depth, cupped=True, approach=approach)
+
+
+def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: np.ndarray,
+             approach: np.ndarray, band: np.ndarray, grip_width: float) -> ReceiverSites:
+    """The hand closing round the region's whole section at the band's place along the axis
+    (every sample within half a grip of it, all round, not only the receiver's half), coming
+    along ``approach`` (K, 3): the site is the centre of that section's extent across the
+    hand and along its approach, so it lies on the part's axis (a stem's, a handle's), never
+    beside it in the air."""
+    k = len(site)
+    site = np.array(site, copy=True)
     across = np.cross(approach, axes)
-    depth = np.zeros(k)
+    thickness, depth = np.zeros(k), np.zeros(k)
     along = np.einsum("ki,ki->k", site, axes)
     solid = region.points if region.solid is None else region.solid
     for col in range(k):  # K presentations (tens), not candidates
@@ -552,8 +676,8 @@ def predict_receiver_sites(
         depth[col] = max(float(np.ptp(z)), MIN_SECTION)
         site[col] = (along[col] * axes[col] + 0.5 * (y.min() + y.max()) * across[col]
                      + 0.5 * (z.min() + z.max()) * approach[col])  # fmt: skip
-    return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool),
-                         axis=axes if region.isotropic else None, depth=depth)  # fmt: skip
+    return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=axes,
+                         depth=depth, approach=approach)
 
 
 def hand_approach(axis: np.ndarray, toward: np.ndarray, up: np.ndarray) -> np.ndarray:

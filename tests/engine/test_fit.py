@@ -199,15 +199,7 @@ def _palm_depth_by_sampling(mesh: trimesh.Trimesh, ext, pose) -> float:
     return float(dist.max())
 
 
-HAND_APPROACH_FIXED = pytest.mark.xfail(strict=True, reason=(
-    "the receiver's hand always approaches from the receiver toward the robot: on a mug's "
-    "handle pointing to their side the palm lies across the body; a hand turned to the handle "
-    "(approach chosen per presentation) is not built yet"))
-
-
-@pytest.mark.parametrize("obj", [
-    pytest.param(p.stem, marks=HAND_APPROACH_FIXED) if p.stem == "mug" else p.stem
-    for p in sorted((builtin_kb_dir() / "objects").glob("*.yaml"))])
+@pytest.mark.parametrize("obj", [p.stem for p in sorted((builtin_kb_dir() / "objects").glob("*.yaml"))])
 def test_the_receiver_palm_enters_no_builtin_object_beyond_the_tolerance(obj):
     plan = Planner(db=False).plan(obj)
     result = plan.to_dict()
