@@ -547,7 +547,7 @@ def predict_receiver_sites(
         def measure(turn: float) -> ReceiverSites:
             # the hand turns about the part's axis
             approach = np.einsum("kij,kj->ki", _spin(axes, turn), default)
-            return _wrapped(region, band_site, part, axes, approach, band, grip_width)
+            return _wrapped(region, band_site, part, axes, approach, band, grip_width, mesh)
     return _fitted(measure, hand, mesh)
 
 
@@ -656,21 +656,33 @@ def _cupped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, approach
 
 
 def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: np.ndarray,
-             approach: np.ndarray, band: np.ndarray, grip_width: float) -> ReceiverSites:
+             approach: np.ndarray, band: np.ndarray, grip_width: float,
+             mesh: trimesh.Trimesh | None = None) -> ReceiverSites:
     """The hand closing round the region's whole section at the band's place along the axis
     (every sample within half a grip of it, all round, not only the receiver's half), coming
     along ``approach`` (K, 3): the site is the centre of that section's extent across the
     hand and along its approach, so it lies on the part's axis (a stem's, a handle's), never
-    beside it in the air."""
+    beside it in the air. With the ``mesh``, the hand stays on the region along its axis
+    (half a grip in from its ends: a few coarse faces must not pull the band's middle onto
+    an end cap) and the section also holds the mesh's exact cross-section there."""
+    import trimesh
+
     k = len(site)
     site = np.array(site, copy=True)
     across = np.cross(approach, axes)
     thickness, depth = np.zeros(k), np.zeros(k)
     along = np.einsum("ki,ki->k", site, axes)
     solid = region.points if region.solid is None else region.solid
+    if mesh is not None:
+        ext = region.points @ axes.T  # (M, K)
+        lo, hi = ext.min(axis=0) + grip_width / 2.0, ext.max(axis=0) - grip_width / 2.0
+        along = np.where(lo <= hi, np.clip(along, lo, np.maximum(lo, hi)), along)
     for col in range(k):  # K presentations (tens), not candidates
         section = np.abs(solid @ axes[col] - along[col]) <= grip_width / 2.0 + BAND_TOL
         pts = solid[section] if section.any() else region.points[band[:, col]]
+        if mesh is not None:
+            cut = trimesh.intersections.mesh_plane(mesh, axes[col], along[col] * axes[col])
+            pts = np.concatenate([pts, np.asarray(cut, dtype=float).reshape(-1, 3)])
         y, z = pts @ across[col], pts @ approach[col]
         thickness[col] = max(float(np.ptp(y)), MIN_SECTION)
         depth[col] = max(float(np.ptp(z)), MIN_SECTION)
