@@ -560,6 +560,11 @@ HAND_GIVE = 0.005
 millimetres; the ``hand_fit`` rule judges with its own ``max_depth_m``)."""
 
 
+FIT_LATTICE = 3
+"""Points per box edge where the hand's turn is chosen (27 a box: the corners, the middles
+of the edges and faces, the centre)."""
+
+
 def _spin(axes: np.ndarray, deg: float) -> np.ndarray:
     """(K, 3, 3): rotations by ``deg`` about each of ``axes`` (K, 3) unit."""
     from handover.geometry.frames import rotation_about_axis
@@ -607,7 +612,10 @@ def _box_depths(sites: ReceiverSites, hand, mesh, ks: np.ndarray, box_depths) ->
             halves.append(ext / 2.0)
             owner.append(k)
     if owner:
-        depth = box_depths(mesh, np.array(centres), np.array(rots), np.array(halves))
+        # a 3-point lattice (a subset of the rule's 5-point one): it never finds a box
+        # deeper than the rule does, so the hand turns only where it must
+        depth = box_depths(mesh, np.array(centres), np.array(rots), np.array(halves),
+                           lattice=FIT_LATTICE)
         out[ks] = 0.0
         np.maximum.at(out, np.array(owner), depth)
     return out
