@@ -9,8 +9,9 @@ about it in steps of ``ROLL_STEP_DEG``. The turn's starting point is fixed by an
 axis (its wanted direction, as near as the first allows), else by the object's principal
 axes, so the solved presentations are the same physical orientations whatever frame the
 object is written in (a glass whose ``up`` is tilted 30 degrees in its own frame is still
-offered upright). Near-identical rotations are kept once (``SAME_ROTATION_DEG``); the axis
-rules then choose among them all.
+offered upright). A frame-aligned rotation that meets a rule only roughly (that glass 20
+degrees off upright) is left out, and near-identical rotations are kept once
+(``SAME_ROTATION_DEG``); the axis rules then choose among them all.
 
 The receiver's grasp site (the seed's C, section 3.1) lies on the part the task or etiquette
 gives the receiver. Along the robot->receiver direction, the receiver takes the middle of the
@@ -82,9 +83,9 @@ def presentation_rotations(toward: np.ndarray, goals: Sequence[AxisGoal] = (),
 
     toward : (3,) unit, world, horizontal. Robot -> receiver.
     goals : where rules want the named axes (:func:`axis_goals`); none: the 24 only.
-    shape_axes : (3, 3) rows, object frame: the object's principal axes
-        (:func:`principal_axes`), which fix the turn about a goal's axis when no other
-        goal does; None: an axis perpendicular to it, from the object's frame.
+    shape_axes : (M, 3) rows, object frame: the object's principal axes that its shape
+        decides (:func:`principal_axes`), which fix the turn about a goal's axis when no
+        other goal does; after them (or None), the frame axis most across the goal's axis.
     Returns (K, 3, 3) float: rotation matrices object frame -> world, in a fixed order: the
     24 frame-aligned ones first (identity-aligned first: object x toward the receiver, z
     up) but those that put a goal's axis within its rule's bounds without meeting the goal
@@ -123,6 +124,8 @@ def solved_rotations(goals: Sequence[AxisGoal], toward: np.ndarray,
     object's first principal axis not along this goal's axis (sent to the part of
     ``toward``, else of up, perpendicular to the target). See
     :func:`presentation_rotations`."""
+    from handover.geometry.frames import rotation_about_axis
+
     up = np.array([0.0, 0.0, 1.0])
     rolls = np.radians(np.arange(0.0, 360.0 - 1e-9, roll_step_deg))
     out = []
@@ -148,7 +151,7 @@ def solved_rotations(goals: Sequence[AxisGoal], toward: np.ndarray,
             src = np.stack([v, u, np.cross(v, u)], axis=1)
             dst = np.stack([d, w, np.cross(d, w)], axis=1)
             start = dst @ src.T  # v -> d, u -> w
-            out.append(_rotations_about(d, rolls) @ start)
+            out.append(rotation_about_axis(d, rolls) @ start)
     return np.concatenate(out) if out else np.zeros((0, 3, 3))
 
 
@@ -158,13 +161,6 @@ def _across(vector: np.ndarray, axis: np.ndarray) -> np.ndarray | None:
     part = vector - (vector @ axis) * axis
     length = float(np.linalg.norm(part))
     return part / length if length >= MIN_PROJECTION else None
-
-
-def _rotations_about(axis: np.ndarray, angles: np.ndarray) -> np.ndarray:
-    """(S, 3, 3): rotations by ``angles`` (S,) rad about the unit ``axis`` (Rodrigues)."""
-    from handover.geometry.frames import rotation_about_axis
-
-    return rotation_about_axis(axis, angles)
 
 
 def unique_rotations(rotations: np.ndarray, tol_deg: float = SAME_ROTATION_DEG) -> np.ndarray:
