@@ -556,6 +556,9 @@ HAND_GIVE = 0.005
 millimetres; the ``hand_fit`` rule judges with its own ``max_depth_m``)."""
 
 
+OVERHANG = 0.25
+"""The fraction of its width a wrapping hand may hang past the end of the part it holds (a
+little finger beyond a short handle's end)."""
 FIT_LATTICE = 3
 """Points per box edge where the hand's turn is chosen (27 a box: the corners, the middles
 of the edges and faces, the centre)."""
@@ -666,9 +669,10 @@ def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: n
     (every sample within half a grip of it, all round, not only the receiver's half), coming
     along ``approach`` (K, 3): the site is the centre of that section's extent across the
     hand and along its approach, so it lies on the part's axis (a stem's, a handle's), never
-    beside it in the air. With the ``mesh``, the hand stays on the region along its axis
-    (half a grip in from its ends: a few coarse faces must not pull the band's middle onto
-    an end cap) and the section also holds the mesh's exact cross-section there."""
+    beside it in the air. With the ``mesh``, the hand's middle stays on the region along its
+    axis (``OVERHANG`` of a grip in from its ends: a few coarse faces must not pull the
+    band's middle onto an end cap) and the section also holds the mesh's exact cross-section
+    there."""
     import trimesh
 
     k = len(site)
@@ -679,7 +683,7 @@ def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: n
     solid = region.points if region.solid is None else region.solid
     if mesh is not None:
         ext = region.points @ axes.T  # (M, K)
-        lo, hi = ext.min(axis=0) + grip_width / 2.0, ext.max(axis=0) - grip_width / 2.0
+        lo, hi = ext.min(axis=0) + OVERHANG * grip_width, ext.max(axis=0) - OVERHANG * grip_width
         along = np.where(lo <= hi, np.clip(along, lo, np.maximum(lo, hi)), along)
     for col in range(k):  # K presentations (tens), not candidates
         section = np.abs(solid @ axes[col] - along[col]) <= grip_width / 2.0 + BAND_TOL
