@@ -290,11 +290,25 @@ def test_a_glass_written_in_a_tilted_frame_is_offered_upright_like_the_untilted_
     planner = Planner(kb=root, db=False)
     plans = {}
     for name, scene, tilt in (("glass", "table", 0.0), ("tilted_glass", "table_turned", TILT_DEG)):
-        result = planner.plan(name, scene=scene).to_dict()
+        planned = planner.plan(name, scene=scene)
+        result = planned.to_dict()
         assert result["outcome"] == "handover", result["reason"]
         rotation = np.asarray(result["object_pose"])[:3, :3]
         up_world = rotation @ (_turn([1.0, 0.0, 0.0], tilt) @ UP)
         assert _angle_deg(up_world, UP) <= rule.max_deg
+        # and no finger in the water: the gripper's boxes, sampled, stay out of the cavity
+        # (inner radius 30 mm, from the 5 mm bottom at z = 25 mm up to the rim at 120 mm)
+        untilt = _turn([1.0, 0.0, 0.0], -tilt)
+        t = np.linspace(-0.5, 0.5, 7)
+        lattice = np.stack(np.meshgrid(t, t, t, indexing="ij"), -1).reshape(-1, 3)
+        for grasp in result["robot_grasps"]:
+            for _, ext, box in planned.context.gripper.boxes(grasp["width"]):
+                local = np.asarray(grasp["pose"]) @ box
+                pts = (lattice * ext) @ local[:3, :3].T + local[:3, 3]
+                pts = pts @ untilt.T
+                inside = ((np.linalg.norm(pts[:, :2], axis=1) < 0.030)
+                          & (pts[:, 2] > 0.025) & (pts[:, 2] < 0.12))
+                assert not inside.any()
         plans[name] = (result, up_world)
     (a, up_a), (b, up_b) = plans["glass"], plans["tilted_glass"]
     assert _angle_deg(up_a, up_b) < 2.0
