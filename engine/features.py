@@ -159,7 +159,10 @@ def hand_model(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites, k
     rot = pose[:3, :3]
     site = rot @ sites.site[k] + pose[:3, 3]
     axis = rot @ (sites.axis[k] if sites.axis is not None else region.axis)
-    approach = hand_approach(axis, ctx.situation.toward, np.array([0.0, 0.0, 1.0]))
+    if sites.approach is not None:  # turned to fit the part (presentation.predict_receiver_sites)
+        approach = rot @ sites.approach[k]
+    else:
+        approach = hand_approach(axis, ctx.situation.toward, np.array([0.0, 0.0, 1.0]))
     depth = float(sites.depth[k]) if sites.depth is not None else None
     return ctx.hand.boxes(site, axis, approach, float(sites.thickness[k]), depth,
                           cupped=sites.cupped)
