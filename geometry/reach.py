@@ -168,11 +168,17 @@ class ReachMap:
             size = 2 * voxel_tolerance + 1
             grid = binary_dilation(grid, structure=np.ones((size, size, size, 1), dtype=bool))
         if erode > 0:
-            from scipy.ndimage import binary_erosion, generate_binary_structure
-
-            sides = generate_binary_structure(3, 1)[..., None]  # the six face neighbours
-            grid = binary_erosion(grid, structure=sides, iterations=erode, border_value=0)
+            grid = _eroded(grid, erode)
         return cls(lower, float(voxel), shape, dirs, grid.reshape(-1), key, samples, raw)
+
+    def eroded(self, erode: int = 1) -> ReachMap:
+        """This map with its rim eroded ``erode`` voxels (see :meth:`build`'s ``erode``): the
+        same as building with ``erode`` from the same samples, without sampling again."""
+        grid = self.bits.reshape(*self.shape, len(self.directions))
+        bits = _eroded(grid, erode).reshape(-1) if erode > 0 else self.bits.copy()
+        return ReachMap(self.lower, self.voxel, self.shape, self.directions, bits,
+                        f"{self.key}-eroded{erode}" if self.key else "", self.samples,
+                        self.raw_fraction)
 
     def reachable(self, poses: np.ndarray) -> np.ndarray:
         """(m,) bool: whether a sample came near each tool pose (m, 4, 4), base frame, m.
@@ -270,6 +276,15 @@ class ReachMap:
         built = cls.build(kin, key=key, **full)
         built.save(directory)
         return built
+
+
+def _eroded(grid: np.ndarray, erode: int) -> np.ndarray:
+    """(nx, ny, nz, D) bool: a bit kept where the six face-neighbour voxels hold it too,
+    ``erode`` times over."""
+    from scipy.ndimage import binary_erosion, generate_binary_structure
+
+    sides = generate_binary_structure(3, 1)[..., None]  # the six face neighbours
+    return binary_erosion(grid, structure=sides, iterations=erode, border_value=0)
 
 
 def _cell_index(points: np.ndarray, lower: np.ndarray, voxel: float, shape: np.ndarray):
