@@ -178,3 +178,31 @@ def test_a_robot_without_arms_makes_the_reach_rule_not_applicable(tmp_path):
     entry = next(e for e in plan.to_dict()["trace"] if e["rule"] == "arm_reaches")
     assert entry["status"] == "not_applicable" and "no arms" in entry["note"]
     assert "arm" not in plan.to_dict()["robot_grasps"][0]
+
+
+
+def test_locations_no_arm_reaches_are_not_chosen(arms_kb):
+    """Handover locations farther from both shoulders (joint 2, 0.453 m out to each side at
+    1.15 m) than the arm's links and the gripper reach (0.316 + 0.384 + 2 x 0.0825 + 0.088 +
+    0.107 m of the Panda's links, 0.11 m to the grasp frame, and half the object, on which the
+    grasp lies) are marked unreachable by every arm; a chosen location is one an arm reaches."""
+    (arms_kb / "scenes" / "far_receiver.yaml").write_text(
+        "id: far_receiver\nname: The receiver 1.6 m away\n"
+        "support: {position: [0.5, 0.0, 0.75], size: [0.6, 1.0]}\n"
+        "receiver: {position: [1.6, 0.0, 0.0], facing: [-1.0, 0.0, 0.0]}\n", encoding="utf-8")
+    for scene in ("far_receiver", "table"):
+        plan = Planner(kb=arms_kb).plan("mug", scene=scene)
+        hands = plan.attempt.phase.hands
+        locs = hands.locations
+        assert locs.arm_reach is not None
+        shoulders = np.array([[0.0, 0.453, 1.15], [0.0, -0.453, 1.15]])
+        length = 0.316 + 0.384 + 2 * 0.0825 + 0.088 + 0.107 + 0.11
+        length += 0.5 * plan.context.facts.size + 0.1  # and a voxel of slack
+        dist = np.linalg.norm(locs.points[:, None, :] - shoulders[None], axis=2).min(axis=1)
+        beyond = dist > length
+        assert (locs.arm_reach[beyond] == 0).all()
+        if scene == "far_receiver":
+            assert beyond.any()
+        if plan.feasible:
+            chosen = hands.location[plan.attempt.chosen[0].presentation]
+            assert locs.arm_reach[chosen] > 0
