@@ -4,7 +4,7 @@ and the joint configurations the result gives.
 A grasp is held at up to three gripper poses in the world (m), its *stages*:
 
 - ``pickup``: the object at its initial pose, ``ctx.initial @ G``;
-- ``midair``: H2G2's regrasp pose (:func:`handover.engine.modes.h2g2.midair_pose`);
+- ``midair``: H2G2's regrasp pose, the handover pose :data:`MIDAIR_BACKOFF` nearer the robot;
 - ``handover``: the object at its presentation's location, ``hands.poses[k] @ G``;
 
 where ``G`` is the candidate's gripper pose in the object frame. Which stages a grasp goes
@@ -50,11 +50,16 @@ __all__ = [
     "pose_words",
     "arm_record",
     "reach_words",
+    "reach_reason",
+    "screened_stages",
 ]
 
 STAGES = ("pickup", "midair", "handover")
 STAGE_WORDS = {"pickup": "at pick-up", "midair": "at the midair regrasp",
                "handover": "at the handover"}
+MIDAIR_BACKOFF = 0.2
+"""m: H2G2's midair pose is the handover pose moved this far back toward the robot (here,
+where the arms judge it, and :func:`handover.engine.modes.h2g2.midair_pose`)."""
 CONFIRM_LIMIT = 24
 """(row, arm) pairs a mode checks by exact inverse kinematics before it gives up."""
 FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])
@@ -97,8 +102,6 @@ def _objects(ctx: PlanContext, phase: Phase, stage: str, pk: np.ndarray) -> np.n
         return np.broadcast_to(ctx.initial, (len(pk), 4, 4))
     poses = phase.hands.poses[pk]
     if stage == "midair":
-        from handover.engine.modes.h2g2 import MIDAIR_BACKOFF
-
         poses = poses.copy()
         poses[:, :3, 3] -= MIDAIR_BACKOFF * np.asarray(ctx.situation.toward, dtype=float)
     return poses
@@ -356,121 +359,6 @@ def reach_words(ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -
             said.append(f"the {side} arm cannot reach {pose_words(poses[stage][0])} "
                         f"{STAGE_WORDS[stage]}")
     return "; ".join(said)
-
-
-FIRST_TRIES = 12
-"""H2G2: first grasps tried with one second grasp and one assignment of the arms."""
-
-
-def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.ndarray,
-                     seconds: np.ndarray, presentations: np.ndarray, free: np.ndarray,
-                     limit: int | None = None) -> tuple[tuple | None, list[str]]:
-    """H2G2's first feasible pair whose arms hold both grasps exactly: the second grasp (the
-    columns of ``free`` (F, M) in order: ``seconds`` (M,) grasps in ``presentations`` (M,))
-    by one arm at the midair regrasp and the handover, the first grasp (``firsts`` (F,), in
-    order, those its map's core holds first, then those only its whole map holds) by the
-    other arm at
-    pick-up and midair. Returns ((column, first grasp, first arm, second arm) or None,
-    failures met); at most ``limit`` exact checks."""
-    limit = CONFIRM_LIMIT if limit is None else limit
-    sides = ctx.arms.sides
-    failures: list[str] = []
-    if len(sides) < 2:
-        return None, ["H2G2 needs two arms"]
-    skip: set = set()  # (arm, first grasp) that cannot pick the grasp up
-    tried = 0
-    for m in np.flatnonzero(free.any(axis=0)):
-        i2, k = int(seconds[m]), int(presentations[m])
-        gi2, pk2 = np.array([i2]), np.array([k])
-        _, mapped2 = screen(ctx, second, gi2, pk2, whole=True)
-        partners = firsts[free[:, m]]
-        for side2 in preferred_sides(ctx, second, i2, k):
-            if tried >= limit:
-                return None, failures
-            if not mapped2[0, sides.index(side2)].all():
-                continue
-            side1 = next(s for s in sides if s != side2)
-            held1 = first.but(arm=side1)
-            _, core1 = screen(ctx, held1, partners, np.full(len(partners), k))
-            _, mapped1 = screen(ctx, held1, partners, np.full(len(partners), k), whole=True)
-            deep = core1[:, 0].all(axis=1)
-            tried += 1
-            c2 = confirm(ctx, second.but(arm=side2), side2, gi2, pk2)[0]
-            if not c2.ok:
-                failures.append(f"grasp {i2}: {c2.failure()}")
-                continue
-            here = 0
-            held = mapped1[:, 0].all(axis=1)
-            for f in np.concatenate([partners[deep], partners[held & ~deep]]):
-                if (side1, int(f)) in skip:
-                    continue
-                if here >= FIRST_TRIES or tried >= limit:
-                    break
-                here += 1
-                tried += 1
-                c1 = confirm(ctx, held1, side1, np.array([f]), pk2)[0]
-                if c1.ok:
-                    return (int(m), int(f), side1, side2), failures
-                failures.append(f"grasp {int(f)}: {c1.failure()}")
-                if not c1.reached[0]:
-                    skip.add((side1, int(f)))
-    return None, failures
-
-
-def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
-                     picks: dict[int, bool], both_pick: bool,
-                     limit: int | None = None) -> tuple[tuple | None, list[str], list[str]]:
-    """H2G1's best pair (``pairs``: (score, left grasp, right grasp, presentation, ...) best
-    first) whose arms hold it exactly: the left arm its left grasp and the right arm its right
-    grasp at the handover, and the lifting arm (both when ``both_pick``) at pick-up too,
-    among the hands whose gripper is free at pick-up (``picks``: grasp -> bool). Returns
-    (the pair or None, the lifting hands, failures met); at most ``limit`` exact checks, a
-    grasp an arm failed to hold in a presentation not tried again."""
-    limit = CONFIRM_LIMIT if limit is None else limit
-    failures: list[str] = []
-    failed: set[tuple[str, int, int]] = set()  # (arm, grasp, presentation) not held
-    checks = 0
-    for pair in pairs:
-        il, ir, k = pair[1], pair[2], pair[3]
-        if ("left", il, k) in failed or ("right", ir, k) in failed:
-            continue
-        if checks >= limit:
-            break
-        held = {}
-        for side, i in (("left", il), ("right", ir)):
-            checks += 1
-            c = confirm(ctx, phase.but(pickup=False, arm=side), side, np.array([i]),
-                        np.array([k]))[0]
-            if not c.ok:
-                failures.append(f"grasp {i}: {c.failure()}")
-                failed.add((side, i, k))
-                break
-            held[side] = i
-        if len(held) < 2:
-            continue
-        lifts = []
-        for side, i in held.items():
-            if not picks[i]:
-                continue
-            c = confirm(ctx, phase.but(pickup=True, arm=side), side, np.array([i]),
-                        np.array([k]))[0]
-            if c.ok:
-                lifts.append(side)
-            else:
-                failures.append(f"grasp {i}: {c.failure()}")
-        if (both_pick and len(lifts) == 2) or (not both_pick and lifts):
-            return pair, lifts if both_pick else lifts[:1], failures
-    return None, [], failures
-
-
-def side_reaches(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
-                 pk: np.ndarray) -> np.ndarray:
-    """(R,) bool: whether the map of the arm on ``side`` holds rows ``(gi, pk)`` at every
-    stage of ``phase`` (False for every row when the robot has no arm there)."""
-    if side not in ctx.arms.sides:
-        return np.zeros(len(gi), dtype=bool)
-    return screen(ctx, phase.but(arm=side), gi, pk)[1][:, 0].all(axis=1)
-
 
 
 def reach_reason(ctx: PlanContext, attempt) -> str | None:

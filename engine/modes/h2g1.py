@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.arms import choose_pair_h2g1, reach_rule, side_reaches
+from handover.engine.armpairs import choose_pair_h2g1, side_reaches
+from handover.engine.arms import reach_rule
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import ConstraintGraph, compile
 from handover.engine.evaluate import evaluate, infeasible_reason

@@ -19,7 +19,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.arms import choose_pair_h2g2, reach_rule
+from handover.engine.armpairs import choose_pair_h2g2
+from handover.engine.arms import MIDAIR_BACKOFF, reach_rule
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import CompiledRule, compile
 from handover.engine.evaluate import evaluate, evaluate_rule, infeasible_reason
@@ -33,8 +34,6 @@ __all__ = ["plan_h2g2", "first_rules", "midair_pose", "MIDAIR_BACKOFF", "FIRST_N
 
 FIRST_NOTE = "applies to the handover grasp only (function and etiquette)"
 
-# The midair pose is the handover pose moved this far back toward the robot (m).
-MIDAIR_BACKOFF = 0.2
 # How many of the best second grasps are paired with first grasps.
 SECOND_POOL = 64
 
