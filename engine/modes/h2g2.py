@@ -39,13 +39,17 @@ SECOND_POOL = 64
 
 
 def first_rules(hard: list[CompiledRule]) -> list[CompiledRule]:
-    """The hard rules a first (pick-up) grasp must pass: shape and safety only."""
+    """The hard rules a first (pick-up) grasp must pass: shape and safety only, and every
+    rule about the gripper on the object (nothing in an opening, no pinch across a fragile
+    wall): the first gripper carries the object too."""
     keep = []
     for c in hard:
         kind = c.rule.kind
-        if kind in ("quality", "torque", "collision", "reach"):
+        if kind in ("quality", "torque", "collision", "reach", "pinch"):
             keep.append(c)
         elif kind == "contact" and c.rule.who == "giver" and c.rule.safety:
+            keep.append(c)
+        elif kind == "keep_out" and "gripper" in c.rule.of:
             keep.append(c)
     return keep
 
