@@ -258,7 +258,7 @@ def test_a_glass_of_water_stays_upright_with_no_finger_in_the_water(planner):
     assert ((np.linalg.norm(pts[:, :2], axis=1) < GLASS_R - GLASS_WALL + 1e-4)
             & (pts[:, 2] > GLASS_FLOOR)).any()
     if result["outcome"] != "handover":  # a glass with no handle is hard to share
-        assert "out_of_the_opening" in result["reason"]
+        assert any("out_of_the_opening" in (t["reason"] or "") for t in result["modes_tried"])
         return
     assert angle(axis_in_world(result, [0, 0, 1]), [0, 0, 1]) <= 20.0 + 1e-6
     for g in handover_grasps(result):
