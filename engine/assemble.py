@@ -165,7 +165,7 @@ def build_result(
     k = attempt.chosen[-1].presentation if attempt.chosen else 0
     robot_grasps = [grasp_record(ctx, c.hand, c.grasp, c.phase.hands.poses[c.presentation],
                                  attempt.score)
-                    for c in attempt.chosen]
+                    for c in attempt.chosen] + list(attempt.extra.get("support_grasps", []))
     human: list[dict] = []
     trace: list[dict] = []
     regrasp = None
@@ -253,7 +253,7 @@ def build_result(
     )
     if attempt.graph is not None and attempt.decision is not None:
         result.why_not = [_why_not(attempt, ctx, gid) for gid in why_not]
-    result.warnings.extend(ctx.warnings)
+    result.warnings.extend(ctx.warnings + list(attempt.extra.get("warnings", [])))
     for c in attempt.graph.order if attempt.graph is not None else []:
         if c.overridden_safety:
             result.warnings.append(
