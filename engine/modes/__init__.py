@@ -182,6 +182,8 @@ def choose(kb: KB, ctx: PlanContext, asked: str) -> tuple[Attempt, list[Attempt]
         attempt = plain[mode]
         if supported:
             attempt = _with_support(ctx, attempt, bend, preferred)
+            attempt = replace(attempt, extra=attempt.extra | {
+                "alternative": preferred.rule.bends_to.index(bend)})
         else:
             reported.add(mode)
         if required is not None and not attempt.feasible:
@@ -268,7 +270,7 @@ def _relaxed(attempt: Attempt, rule: CompiledRule, bend: Bend | None,
     wanted = rule.rule.mode
     because = next((a.reason for a in tried if a.mode == wanted and not a.feasible),
                    None) or f"{wanted} is infeasible"
-    failed_alts = [a.reason for a in tried[:-1] if a.reason and "bends_to" in a.reason]
+    failed_alts = [a.reason for a in tried[:-1] if a.extra.get("alternative") is not None]
     used = bend.describe() if bend is not None else attempt.mode
     relaxed = {"rule": rule.id, "source": rule.source, "culture": rule.culture,
                "asked": wanted, "because": because, "used": used,
@@ -288,5 +290,7 @@ def _relaxed(attempt: Attempt, rule: CompiledRule, bend: Bend | None,
         extra["warnings"] = list(attempt.extra.get("warnings", [])) + [
             f"etiquette relaxed: {rule.id} ({rule.source}) asks for {wanted}, which is "
             f"infeasible here ({because}); given {used} instead"
-            + (f" ({rule.culture}'s accepted alternative)" if bend is not None else "")]
+            + (f" ({rule.culture}'s accepted alternative)" if bend is not None else "")
+            + (f" (the accepted alternative{'s' if len(failed_alts) > 1 else ''} did not "
+               "fit, see modes_tried)" if failed_alts else "")]
     return replace(attempt, extra=extra), why
