@@ -8,6 +8,12 @@ Every feasible attempt is checked before it is accepted: the trace of each chose
 judged in the phase the planner chose it in, must pass every hard rule; otherwise the attempt
 is turned infeasible with the failing rule named. A plan whose own trace says a hard rule
 failed is never reported as feasible.
+
+Etiquette that bends (:func:`choose`): a soft mode rule's ``bends_to`` alternatives are tried
+after its own mode (one hand giving while the other gripper supports its wrist:
+:mod:`~handover.engine.modes.support`), then one hand; the chosen attempt then carries what
+was relaxed (``extra["relaxed"]``, ``extra["warnings"]``, the marked trace entries) and the
+supporting gripper (``extra["support_grasps"]``, a ``stage: support`` trace entry).
 """
 
 from __future__ import annotations

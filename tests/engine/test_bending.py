@@ -180,6 +180,13 @@ def test_the_supporting_hand_is_at_the_giving_wrist_and_touches_nothing(planner)
     assert {g.stage for g in plan.robot_grasps} == {"handover", "support"}
 
 
+def test_japanese_etiquette_bends_the_same_way_under_its_own_rule(planner):
+    r = planner.plan("lemon", receiver="superior", culture="japanese").to_dict()
+    assert r["feasible"] and r["mode"] == "H1G1", r["modes_tried"]
+    assert "etiquette/japanese.yaml" in relaxed_warning(r, "two_hands_for_superiors")
+    assert [g["hand"] for g in r["robot_grasps"] if g.get("stage") == "support"]
+
+
 def test_the_wrist_is_behind_the_flange_along_minus_a():
     gripper = Gripper.default()
     pose = np.eye(4)
