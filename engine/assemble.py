@@ -15,13 +15,14 @@ from handover.engine.result import PlanResult
 
 if TYPE_CHECKING:
     from handover.engine.attempt import Attempt, Hands
-    from handover.engine.compiler import ConstraintGraph
+    from handover.engine.compiler import CompiledRule, ConstraintGraph
     from handover.engine.context import PlanContext
+    from handover.engine.place import PlacementPlan
     from handover.engine.presentation import ReceiverSites
     from handover.engine.schema import GripperSpec
     from handover.geometry.bodies import Body
 
-__all__ = ["build_result", "grasp_record", "human_record"]
+__all__ = ["build_result", "grasp_record", "human_record", "rule_warnings"]
 
 
 def body_record(body: Body) -> list[dict]:
@@ -158,18 +159,31 @@ def _why_not(attempt: Attempt, ctx: PlanContext, grasp: int) -> dict:
 
 def build_result(
     ctx: PlanContext, attempt: Attempt, tried: list[Attempt], mode_reason: str,
-    why_not: tuple[int, ...] = (),
+    why_not: tuple[int, ...] = (), *, outcome: str | None = None,
+    placement: PlacementPlan | None = None, refused: list[CompiledRule] = (),
+    fallback: list[CompiledRule] = (),
 ) -> PlanResult:
-    """Assemble the JSON-able result of the chosen attempt."""
+    """Assemble the JSON-able result of the chosen attempt, or of the outcome the planner
+    decided instead (``outcome``: ``place`` with its ``placement``, ``refuse`` by the rules
+    ``refused``; ``fallback``: the rules whose ``fallback: place`` led to the placement)."""
+    outcome = outcome or ("handover" if attempt.feasible else "infeasible")
+    placed = outcome == "place" and placement is not None and placement.feasible
     s = ctx.situation
-    k = attempt.chosen[-1].presentation if attempt.chosen else 0
-    robot_grasps = [grasp_record(ctx, c.hand, c.grasp, c.phase.hands.poses[c.presentation],
-                                 attempt.score)
-                    for c in attempt.chosen] + list(attempt.extra.get("support_grasps", []))
+    shown, sctx = (placement.attempt, placement.context) if placed else (attempt, ctx)
+    k = shown.chosen[-1].presentation if shown.chosen else 0
+    robot_grasps = [grasp_record(sctx, c.hand, c.grasp, c.phase.hands.poses[c.presentation],
+                                 shown.score)
+                    for c in shown.chosen] + list(shown.extra.get("support_grasps", []))
     human: list[dict] = []
     trace: list[dict] = []
     regrasp = None
-    if attempt.feasible:
+    if placed:
+        for g in robot_grasps:
+            g["stage"] = "place"
+        if placement.site is not None:
+            human.append(placement.site)
+        trace = shown.extra["trace"]
+    elif attempt.feasible:
         if attempt.mode == "H2G2":
             first, second = robot_grasps
             first["stage"], second["stage"] = "pick", "handover"
@@ -184,29 +198,36 @@ def build_result(
             if rec is not None:
                 human.append(rec)
         trace = attempt.extra["trace"]
-    d = attempt.decision
+    elif outcome == "refuse":
+        trace = [{"grasp": None, "hand": None, "stage": "refuse", **e}
+                 for e in _refusal_entries(ctx, attempt.graph, refused)]
+    d = shown.decision
     candidates = {
         "generated": int(d.n_rows) if d is not None else 0,
         "grasps": ctx.n,
-        "presentations": ctx.k,
+        "presentations": sctx.k,
         "kept": int(d.kept.sum()) if d is not None else 0,
         "rejected_by": d.rejected_by() if d is not None else {},
-        "collisions": (d.collision_hits(handover_targets(ctx, attempt.phase.hands).names)
-                       if d is not None and attempt.phase is not None else {}),
+        "collisions": (d.collision_hits(handover_targets(sctx, shown.phase.hands).names)
+                       if d is not None and shown.phase is not None else {}),
         "generation": ctx.generation,
     }
     for key in ("first_rejected_by", "first_feasible", "pairs_checked", "pairs_colliding",
                 "pairs_not_liftable", "receiver_hands", "receiver_hands_why",
                 "balance_offset_m", "pickup_hands"):
-        if key in attempt.extra:
-            candidates[key] = attempt.extra[key]
-    if d is not None and not attempt.feasible:
+        if key in shown.extra:
+            candidates[key] = shown.extra[key]
+    if d is not None and not shown.feasible:
         candidates["blocking_sets"] = [
             {"rules": list(ids), "candidates": n} for ids, n in d.blocking_sets()
         ]
+    if placed and attempt.decision is not None:  # what the handover got to, for the record
+        candidates["handover"] = {"generated": int(attempt.decision.n_rows),
+                                  "kept": int(attempt.decision.kept.sum()),
+                                  "rejected_by": attempt.decision.rejected_by()}
     alternatives = []
     if d is not None:  # the next best distinct grasps, each in its best presentation
-        chosen_ids = {c.grasp for c in attempt.chosen}
+        chosen_ids = {c.grasp for c in shown.chosen}
         for r in d.ranking():
             if len(alternatives) == 5:
                 break
@@ -217,16 +238,26 @@ def build_result(
                                  "score": float(d.score[r])})
     g = ctx.gripper
     query = s.query.as_dict() | {"task": s.task_id, "gripper": s.gripper.id}
+    feasible = outcome in ("handover", "place")
+    if outcome == "handover":
+        reason = None
+    elif placed:
+        reason = f"not handed over: {attempt.reason}" if refused else (
+            f"not handed over: {attempt.reason}; "
+            f"{', '.join(c.id for c in fallback)} names fallback: place")
+    else:
+        reason = attempt.reason
     result = PlanResult(
         object=s.obj.id,
         query=query,
-        mode=attempt.mode if attempt.feasible else None,
-        feasible=attempt.feasible,
-        reason=attempt.reason if not attempt.feasible else None,
-        object_pose=attempt.phase.hands.poses[k] if attempt.feasible else None,
+        mode=attempt.mode if outcome == "handover" else None,
+        feasible=feasible,
+        reason=reason,
+        object_pose=shown.phase.hands.poses[k] if feasible else None,
         receiver={"position": s.receiver_position, "facing": s.receiver_facing,
                   "stature": s.receiver.height, "posture": s.receiver.posture,
-                  "role": s.receiver.role, "dominant_hand": s.receiver.dominant_hand},
+                  "role": s.receiver.role, "dominant_hand": s.receiver.dominant_hand,
+                  "age": s.receiver.years},
         robot_grasps=robot_grasps,
         human_grasps=human,
         gripper={"id": s.gripper.id, "max_width": g.max_opening, "min_width": g.min_opening,
@@ -241,16 +272,22 @@ def build_result(
         modes_tried=[{"mode": a.mode, "feasible": a.feasible, "reason": a.reason}
                      for a in tried],
         mode_reason=mode_reason,
-        presentation=_presentation(ctx, k) if attempt.feasible else None,
+        presentation=(_presentation(sctx, k) | ({"placed": True} if placed else {})
+                      if feasible else None),
         alternatives=alternatives,
         rules=_rule_list(attempt.graph) if attempt.graph is not None else [],
         scene={"id": s.scene.id, "boxes": [
             {"id": name, "extents": ext, "pose": pose} for name, ext, pose in ctx.scene_box_list
         ]},
-        handover_point=_handover_point(ctx, attempt, k),
+        handover_point=_handover_point(ctx, attempt, k) if outcome != "place" else None,
         bodies={"receiver": body_record(ctx.world.receiver_body),
                 "robot": body_record(ctx.world.robot_body)},
+        outcome=outcome,
+        refused=[{"rule": c.id, "source": c.source, "why": c.rule.why.strip(),
+                  "fallback": c.rule.fallback} for c in refused],
     )
+    if placed:
+        result.placement = placement.record | {"robot_grasp": robot_grasps[0], "rules": trace}
     if attempt.graph is not None and attempt.decision is not None:
         result.why_not = [_why_not(attempt, ctx, gid) for gid in why_not]
     result.warnings.extend(ctx.warnings + list(attempt.extra.get("warnings", [])))
@@ -260,4 +297,30 @@ def build_result(
                 f"safety rule {', '.join(c.overridden_safety)} overridden by {c.id} "
                 f"({c.source}): {c.rule.override_safety}"
             )
+    if feasible:
+        graphs = [attempt.graph] + ([placement.attempt.graph] if placed else [])
+        result.warnings.extend(rule_warnings([cg for cg in graphs if cg is not None],
+                                             list(fallback)))
     return result
+
+
+def rule_warnings(graphs: list[ConstraintGraph], extra: list[CompiledRule] = ()) -> list[str]:
+    """The ``warn`` text of every active rule of ``graphs`` (and of ``extra``), once each, in
+    KB order: ``"<rule id> (<file:line>): <text>"``."""
+    seen: dict[str, CompiledRule] = {}
+    for c in [c for cg in graphs for c in cg.order] + list(extra):
+        if c.rule.warn and c.id not in seen:
+            seen[c.id] = c
+    position = {rid: n for cg in graphs[::-1] for n, rid in enumerate(cg.kb_order)}
+    ordered = sorted(seen.values(), key=lambda c: (position.get(c.id, len(position)), c.id))
+    return [f"{c.id} ({c.source}): {c.rule.warn.strip()}" for c in ordered]
+
+
+def _refusal_entries(ctx: PlanContext, cg: ConstraintGraph | None,
+                     refused: list[CompiledRule]) -> list[dict]:
+    """The trace entries of the refusing rules (each fails: the object is not handed to this
+    receiver; measured, the receiver's age)."""
+    if cg is None or not refused:
+        return []
+    ids = {c.id for c in refused}
+    return [e for e in trace_row(cg, ctx, None, 0, 0, rules=list(refused)) if e["rule"] in ids]

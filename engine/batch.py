@@ -9,8 +9,8 @@ object's candidates are generated once (and stored in the grasp database, see
 (``ray_address``: a cluster address, ``"auto"``, or ``"local"`` to start a local instance),
 with the same function, so every backend gives the same rows.
 
-A row (see :data:`COLUMNS`) holds the query key, the result (mode, feasible, chosen grasps as
-JSON text, score, reason) or the error that stopped it, and the content hash of the KB and
+A row (see :data:`COLUMNS`) holds the query key, the result (outcome, mode, feasible, chosen
+grasps as JSON text, score, reason) or the error that stopped it, and the content hash of the KB and
 the object's mesh file. Rows are sorted by query key. A second run with the same ``--out``
 keeps the rows whose key and content hash are unchanged and that have no error, and plans
 only the rest (resume).
@@ -63,16 +63,18 @@ COLUMNS: dict[str, str] = {
     "query_mode": "string",  # the mode asked (auto, h1g1, ...)
     "mode": "string",  # the mode planned (H1G1, H2G2, H2G1); null when infeasible or failed
     "feasible": "bool",  # null when the query failed
+    "outcome": "string",  # handover | place | refuse | infeasible; null when the query failed
     "grasps": "string",  # JSON: the robot's chosen grasps (as in the plan's JSON result)
     "score": "float64",
-    "reason": "string",  # why infeasible
+    "reason": "string",  # why not handed over (refuse, infeasible; place: why set down)
     "error": "string",  # "ErrorType: message" when planning failed; null otherwise
     "warnings": "string",  # JSON list of warning messages raised while planning
     "candidates": "int64",  # geometric candidates of the object
     "content_hash": "string",  # KB YAML files + the object's mesh file
     "rules": "string",  # JSON {applied: [id], rejected: {id: rows}, decided: [id]} (coverage)
 }
-OPTIONAL_COLUMNS = ("rules",)  # absent from files written before it: read as null
+OPTIONAL_COLUMNS = ("rules", "outcome")  # absent from older files: read as null (outcome:
+# from feasible, the only outcomes then being handover and infeasible)
 KEY_COLUMNS = ("object", "culture", "receiver", "task", "scene", "query_mode")
 
 # ---------------------------------------------------------------- what to plan
@@ -321,7 +323,8 @@ def _error_text(e: BaseException) -> str:
 def _row(q: BatchQuery, content_hash: str, **values: Any) -> dict:
     row = {
         "object": q.object, "culture": q.culture, "receiver": q.receiver, "task": q.task,
-        "scene": q.scene, "query_mode": q.mode, "mode": None, "feasible": None, "grasps": None,
+        "scene": q.scene, "query_mode": q.mode, "mode": None, "feasible": None, "outcome": None,
+        "grasps": None,
         "score": None, "reason": None, "error": None, "warnings": "[]", "candidates": None,
         "content_hash": content_hash, "rules": None,
     }  # fmt: skip
@@ -358,7 +361,8 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
     score = grasps[0].get("score") if grasps else None
     return _row(
         q, content_hash, mode=result.mode if result.feasible else None,
-        feasible=bool(result.feasible), grasps=json.dumps(grasps, separators=(",", ":")),
+        feasible=bool(result.feasible), outcome=result.outcome,
+        grasps=json.dumps(grasps, separators=(",", ":")),
         score=score, reason=result.reason, warnings=json.dumps(messages),
         candidates=int(result.candidates.get("grasps", 0)),
         rules=json.dumps(_rule_use(result.to_dict(), planned.attempt.decision,
@@ -643,6 +647,8 @@ def read_rows(path: Path | str) -> list[dict]:
     for row in rows:
         for c in OPTIONAL_COLUMNS:
             row.setdefault(c, None)
+        if row["outcome"] is None and row["feasible"] is not None:
+            row["outcome"] = "handover" if row["feasible"] else "infeasible"
     return rows
 
 

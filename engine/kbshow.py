@@ -27,6 +27,7 @@ from handover.engine.etiquette import (
     culture_chain,
     culture_parent,
     object_size,
+    object_tags,
     resolve_culture,
 )
 
@@ -44,6 +45,7 @@ __all__ = [
     "object_view",
     "culture_view",
     "rule_view",
+    "tag_rules",
     "not_applicable",
 ]
 
@@ -165,6 +167,10 @@ def rule_view(rr: ResolvedRule, obj: ObjectSpec | None = None) -> dict[str, Any]
     }
     if rule.override_safety:
         out["override_safety"] = _text(rule.override_safety)
+    if rule.fallback:
+        out["fallback"] = rule.fallback
+    if rule.warn:
+        out["warn"] = _text(rule.warn)
     if obj is not None:
         verdict = applies_to_object(rule, obj)
         out["object_conditions"] = "met" if verdict else "depend on the geometry"
@@ -210,6 +216,7 @@ def object_view(kb: KB, obj: ObjectSpec, culture: str) -> dict[str, Any]:
             for tid, t in obj.tasks.items()
         ],
         "default_task": obj.default_task,
+        "tags_with_rules": tag_rules(kb, culture, only=object_tags(obj)),
         "culture": culture,
         "rules_in_culture": len(resolved),
         "rules": rules,
@@ -218,7 +225,8 @@ def object_view(kb: KB, obj: ObjectSpec, culture: str) -> dict[str, Any]:
 
 
 def culture_view(kb: KB, culture_id: str) -> dict[str, Any]:
-    """A culture: the chain of cultures it extends and its resolved rules, base rules first."""
+    """A culture: the chain of cultures it extends, its resolved rules (base rules first),
+    and the tags those rules name (:func:`tag_rules`)."""
     c = kb.culture(culture_id)
     chain, _ = culture_chain(kb, culture_id)
     return {
@@ -230,7 +238,32 @@ def culture_view(kb: KB, culture_id: str) -> dict[str, Any]:
         "why": _text(c.why),
         "source": str(c.source),
         "rules": [rule_view(rr) for rr in resolve_culture(kb, culture_id)],
+        "tags": tag_rules(kb, culture_id),
     }
+
+
+def tag_rules(kb: KB, culture_id: str, only: set[str] | None = None) -> list[dict[str, Any]]:
+    """The tags the rules in force in ``culture_id`` name (in their ``applies`` or their
+    kind's tag fields), each with its meaning (the vocabulary's, else None), the ids of those
+    rules and whether one is a safety rule (``hazard``: the hazard vocabulary in force).
+    Hazard tags first, each group in vocabulary order then alphabetical; ``only``: these
+    tags alone (an object's)."""
+    from handover.engine.lint import rule_tags, vocabulary
+
+    words = vocabulary(kb)
+    rules: dict[str, list[RuleBase]] = {}
+    for rr in resolve_culture(kb, culture_id):
+        for tag, _ in rule_tags(rr.rule):
+            if only is None or tag in only:
+                named = rules.setdefault(tag, [])
+                if rr.rule not in named:
+                    named.append(rr.rule)
+    order = {tag: k for k, tag in enumerate(words)}
+    rows = [{"tag": tag, "meaning": words.get(tag),
+             "hazard": any(r.safety for r in named),
+             "rules": [r.id for r in named]} for tag, named in rules.items()]
+    rows.sort(key=lambda r: (not r["hazard"], order.get(r["tag"], len(order)), r["tag"]))
+    return rows
 
 
 @dataclass(frozen=True)

@@ -218,6 +218,11 @@ def check_case(case: KBTestCase, result: dict[str, Any], obj: ObjectSpec) -> lis
         if not any(text in w for w in warnings):
             out.append(_fail("warnings_contain", text, warnings,
                              f"no warning contains '{text}'"))
+    reason = result.get("reason") or ""
+    for text in e.reason_contains:
+        if text not in reason:
+            out.append(_fail("reason_contains", text, reason,
+                             f"the reason does not contain '{text}'"))
     return out
 
 

@@ -90,6 +90,7 @@ class KBTestExpect(KBModel):
     rules : ``{rule id: status}``: the rule's status in the trace of every chosen grasp at
         the handover (``pass``, ``fail``, ``scored``, ``not_applicable``).
     warnings_contain : each text appears in one of the result's warnings.
+    reason_contains : each text appears in the result's reason (a refusal names its rule).
     """
 
     outcome: Literal["handover", "place", "refuse", "infeasible"] | None = None
@@ -100,6 +101,7 @@ class KBTestExpect(KBModel):
     axes: dict[Id, dict[Direction, str]] = {}
     rules: dict[Id, Literal["pass", "fail", "scored", "not_applicable"]] = {}
     warnings_contain: list[Annotated[str, Field(min_length=1)]] = []
+    reason_contains: list[Annotated[str, Field(min_length=1)]] = []
 
     @field_validator("axes")
     @classmethod

@@ -15,12 +15,13 @@ Errors:
   - a rule overriding a rule id that none of the extended cultures has, or one already
     overridden in the same culture; a rule id that repeats a rule in force without
     ``overrides``; a rule overriding a ``safety`` rule without ``override_safety``;
-  - a rule naming a tag that no object or part carries (``applies.object_tags_any``/``none``,
-    ``forbid_tags``, ``require_tags``). This is an error, not a warning, because a misspelt
-    tag silently disables a rule, safety rules included; add the object before the rule, or
-    use a tag an object already carries;
-  - an ``axis`` rule naming an axis no object defines, a rule's ``applies.tasks`` naming a task
-    no object has;
+  - a rule naming a tag that no object or part carries and no culture's ``vocabulary``
+    documents (``applies.object_tags_any``/``none``, ``forbid_tags``, ``require_tags``, a
+    ``keep_out`` or ``pinch`` rule's ``tags``). This is an error, not a warning, because a
+    misspelt tag silently disables a rule, safety rules included; add the object before the
+    rule, or document the tag in a vocabulary (the hazard tags of ``common``);
+  - an ``axis`` rule naming an axis no object defines and no vocabulary documents, a rule's
+    ``applies.tasks`` naming a task no object has;
   - a receiver's ``hand`` or a robot's (or an arm's) ``gripper`` that does not exist; two
     obstacles with one id in a scene;
   - a robot's ``urdf`` that is missing, outside the KB, xacro, or does not parse (the URDF's
@@ -37,6 +38,8 @@ Warnings:
   - a safety rule overridden with ``override_safety`` ("safety rule X overridden by Y: why");
     ``override_safety`` on a rule that overrides no safety rule;
   - a robot's ``reach`` beyond what its arms reach at full stretch;
+  - a tag on an object or a part that no rule of any culture names, no task wants for the
+    receiver and no vocabulary documents (a typo, or a hazard nobody handles), at the tag;
   - an object part that no geometry belongs to; an ``axis`` rule that applies to an object
     lacking that axis; a document whose id differs from its file name (loader); a file
     outside the KB folders (loader).
@@ -64,7 +67,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "lint_kb", "lint_object", "lint_cultures", "lint_references", "lint_robot", "lint_scene",
-    "lint_tests", "rule_tags",
+    "lint_tests", "rule_tags", "vocabulary", "used_tags", "lint_object_tags",
 ]
 
 
@@ -191,13 +194,56 @@ def lint_mesh_path(
 # ---------------------------------------------------------------- cultures and rules
 
 
+RULE_TAG_FIELDS = ("forbid_tags", "require_tags", "tags")
+"""The fields of rule kinds that name tags (contact: forbid/require; keep_out, pinch: tags)."""
+
+
 def rule_tags(rule: RuleBase) -> Iterator[tuple[str, tuple[str | int, ...]]]:
+    """Every tag ``rule`` names, with the path of its YAML node: its ``applies`` object tags
+    and its kind's tag fields (:data:`RULE_TAG_FIELDS`)."""
     for field in ("object_tags_any", "object_tags_none"):
         for k, tag in enumerate(getattr(rule.applies, field)):
             yield tag, ("applies", field, k)
-    for field in ("forbid_tags", "require_tags"):
-        for k, tag in enumerate(getattr(rule, field, ())):  # the kinds that name tags
-            yield tag, (field, k)
+    for field in RULE_TAG_FIELDS:
+        if field in type(rule).model_fields:  # the kinds that name tags
+            for k, tag in enumerate(getattr(rule, field)):
+                yield tag, (field, k)
+
+
+def vocabulary(kb: KB) -> dict[str, str]:
+    """The tags and axis names the cultures document (``vocabulary``: name -> meaning), the
+    first culture's meaning kept for a name documented twice."""
+    out: dict[str, str] = {}
+    for culture in kb.cultures.values():
+        for name, meaning in culture.vocabulary.items():
+            out.setdefault(name, meaning)
+    return out
+
+
+def used_tags(kb: KB) -> set[str]:
+    """Tags something uses: a rule of any culture (:func:`rule_tags`) or an object's task
+    (``receiver_tags``)."""
+    used = {tag for c in kb.cultures.values() for r in c.rules for tag, _ in rule_tags(r)}
+    used |= {t for o in kb.objects.values() for task in o.tasks.values()
+             for t in task.receiver_tags}
+    return used
+
+
+def lint_object_tags(kb: KB, obj: ObjectSpec, known: set[str]) -> Iterator[KBIssue]:
+    """Warnings at each tag of ``obj`` and of its parts that is not in ``known`` (the tags
+    a rule or task uses, or a vocabulary documents): a typo, or a hazard nobody handles."""
+    def warn(tag: str, where: str, model, k: int) -> KBIssue:
+        return kb.issue(model, f"tag '{tag}' on {where} is used by no rule and no task, and no "
+                        "culture's vocabulary documents it (a typo, or a hazard nobody "
+                        "handles?)", "tags", k, severity="warning")
+
+    for k, tag in enumerate(obj.tags):
+        if tag not in known:
+            yield warn(tag, f"object '{obj.id}'", obj, k)
+    for name, part in obj.parts.items():
+        for k, tag in enumerate(part.tags):
+            if tag not in known:
+                yield warn(tag, f"part '{name}' of '{obj.id}'", part, k)
 
 
 def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
@@ -208,17 +254,23 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
             yield from problems
     if "objects" in failed:
         return
-    used_tags = set().union(*(object_tags(o) for o in kb.objects.values()))
+    documented = set(vocabulary(kb)) if "etiquette" not in failed else set()
+    carried = set().union(*(object_tags(o) for o in kb.objects.values()))
+    if "etiquette" not in failed:
+        known = used_tags(kb) | documented
+        for obj in kb.objects.values():
+            yield from lint_object_tags(kb, obj, known)
     used_axes = {a for o in kb.objects.values() for a in o.axes}
     used_tasks = {t for o in kb.objects.values() for t in o.tasks}
     for culture in kb.cultures.values():
         for rule in culture.rules:
             for tag, sub in rule_tags(rule):
-                if tag not in used_tags:
+                if tag not in carried and tag not in documented:
                     yield kb.issue(
                         rule,
                         f"rule '{rule.id}' names tag '{tag}', which no object or part carries "
-                        "(a misspelt tag silently disables a rule)",
+                        "and no culture's vocabulary documents (a misspelt tag silently "
+                        "disables a rule)",
                         *sub,
                     )
             for k, task in enumerate(rule.applies.tasks):
@@ -231,10 +283,11 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                         k,
                     )
             if rule.kind == "axis" and rule.axis is not None:
-                if rule.axis not in used_axes:
+                if rule.axis not in used_axes and rule.axis not in documented:
                     yield kb.issue(
                         rule,
-                        f"rule '{rule.id}' is about axis '{rule.axis}', which no object defines",
+                        f"rule '{rule.id}' is about axis '{rule.axis}', which no object defines "
+                        "and no culture's vocabulary documents",
                         "axis",
                     )
                     continue

@@ -14,40 +14,164 @@ facade a robot program uses.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from handover.engine.attempt import Attempt
 from handover.engine.query import DEFAULTS, Query
 
 if TYPE_CHECKING:
     import trimesh
 
-    from handover.engine.attempt import Attempt
+    from handover.engine.compiler import CompiledRule, ConstraintGraph
     from handover.engine.context import PlanContext
     from handover.engine.loader import KB
+    from handover.engine.place import PlacementPlan
     from handover.engine.result import PlanResult
 
-__all__ = ["plan", "Planner", "Plan", "RobotGrasp", "HumanGrasp"]
+__all__ = ["plan", "decide", "Decided", "refusing_rules", "fallback_rules", "Planner", "Plan",
+           "RobotGrasp", "HumanGrasp"]
 
 
 def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
          mesh: trimesh.Trimesh | None = None) -> Plan:
-    """Plan a handover, choosing the mode (``auto``) or using the forced one.
+    """Plan a handover, choosing the mode (``auto``) or using the forced one; or, when the
+    rules say so, set the object down or refuse (see :func:`decide`).
 
     db : the grasp database (``handover.engine.graspdb.GraspDB``) or None to generate.
     mesh : an object given as a mesh (object frame, metres) instead of ``query.object``.
-    Returns the :class:`Plan` (feasible or not) with its context and chosen attempt.
+    Returns the :class:`Plan` (any outcome) with its context and chosen attempt.
     """
     from handover.engine.assemble import build_result
-    from handover.engine.modes import choose
     from handover.engine.prepare import prepare
 
     ctx = prepare(kb, query, db, mesh=mesh)
-    attempt, tried, why = choose(kb, ctx, query.mode)
-    return Plan(build_result(ctx, attempt, tried, why, why_not), ctx, attempt)
+    d = decide(kb, ctx, query.mode)
+    result = build_result(ctx, d.attempt, d.tried, d.mode_reason, why_not, outcome=d.outcome,
+                          placement=d.placement, refused=d.refused, fallback=d.fallback)
+    if d.placement is not None and d.placement.feasible:
+        return Plan(result, d.placement.context, d.placement.attempt)
+    return Plan(result, ctx, d.attempt)
+
+
+@dataclass
+class Decided:
+    """What :func:`decide` decided: the ``outcome``, the handover attempt to report (the
+    chosen one, the last tried, or the refusal), every mode tried, why, the refusing rules,
+    the rules whose ``fallback: place`` led to a placement, and the placement."""
+
+    outcome: str
+    attempt: Attempt
+    tried: list[Attempt]
+    mode_reason: str
+    refused: list = field(default_factory=list)
+    fallback: list = field(default_factory=list)
+    placement: PlacementPlan | None = None
+
+
+def refusing_rules(kb: KB, ctx: PlanContext) -> tuple[ConstraintGraph, list[CompiledRule]]:
+    """The compiled graph (H1G1) and its active hard ``refuse`` rules that hold whatever the
+    mode (a ``refuse`` rule with a ``modes`` condition only removes that mode's rows)."""
+    from handover.engine.compiler import compile
+
+    cg = compile(kb, ctx, "H1G1")
+    return cg, [c for c in cg.order if c.rule.kind == "refuse" and c.rule.hard
+                and not c.rule.applies.modes]
+
+
+def refusal_text(ctx: PlanContext, c: CompiledRule) -> str:
+    """Why rule ``c`` refuses: its id, file:line, the conditions that hold, and its why."""
+    from handover.engine.applies import check
+    from handover.engine.compiler import query_facts
+
+    _, holds = check(c.rule.applies, query_facts(ctx, "H1G1"))
+    return (f"rule {c.id} ({c.source}) refuses to hand {ctx.situation.obj.id} to this "
+            f"receiver ({holds}): {c.rule.why.strip()}")
+
+
+def fallback_rules(kb: KB, ctx: PlanContext, tried: list[Attempt]) -> list[CompiledRule]:
+    """The hard rules with ``fallback: place`` that blocked the handover, when no mode is
+    feasible (the policy, README "Outcomes"): the hard mode rule that required a mode that
+    failed, and every hard rule in one of the smallest blocking rule sets of a mode tried, or
+    named in its reason. Rules in KB order, each once."""
+    import re
+
+    from handover.engine.compiler import compile
+
+    found: dict[str, CompiledRule] = {}
+    cg = compile(kb, ctx, "H1G1")
+    required, _ = cg.mode_rules()
+    by_mode = {a.mode: a for a in tried}
+    if required is not None and required.rule.fallback == "place" \
+            and required.rule.mode in by_mode and not by_mode[required.rule.mode].feasible:
+        found[required.id] = required
+    for a in tried:
+        if a.feasible or a.graph is None:
+            continue
+        named: set[str] = set()
+        if a.decision is not None and a.decision.n_rows:
+            named |= {rid for ids, _ in a.decision.blocking_sets() for rid in ids}
+        for c in a.graph.hard:
+            if c.rule.fallback != "place" or c.id in found:
+                continue
+            if c.id in named or re.search(rf"\b{re.escape(c.id)}\b", a.reason or ""):
+                found[c.id] = c
+    position = {rid: n for n, rid in enumerate(cg.kb_order)}
+    return sorted(found.values(), key=lambda c: position.get(c.id, len(position)))
+
+
+def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
+    """The outcome of a query (README "Outcomes"):
+
+    - ``refuse``: an active hard ``refuse`` rule applies: no mode is tried; when every such
+      rule names ``fallback: place`` the object is set down instead (``place``) if it can be.
+    - ``handover``: a mode is feasible (:func:`engine.modes.choose`).
+    - ``place``: no mode is feasible, a hard rule naming ``fallback: place`` blocked it
+      (:func:`fallback_rules`) and a placement is found (:mod:`engine.place`).
+    - ``infeasible``: otherwise; the reason says what was tried.
+    """
+    from handover.engine.modes import PLANNERS, choose
+    from handover.engine.place import plan_placement
+
+    cg, refusing = refusing_rules(kb, ctx)
+    if refusing:
+        first = refusing[0]
+        modes = list(PLANNERS) if asked.lower() == "auto" else [asked.upper()]
+        why = "; ".join(refusal_text(ctx, c) for c in refusing)
+        tried = [Attempt(m, False, f"{m}: not tried: rule {first.id} refuses to hand it "
+                         f"over ({first.source})") for m in modes]
+        attempt = Attempt(modes[0], False, why, graph=cg)
+        every = all(c.rule.fallback == "place" for c in refusing)
+        fallback = list(refusing) if every else []
+        placement = plan_placement(kb, ctx, fallback) if fallback else None
+        if placement is not None and placement.feasible:
+            return Decided("place", attempt, tried, f"set down instead: {why}", refusing,
+                           fallback, placement)
+        if placement is not None:
+            attempt = replace(attempt, reason=f"{why.rstrip('.')}; setting it down instead "
+                              f"(fallback of "
+                              f"{', '.join(c.id for c in fallback)}) failed: "
+                              f"{placement.reason}")
+        return Decided("refuse", attempt, tried, "refused", refusing, fallback, placement)
+    attempt, tried, why = choose(kb, ctx, asked)
+    if attempt.feasible:
+        return Decided("handover", attempt, tried, why)
+    fallback = fallback_rules(kb, ctx, tried)
+    if not fallback:
+        return Decided("infeasible", attempt, tried, why)
+    placement = plan_placement(kb, ctx, fallback)
+    named = ", ".join(f"{c.id} ({c.source})" for c in fallback)
+    if placement.feasible:
+        return Decided("place", attempt, tried,
+                       f"set down instead: no mode is feasible and {named} names fallback: "
+                       "place", fallback=fallback, placement=placement)
+    attempt = replace(attempt, reason=f"{(attempt.reason or '').rstrip('.')}; setting it "
+                      f"down instead (fallback "
+                      f"of {named}) failed: {placement.reason}")
+    return Decided("infeasible", attempt, tried, why, fallback=fallback, placement=placement)
 
 
 @dataclass(frozen=True)
@@ -78,7 +202,8 @@ class HumanGrasp:
 
 
 class Plan:
-    """A planned handover, feasible or not, with every decision explained.
+    """A planned handover, a placement, a refusal or an infeasible query (``outcome``), with
+    every decision explained.
 
     ``to_dict()`` / ``to_json()`` are the result ``handover plan --json`` prints (byte for
     byte); ``record(path)`` writes the rerun recording.
@@ -95,6 +220,8 @@ class Plan:
 
     @property
     def outcome(self) -> str:
+        """``handover``, ``place`` (set down on the table: ``object_pose`` is the placed
+        pose, ``robot_grasps`` the grasp that sets it down), ``refuse`` or ``infeasible``."""
         return self.result.outcome
 
     @property
@@ -107,7 +234,8 @@ class Plan:
 
     @property
     def object_pose(self) -> np.ndarray | None:
-        """(4, 4) object -> world at the handover (None when infeasible)."""
+        """(4, 4) object -> world at the handover, or placed on the table (None when refused
+        or infeasible)."""
         pose = self.result.object_pose
         return None if pose is None else np.asarray(pose, dtype=float)
 
@@ -126,6 +254,18 @@ class Plan:
                            position_world=np.asarray(h["position_world"], dtype=float),
                            part=h["part"])
                 for h in self.result.human_grasps]
+
+    @property
+    def placement(self) -> dict | None:
+        """With ``place``: where and how the object is set down (the JSON ``placement``:
+        ``object_pose``, ``position``, ``robot_grasp``, ``why``, ``rules``, ...)."""
+        return self.result.to_dict().get("placement")
+
+    @property
+    def refused(self) -> list[dict]:
+        """The rules that refused to hand the object to this receiver (``rule``, ``source``,
+        ``why``, ``fallback``); empty unless a rule refused."""
+        return list(self.result.to_dict().get("refused", []))
 
     @property
     def trace(self) -> list[dict]:
@@ -150,7 +290,8 @@ class Plan:
         return Path(path)
 
     def __repr__(self) -> str:
-        what = self.mode if self.feasible else f"infeasible: {self.reason}"
+        outcome = self.outcome
+        what = self.mode if outcome == "handover" else f"{outcome}: {self.reason}"
         return f"<Plan {self.result.object}: {what}>"
 
 

@@ -344,7 +344,7 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
     eye, target = camera(initial[:3, :3] @ middle + initial[:3, 3],
                          handover_pose[:3, :3] @ middle + handover_pose[:3, 3], size)  # fmt: skip
     rec.save(tmp, default_blueprint=blueprint(eye, target))
-    rec.send_recording_name(f"{result.object} ({result.mode or 'infeasible'})")
+    rec.send_recording_name(f"{result.object} ({result.mode or result.outcome})")
 
     # -- static: frame, scene, people, object at both poses, axes, receiver hands, legend
     rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)

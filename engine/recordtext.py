@@ -41,7 +41,9 @@ def _trace_line(e: dict) -> str:
     """One rule decision of one chosen grasp, as a log line."""
     hard = "hard" if e.get("hard") else f"soft x{_fmt(e.get('weight'))}"
     head = f"grasp {e.get('grasp')} ({e.get('hand')} hand)"
-    if e.get("stage"):
+    if e.get("stage") == "refuse":
+        head = "refused"
+    elif e.get("stage"):
         head += f" [{e['stage']}]"
     status = str(e.get("status"))
     body = f"{e.get('rule')} ({e.get('kind')}, {hard}): {status}"
@@ -89,7 +91,27 @@ def _grasps_table(grasps: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def _refused_text(result: PlanResult) -> str:
+    lines = ["## Refused", "", "Not handed to this receiver, by the rule"
+             + ("s" if len(result.refused) > 1 else "") + ":", ""]
+    lines += [f"- **{r['rule']}** ({r['source']}): {r['why']}" for r in result.refused]
+    lines += ["", result.reason or ""]
+    return "\n".join(lines)
+
+
+def _placed_text(result: PlanResult) -> str:
+    """Stage 4 of a placement: where and why, the grasp, the receiver's site, the axes."""
+    p = result.placement or {}
+    where = ", ".join(f"{v:.3f}" for v in np.asarray(p.get("position", []), dtype=float))
+    text = (f"**Set down** on the table at ({where}), not handed over: "
+            f"{(result.reason or '').removeprefix('not handed over: ')}\n\n"
+            f"{p.get('why', '')}.\n\n")
+    return text
+
+
 def _infeasible_text(result: PlanResult) -> str:
+    if result.outcome == "refuse":
+        return _refused_text(result)
     lines = ["## No feasible handover", "", result.reason or "no reason given"]
     sets = (result.candidates or {}).get("blocking_sets") or []
     if sets:
@@ -123,9 +145,11 @@ def stage_documents(
         f"culture {q.get('culture')}, scene {q.get('scene')}, task {q.get('task') or '-'}, "
         f"mode asked {q.get('mode')}"
     )
-    shown = (f"Drawn: the {n} grasp candidates in presentation {k} "
-             f"({'the chosen one' if result.feasible else 'the one whose rows got furthest'}), "
-             "on the object at its handover pose.")  # fmt: skip
+    placed = result.outcome == "place"
+    where = "placed orientation" if placed else "presentation"
+    which = "the chosen one" if result.feasible else "the one whose rows got furthest"
+    shown = (f"Drawn: the {n} grasp candidates in {where} {k} ({which}), "
+             f"on the object at its {'placed' if placed else 'handover'} pose.")  # fmt: skip
     docs: dict[int, str] = {}
 
     def title(s: int) -> str:
@@ -170,14 +194,15 @@ def stage_documents(
                    f"Soft rules (weight):\n\n{soft}\n\n"
                    + (f"Next best rows:\n\n{alts}\n" if alts else ""))  # fmt: skip
     if 4 in stages:
-        text = title(4) + f"\nMode **{result.mode}**: {result.mode_reason}\n\n"
+        text = title(4) + (f"\n{_placed_text(result)}" if placed else
+                           f"\nMode **{result.mode}**: {result.mode_reason}\n\n")
         text += _grasps_table(result.robot_grasps) + "\n\n"
         for h in result.human_grasps:
             pos = ", ".join(f"{v:.3f}" for v in np.asarray(h["position_world"], dtype=float))
             text += f"Receiver's {h['hand']} hand on **{h['part']}** at ({pos}).\n\n"
         axes = (result.presentation or {}).get("axes_world") or {}
         if axes:
-            text += "Presented with " + "; ".join(
+            text += ("Placed with " if placed else "Presented with ") + "; ".join(
                 f"{name} -> ({', '.join(f'{v:+.2f}' for v in np.asarray(vec, dtype=float))})"
                 for name, vec in axes.items()) + ".\n\n"  # fmt: skip
         for w in result.warnings:
@@ -213,11 +238,15 @@ def log_entries(result: PlanResult, stages: list[int]) -> list[tuple[int, str, s
         entries.append((0, "WARN", w))
     pick_stage = 5 if 5 in stages else 4
     for e in result.trace:
-        stage = pick_stage if e.get("stage") == "pick" else 4
+        stage = {"pick": pick_stage, "refuse": stages[-1]}.get(e.get("stage"), 4)
         entries.append((stage, LEVELS.get(str(e.get("status")), "INFO"), _trace_line(e)))
+    if result.outcome == "place":
+        because = (result.reason or "").removeprefix("not handed over: ")
+        entries.append((4, "WARN", f"set down, not handed over: {because}"))
     if not result.feasible:
         last = stages[-1]
-        entries.append((last, "ERROR", f"no feasible handover: {result.reason}"))
+        said = "refused" if result.outcome == "refuse" else "no feasible handover"
+        entries.append((last, "ERROR", f"{said}: {result.reason}"))
         for s in (result.candidates or {}).get("blocking_sets") or []:
             entries.append((last, "WARN", f"blocked by {' + '.join(s['rules'])}: "
                                           f"{s['candidates']} rows"))  # fmt: skip

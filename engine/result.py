@@ -15,9 +15,11 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["PlanResult", "to_jsonable", "dumps"]
+__all__ = ["PlanResult", "to_jsonable", "dumps", "OUTCOMES"]
 
 DECIMALS = 6
+OUTCOMES = ("handover", "place", "refuse", "infeasible")
+"""What a plan can come to; ``feasible`` is true for the first two."""
 
 
 def to_jsonable(value: Any) -> Any:
@@ -59,6 +61,15 @@ class PlanResult:
     handover_point : where the object is offered: the receiver's grasp site (world), the
     chosen location's measures, why there. bodies : the receiver's and the robot's bodies
     (capsules and boxes, world).
+    outcome : ``handover`` (a plan), ``place`` (set down on the table within the receiver's
+    reach: ``placement``), ``refuse`` (a rule forbids handing it to this receiver: ``refused``
+    and ``reason``) or ``infeasible`` (nothing works: ``reason``). ``feasible`` is true for
+    ``handover`` and ``place``.
+    placement : with ``place``: {"object_pose" (4, 4) world, "position" (3,) world (the
+    object's centre of mass), "rest", "receiver_site", "measured", "robot_grasp" (as a
+    ``robot_grasps`` entry), "why", "rules" (the placement grasp's trace), "considered"}.
+    refused : with ``refuse`` (and ``place`` after a refusal): the refusing rules [{"rule",
+    "source", "why", "fallback"}].
     """
 
     object: str
@@ -85,11 +96,18 @@ class PlanResult:
     handover_point: dict | None = None
     bodies: dict = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
+    outcome: str = ""
+    placement: dict | None = None
+    refused: list[dict] = field(default_factory=list)
 
-    @property
-    def outcome(self) -> str:
-        """``handover`` (a plan) or ``infeasible`` (nothing works; ``reason`` says why)."""
-        return "handover" if self.feasible else "infeasible"
+    def __post_init__(self) -> None:
+        if not self.outcome:  # a result built without one: from ``feasible``
+            self.outcome = "handover" if self.feasible else "infeasible"
+        if self.outcome not in OUTCOMES:
+            raise ValueError(f"outcome must be one of {', '.join(OUTCOMES)}, got "
+                             f"{self.outcome!r}")
+        if self.feasible != (self.outcome in ("handover", "place")):
+            raise ValueError(f"outcome {self.outcome!r} contradicts feasible={self.feasible}")
 
     def to_dict(self) -> dict:
         out = {
@@ -106,6 +124,10 @@ class PlanResult:
         }
         if self.regrasp is not None:
             out["regrasp"] = self.regrasp
+        if self.placement is not None:
+            out["placement"] = self.placement
+        if self.refused:
+            out["refused"] = self.refused
         out.update(
             {
                 "gripper": self.gripper,

@@ -274,12 +274,16 @@ def parse_rule(data: dict) -> RuleBase:
 
 class Culture(KBModel):
     """A culture's etiquette: its rules, and the culture it extends (``common`` by default
-    for every culture but ``common`` itself)."""
+    for every culture but ``common`` itself). ``vocabulary``: tags the culture documents
+    (tag -> what it means), whether or not an object of this KB carries them yet (the
+    hazard tags ``needle``, ``hot``, ...), and descriptive tags no rule needs (``kitchen``);
+    ``kb validate`` warns for an object's tag that no rule, task or vocabulary knows."""
 
     id: Id
     name: str
     extends: Id | None = None
     why: str = ""
+    vocabulary: dict[Tag, str] = {}
     rules: list[Rule] = []  # type: ignore[valid-type]
 
 

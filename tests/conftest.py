@@ -53,6 +53,8 @@ MINIMAL_KB: dict[str, str] = {
             min_deg: 100
             applies: {object_tags_any: [sharp]}
             why: Points away from people.
+        vocabulary:
+          handle: The part made to be held.
         """,
     "grippers/jaw.yaml": """\
         id: jaw

@@ -44,7 +44,8 @@ def batch(
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
 ) -> None:  # fmt: skip
     """Plan every (object x culture x receiver x task) query and write one row per query
-    (object, culture, receiver, task, mode, feasible, grasps, score, reason, error) to a
+    (object, culture, receiver, task, outcome, mode, feasible, grasps, score, reason, error)
+    to a
     Parquet file, sorted by query key. Fills the grasp database on the way.
 
     A second run with the same --out plans only what is missing, failed, or whose KB or mesh
@@ -101,43 +102,47 @@ def render_summary(report, console, db_root: Path | None, limit: int = 40) -> No
     for row in report.planned:
         by_obj.setdefault(row["object"], []).append(row)
     table = Table(title=f"batch: {report.out}", title_justify="left")
-    note_width = max(16, console.width - 62)
+    note_width = max(16, console.width - 80)
     table.add_column("object", overflow="fold", min_width=8)
-    for name in ("queries", "feasible", "no plan", "failed", "s"):
+    for name in ("queries", "handover", "place", "refuse", "no plan", "failed", "s"):
         table.add_column(name, justify="right", no_wrap=True)
     table.add_column("first error / reason", no_wrap=True, overflow="ellipsis",
                      max_width=note_width)  # fmt: skip
     entries = []
     for name, rows in by_obj.items():
         errors = [r for r in rows if r["error"]]
-        feas = sum(1 for r in rows if r["feasible"])
-        infeas = sum(1 for r in rows if r["feasible"] is False)
+        counts = [sum(1 for r in rows if r.get("outcome") == o)
+                  for o in ("handover", "place", "refuse", "infeasible")]
         note = (
             errors[0]["error"]
             if errors
             else next((r["reason"] for r in rows if r["feasible"] is False and r["reason"]), "")
         )
-        entries.append((not errors, name, len(rows), feas, infeas, len(errors), note))
+        entries.append((not errors, name, len(rows), *counts, len(errors), note))
     entries.sort()
-    for _, name, n, feas, infeas, nerr, note in entries[:limit]:
+    for _, name, n, hand, place, refuse, infeas, nerr, note in entries[:limit]:
         secs = report.per_object_seconds.get(name)
         table.add_row(
-            name, str(n), str(feas), str(infeas), f"[red]{nerr}[/]" if nerr else "0",
+            name, str(n), str(hand), str(place), str(refuse), str(infeas),
+            f"[red]{nerr}[/]" if nerr else "0",
             f"{secs:.2f}" if secs is not None else "", (note or "")[:160],
         )  # fmt: skip
     if len(entries) > limit:
-        table.add_row(f"... {len(entries) - limit} more objects", "", "", "", "", "", "")
+        table.add_row(f"... {len(entries) - limit} more objects", *[""] * 8)
     if entries:
         console.print(table)
     rows = report.planned
     n_err = sum(1 for r in rows if r["error"])
     n_feas = sum(1 for r in rows if r["feasible"])
+    n_place = sum(1 for r in rows if r.get("outcome") == "place")
+    n_refuse = sum(1 for r in rows if r.get("outcome") == "refuse")
     rate = report.objects_planned / report.seconds if report.seconds > 0 else 0.0
     console.print(
         f"{len(rows)} queries on {report.objects_planned} objects planned in "
         f"{report.seconds:.2f} s ({rate:.2f} objects/s, {report.backend}, "
         f"{report.workers} worker{'s' if report.workers != 1 else ''}): "
-        f"{n_feas} feasible, {len(rows) - n_feas - n_err} infeasible, {n_err} failed; "
+        f"{n_feas} feasible ({n_place} set down), {n_refuse} refused, "
+        f"{len(rows) - n_feas - n_refuse - n_err} infeasible, {n_err} failed; "
         f"{report.skipped} already done. {len(report.rows)} rows in {report.out}."
     )
     console.print(f"grasp database: {db_root if db_root is not None else 'off (--no-db)'}")

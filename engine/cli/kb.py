@@ -197,7 +197,25 @@ def _print_rules(out: Console, rules: list[dict[str, Any]]) -> None:
             )
         if r.get("override_safety"):
             out.print(f"      safety override: {r['override_safety']}", markup=False)
+        if r.get("fallback"):
+            out.print(f"      fallback: {r['fallback']}", markup=False)
+        if r.get("warn"):
+            out.print(f"      warns: {r['warn']}", markup=False)
         out.print(f"      why: {r['why']}", markup=False)
+
+
+def _print_tags(out: Console, tags: list[dict[str, Any]], title: str) -> None:
+    """Tags named by rules: the hazard tags (named by a safety rule) first, then the others,
+    each with the rules that name it and its meaning."""
+    for hazard, heading in ((True, f"hazard tags {title} (named by a safety rule)"),
+                            (False, f"other tags {title}")):
+        rows = [t for t in tags if t["hazard"] == hazard]
+        if not rows:
+            continue
+        out.print(f"\n{heading}:", markup=False)
+        for t in rows:
+            meaning = f"  ({t['meaning']})" if t["meaning"] else ""
+            out.print(f"  {t['tag']}: {', '.join(t['rules'])}{meaning}", markup=False)
 
 
 def _print_object(d: dict[str, Any]) -> None:
@@ -233,6 +251,7 @@ def _print_object(d: dict[str, Any]) -> None:
         )
         if t["why"]:
             out.print(f"  why: {t['why']}", markup=False)
+    _print_tags(out, d["tags_with_rules"], f"of {d['id']} with rules in {d['culture']}")
     out.print(
         f"\nrules of culture [bold]{d['culture']}[/] that can apply to {d['id']}: "
         f"{len(d['rules'])} of {d['rules_in_culture']}"
@@ -252,6 +271,7 @@ def _print_culture(d: dict[str, Any]) -> None:
         out.print(f"  why: {d['why']}", markup=False)
     out.print(f"\n{len(d['rules'])} rules in force, base rules first:")
     _print_rules(out, d["rules"])
+    _print_tags(out, d["tags"], "with rules")
 
 
 def _print_model(d: dict[str, Any]) -> None:

@@ -63,7 +63,9 @@ def plan(
 ) -> None:
     """Plan a handover of OBJECT and explain every decision.
 
-    Exit codes: 0 plan found, 4 no feasible handover (the result still says why),
+    The outcome is a handover, a placement (the object set down within the receiver's
+    reach), a refusal (a rule forbids handing it to this receiver) or infeasible.
+    Exit codes: 0 handover or place, 4 refuse or infeasible (the result still says why),
     2 usage error, 3 invalid KB, 5 bad mesh, 1 internal error.
     """
     from rich.console import Console
@@ -88,12 +90,62 @@ def plan(
             raise write_error("-o", output, e) from None
     if json_out:
         typer.echo(text, nl=False)
+    elif data["outcome"] in ("place", "refuse"):
+        render_outcome(data, Console(highlight=False, soft_wrap=False), explain=explain)
     else:
         from handover.engine.trace import render_plan
 
         render_plan(data, Console(highlight=False, soft_wrap=False), explain=explain)
-    if not result.feasible:
+    if data["outcome"] in EXIT_CODES_4:
         raise typer.Exit(EXIT_INFEASIBLE)
+
+
+EXIT_CODES_4 = ("refuse", "infeasible")
+"""Outcomes that exit with code 4 (no handover and nothing set down)."""
+
+
+def render_outcome(result: dict, console, explain: bool = False) -> None:
+    """Print a ``place`` or ``refuse`` result: who and what, the warnings, the modes (not)
+    tried, then ``PLACE: ...`` (where, which way, the robot's grasp) or ``REFUSED: rule ...``
+    with the rule's why; with ``explain`` the placement grasp's rule trace."""
+    from rich.markup import escape
+
+    from handover.engine.trace import _trace_tree
+
+    q, r = result["query"], result["receiver"]
+    console.print(f"[bold]{result['object']}[/] to a {r['role']} receiver aged {r['age']:g} "
+                  f"({r['dominant_hand']}-handed), culture {q['culture']}, scene {q['scene']}, "
+                  f"task {q['task'] or '-'}")
+    for w in result.get("warnings", []):
+        console.print(f"[bold yellow]warning[/]: {escape(w)}")
+    for tried in result.get("modes_tried", []):
+        note = escape(tried["reason"] or "")
+        console.print(f"  mode {tried['mode']}: [red]infeasible[/]: {note}")
+    if result["outcome"] == "refuse":
+        for rule in result.get("refused", []):
+            console.print(f"[bold red]REFUSED[/]: rule [bold]{rule['rule']}[/] ({rule['source']}): "
+                          f"{escape(rule['why'])}")
+        console.print(f"reason: {escape(result['reason'] or '')}")
+        return
+    p = result["placement"]
+    g = p["robot_grasp"]
+    where = ", ".join(f"{v:.3f}" for v in p["position"])
+    because = (result["reason"] or "").removeprefix("not handed over: ")
+    console.print(f"[bold green]PLACE[/]: set down on the table at ({where}), not handed over: "
+                  f"{escape(because)}")
+    console.print(f"  {escape(p['why'])}")
+    console.print(f"  robot's {g['hand']} gripper, grasp {g['id']} on {'/'.join(g['parts'])} "
+                  f"(width {g['width']:.3f} m, quality {g['quality']:.2f})")
+    for h in result["human_grasps"]:
+        pos = ", ".join(f"{v:.3f}" for v in h["position_world"])
+        console.print(f"  the receiver takes it by the [bold]{h['part']}[/] at ({pos})")
+    axes = (result.get("presentation") or {}).get("axes_world") or {}
+    if axes:
+        console.print("  placed with " + "; ".join(
+            f"{name} -> ({', '.join(f'{v:+.2f}' for v in vec)})" for name, vec in axes.items()))
+    if explain:
+        console.print(_trace_tree(f"[bold]trace of the placement grasp {g['id']}[/] "
+                                  f"({g['hand']} hand)", p["rules"]))
 
 
 @app.command("explain-graph")

@@ -326,3 +326,21 @@ def test_each_row_says_which_rules_applied_rejected_and_decided(kb, tmp_path):
     use = json.loads(korean_elder["rules"])
     assert "two_hands_for_elders" in use["applied"] and korean_elder["mode"] == "H2G1"
     assert batch.read_rows(tmp_path / "rules.parquet") == report.rows
+
+
+def test_a_file_written_before_the_outcome_column_reads_it_from_feasible(tmp_path):
+    """Rows of an older batch file (no ``outcome`` or ``rules`` column) are kept on resume:
+    their outcome is read from ``feasible`` (then only handover or infeasible), a failed
+    query's stays null."""
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    old = [c for c in batch.COLUMNS if c not in ("outcome", "rules")]
+    rows = [{c: None for c in old} | {"object": o, "culture": "common", "receiver": "adult",
+                                      "scene": "table", "query_mode": "auto", "feasible": f,
+                                      "warnings": "[]", "content_hash": "x"}
+            for o, f in (("a", True), ("b", False), ("c", None))]
+    path = tmp_path / "old.parquet"
+    pq.write_table(pa.Table.from_pylist(rows), path)
+    got = {r["object"]: r["outcome"] for r in batch.read_rows(path)}
+    assert got == {"a": "handover", "b": "infeasible", "c": None}

@@ -49,3 +49,55 @@ def test_kind_of_an_id(builtin_kb):
         item_kind(builtin_kb, "knife", "tool")
     with pytest.raises(UsageError, match="knife"):
         item_kind(builtin_kb, "spoon")
+
+
+def test_a_culture_lists_the_hazard_tags_that_have_rules(builtin_kb):
+    tags = {t["tag"]: t for t in show_item(builtin_kb, "common")["tags"]}
+    for hazard in ("sharp", "pointed", "needle", "hot", "liquid", "open_container", "fragile",
+                   "nozzle", "heavy", "small"):
+        assert tags[hazard]["hazard"], hazard
+        assert tags[hazard]["meaning"]
+    assert {"needle_tip_away", "receiver_avoids_needle", "giver_avoids_needle",
+            "no_hazards_to_young_children"} <= set(tags["needle"]["rules"])
+    assert not tags["handle"]["hazard"]
+    # hazards first
+    flags = [t["hazard"] for t in show_item(builtin_kb, "common")["tags"]]
+    assert flags == sorted(flags, reverse=True)
+
+
+def test_an_object_lists_its_tags_that_have_rules(make_kb):
+    from handover.engine.loader import load_kb
+
+    kb = load_kb(make_kb({"objects/stick.yaml": """\
+        id: stick
+        name: Stick
+        mass: 0.1
+        tags: [garden]
+        geometry:
+          primitives:
+            - {shape: box, part: grip, extents: [0.1, 0.02, 0.02], position: [-0.05, 0, 0]}
+            - {shape: box, part: point, extents: [0.1, 0.01, 0.01], position: [0.05, 0, 0]}
+        parts:
+          grip: {tags: [handle]}
+          point: {tags: [sharp]}
+        axes:
+          tip: [1, 0, 0]
+        """}))
+    view = show_item(kb, "stick")
+    rows = {t["tag"]: t for t in view["tags_with_rules"]}
+    assert set(rows) == {"sharp"}  # handle and garden: no rule of the minimal KB names them
+    assert rows["sharp"]["rules"] == ["no_sharp", "tip_away"] and rows["sharp"]["hazard"]
+
+
+def test_kb_show_prints_the_hazard_tags_and_a_rule_s_fallback_and_warning(capsys):
+    from handover.engine.cli.app import main
+
+    assert main(["kb", "show", "common"]) == 0
+    out = capsys.readouterr().out
+    assert "hazard tags with rules (named by a safety rule):" in out
+    assert "  nozzle: nozzle_not_at_receiver" in out
+    assert "fallback: place" in out and "warns: A sharp object is handed to a child" in out
+    assert main(["kb", "show", "knife"]) == 0
+    out = capsys.readouterr().out
+    assert "hazard tags of knife with rules in common" in out
+    assert "  sharp: receiver_avoids_sharp" in out

@@ -201,3 +201,27 @@ def test_compare_tasks_shows_the_hammer_turned_over(capsys):
     assert any(t["rule"] == "task_presentation" for t in diff["thresholds"])
     code, _, err = run(capsys, "compare", "mug", "--culture", "common,klingon")
     assert code == 2 and "unknown culture 'klingon'" in err
+
+
+def test_a_refusal_is_checked_by_its_reason(capsys, kb_copy):
+    """A case can expect the refusing rule in the reason; a wrong text fails, naming both."""
+    (kb_copy / "receivers" / "toddler.yaml").write_text(
+        "id: toddler\nname: A toddler\nrole: child\nage: 3\nhand: child_hand\n", encoding="utf-8")
+    write_tests(kb_copy, """\
+id: mine
+cases:
+  - name: refused, and why
+    query: {object: knife, receiver: toddler}
+    expect: {outcome: refuse, reason_contains: [no_hazards_to_young_children]}
+  - name: refused, but not for the reason written
+    query: {object: knife, receiver: toddler}
+    expect: {outcome: refuse, reason_contains: [too heavy]}
+""")
+    code, out, _ = run(capsys, "kb", "test", str(kb_copy / "tests"), "--kb", str(kb_copy),
+                       "--json")
+    report = json.loads(out)
+    assert code == 1
+    right, wrong = report["cases"]
+    assert right["passed"] and not wrong["passed"]
+    (failure,) = wrong["failures"]
+    assert failure["expected"] == "too heavy" and "no_hazards_to_young_children" in failure["got"]

@@ -366,6 +366,114 @@ def test_axis_rule_on_an_object_without_the_axis_warns(make_kb):
     assert "rule 'tip_away' applies to object 'knife' (objects/knife.yaml:1)" in warning.message
 
 
+# ---------------------------------------------------------------- tags nobody handles
+
+
+def tag_warnings(kb) -> list:
+    return [w for w in kb.warnings if "is used by no rule and no task" in w.message]
+
+
+def test_a_tag_no_rule_or_task_uses_warns_at_its_line(make_kb):
+    text = stick(**{"point: {tags: [sharp]}": "point: {tags: [sharp, toxik]}"})
+    text = text.replace("mass: 0.1\n", "mass: 0.1\ntags: [garden]\n")
+    kb = load_kb(make_kb({"objects/stick.yaml": text}))
+    by_tag = {w.message.split("'")[1]: w for w in tag_warnings(kb)}
+    assert set(by_tag) == {"toxik", "garden"}
+    toxik, garden = by_tag["toxik"], by_tag["garden"]
+    assert toxik.file == "objects/stick.yaml" and toxik.severity == "warning"
+    line = line_of(text, "toxik")
+    assert (toxik.line, toxik.col) == (line, text.splitlines()[line - 1].index("toxik") + 1)
+    assert "part 'point' of 'stick'" in toxik.message and "hazard nobody handles" in toxik.message
+    assert garden.line == line_of(text, "tags: [garden]")
+    assert "object 'stick'" in garden.message
+
+
+def test_a_tag_is_used_by_any_rule_field_a_task_or_a_vocabulary(make_kb):
+    text = stick(**{"point: {tags: [sharp]}": "point: {tags: [sharp, hot, spout, label, glass]}"})
+    text += "tasks:\n  read:\n    receiver_tags: [label]\n"
+    rules = COMMON_RULES + """\
+  - id: cool_hands
+    kind: contact
+    who: receiver
+    forbid_tags: [hot]
+    why: Hot parts burn.
+  - id: nothing_in_the_spout
+    kind: keep_out
+    tags: [spout]
+    of: [gripper]
+    why: Keep fingers out of a spout.
+"""
+    common = culture(rules) + "vocabulary:\n  glass: Made of glass.\n  handle: Held.\n"
+    kb = load_kb(make_kb({"objects/stick.yaml": text, "etiquette/common.yaml": common}))
+    assert tag_warnings(kb) == []
+    # a rule in another culture counts as well
+    other = culture(COMMON_RULES) + "vocabulary:\n  glass: Made of glass.\n  handle: Held.\n"
+    lax = culture("""\
+  - id: cool_hands
+    kind: contact
+    who: receiver
+    forbid_tags: [hot, spout]
+    why: Hot parts burn.
+""", "lax")
+    kb = load_kb(make_kb({"objects/stick.yaml": text, "etiquette/common.yaml": other,
+                          "etiquette/lax.yaml": lax}))
+    assert tag_warnings(kb) == []
+
+
+def test_a_rule_may_name_a_tag_its_vocabulary_documents_before_any_object_carries_it(make_kb):
+    rules = COMMON_RULES + """\
+  - id: careful
+    kind: contact
+    who: giver
+    forbid_tags: [hot, sharp]
+    why: Hot things burn.
+  - id: spray_away
+    kind: axis
+    axis: nozzle
+    toward: toward_receiver
+    min_deg: 100
+    applies: {object_tags_any: [nozzle]}
+    why: Never spray anyone.
+"""
+    vocab = "vocabulary:\n  hot: Burns.\n  nozzle: Sprays, along the axis nozzle.\n"
+    kb = load_kb(make_kb({"etiquette/common.yaml": culture(rules) + vocab}))
+    assert kb.culture("common").vocabulary["hot"] == "Burns."
+    # undocumented, the same rules are errors at the tag and at the axis
+    text = culture(rules)
+    found = problems(make_kb({"etiquette/common.yaml": text}))
+    hot = next(i for i in found if "names tag 'hot'" in i.message)
+    assert hot.line == line_of(text, "forbid_tags: [hot")
+    assert "no culture's vocabulary documents" in hot.message
+    assert any("axis 'nozzle'" in i.message and i.line == line_of(text, "axis: nozzle")
+               for i in found)
+
+
+def test_a_keep_out_rule_s_tags_are_checked_like_any_rule_tag(make_kb):
+    rules = COMMON_RULES + """\
+  - id: nothing_in_the_cup
+    kind: keep_out
+    tags: [open_contianer]
+    of: [gripper]
+    why: Keep fingers out.
+"""
+    text = culture(rules)
+    issue = the_error(make_kb({"etiquette/common.yaml": text}), "names tag 'open_contianer'")
+    assert issue.line == line_of(text, "tags: [open_contianer]")
+
+
+def test_the_builtin_vocabulary_has_rules_for_every_hazard(builtin_kb):
+    from handover.engine.lint import rule_tags
+
+    hazards = ["sharp", "pointed", "needle", "hot", "liquid", "open_container", "fragile",
+               "nozzle", "heavy", "small"]
+    common = builtin_kb.culture("common")
+    named = {tag for r in common.rules for tag, _ in rule_tags(r)}
+    for tag in hazards:
+        assert tag in common.vocabulary and tag in named, tag
+    assert any(r.kind == "axis" and r.axis == "nozzle" and r.safety for r in common.rules)
+    assert tag_warnings(builtin_kb) == []
+
+
 def test_rule_task_no_object_has(make_kb):
     rules = COMMON_RULES.replace(
         "applies: {object_tags_any: [sharp]}", "applies: {tasks: [juggle]}"
