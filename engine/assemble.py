@@ -136,7 +136,9 @@ def _rule_list(cg: ConstraintGraph) -> list[dict]:
 
 def _why_not(attempt: Attempt, ctx: PlanContext, grasp: int) -> dict:
     """Why a candidate grasp lost: its rules in the chosen presentation (or the first one),
-    and the presentations in which it passes every hard rule."""
+    and the presentations in which it passes every hard rule. A candidate that passes every
+    hard rule is compared with the chosen grasp's row: a tie (equal score) lost on the
+    tie-break (row order), else the soft rule that decided, with both values."""
     if not 0 <= grasp < ctx.n:
         raise UsageError(f"--why-not {grasp}: candidate ids run from 0 to {ctx.n - 1}")
     d = attempt.decision
@@ -146,15 +148,41 @@ def _why_not(attempt: Attempt, ctx: PlanContext, grasp: int) -> dict:
     trace = trace_row(attempt.graph, ctx, attempt.phase, grasp, k)
     failed = [e["rule"] for e in trace if e["status"] == "fail"]
     row = int(rows[k]) if len(rows) > k else None
-    if failed:
+    chosen = attempt.chosen[-1] if attempt.chosen else None
+    if chosen is not None and grasp in {c.grasp for c in attempt.chosen}:
+        verdict = "it is a chosen grasp"
+    elif failed:
         verdict = f"in the chosen presentation it fails {', '.join(failed)}"
     elif row is not None and d.kept[row]:
-        best = attempt.score if attempt.score is not None else float("nan")
-        verdict = f"it passes every hard rule but scores {d.score[row]:.3f} < {best:.3f}"
+        verdict = _lost_on_score(d, row, chosen, ctx.k)
     else:
         verdict = "it passes every rule"
     return {"grasp": grasp, "presentation": k, "verdict": verdict,
             "feasible_presentations": feasible_in, "trace": trace}
+
+
+def _lost_on_score(d, row: int, chosen, k_all: int) -> str:
+    """Why kept row ``row`` lost to the chosen grasp's row on score: a tie lost on the
+    tie-break (row order), else the soft rule whose weighted score differs most."""
+    if chosen is None:
+        return f"it passes every hard rule and scores {d.score[row]:.3f}"
+    best = chosen.grasp * k_all + chosen.presentation
+    mine, theirs = float(d.score[row]), float(d.score[best])
+    if abs(mine - theirs) <= 1e-9:
+        return (f"tied with the chosen grasp (score {mine:.3f}); lost on the tie-break "
+                f"(row order: row {row} after row {best})")
+    if mine > theirs:  # a pair or regrasp mode chose among rows by more than their score
+        return (f"it passes every hard rule and scores {mine:.3f} > {theirs:.3f}, but the "
+                f"{chosen.phase.mode} pairing chose another grasp")
+    weights = np.array([c.rule.weight for c in d.soft], dtype=float)
+    gap = weights * (d.soft_scores[best] - d.soft_scores[row])
+    if not len(gap):
+        return f"it passes every hard rule but scores {mine:.3f} < {theirs:.3f}"
+    s = int(np.nanargmax(gap))
+    return (f"it passes every hard rule but scores {mine:.3f} < {theirs:.3f}; the deciding "
+            f"rule: {d.soft[s].id} (weight {weights[s]:g}) scores it "
+            f"{d.soft_scores[row, s]:.3f} against the chosen grasp's "
+            f"{d.soft_scores[best, s]:.3f}")
 
 
 def build_result(

@@ -139,6 +139,8 @@ def query_facts(ctx: PlanContext, mode: str, rules: Iterable[RuleBase] = ()) -> 
         if (rule.kind == "contact" and rule.who == "giver" and rule.hard
                 and check(rule.applies, facts)[0] is True):
             forbid.update(rule.forbid_tags)
+    if rules:
+        ctx.memo.setdefault("giver_forbid", {})[mode] = frozenset(forbid)
     return replace(facts, single_grasps=ctx.single_grasps(frozenset(forbid)))
 
 

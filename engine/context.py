@@ -13,17 +13,23 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from handover.engine.applies import Facts
 from handover.engine.attempt import Hands, Roles
 from handover.engine.presentation import (
     predict_receiver_sites,
     predict_two_hand_sites,
     presentation_rotations,
+    principal_axes,
     receiver_region,
+    rule_goals,
 )
 from handover.engine.query import Situation
 from handover.engine.world import Locations, World, build_world, candidate_locations, place
 
 if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from handover.engine.schema import RuleBase
     from handover.geometry.candidates import CandidateSet
     from handover.geometry.collision import BoxWorld
     from handover.geometry.gripper import Gripper, PosedBoxes
@@ -122,6 +128,11 @@ class PlanContext:
             memo[forbid] = int(ok.sum())
         return memo[forbid]
 
+    def giver_forbid(self, mode: str | None) -> frozenset[str]:
+        """The tags the giver's hard contact rules forbid in ``mode``, as the compiler found
+        them for this query (:func:`~handover.engine.compiler.query_facts`; empty before)."""
+        return self.memo.get("giver_forbid", {}).get(mode, frozenset())
+
     def d_obj(self) -> np.ndarray:
         """(K, 3): robot->receiver direction in the object frame, per presentation."""
         if "d_obj" not in self.memo:
@@ -178,7 +189,7 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
         sites = (predict_receiver_sites(
             region, ctx.rotations, s.toward, grip_width=s.hand.grip_width,
             where=s.task.receiver_site if s.task is not None else "middle",
-            finger_thickness=s.hand.finger_thickness,
+            finger_thickness=s.hand.finger_thickness, hand=ctx.hand, mesh=mesh,
         ),)
     receiving = (s.receiver.dominant_hand,) if count == 1 else (
         s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")
@@ -237,14 +248,16 @@ def build_context(
     generation: dict[str, Any],
     gripper: Gripper,
     hand: HumanHand,
+    rules: Sequence[RuleBase] = (),
 ) -> PlanContext:
     """Compute presentations, initial pose, scene and the object's facts for one query.
     Where the receiver's hands go depends on the rules of each mode: see
-    :meth:`PlanContext.hands`."""
+    :meth:`PlanContext.hands`. ``rules``: the culture's rules, whose axis rules add the
+    presentations solved from the object's named axes
+    (:func:`~handover.engine.presentation.rule_goals`)."""
     from handover.geometry.collision import BoxWorld
 
     vertices = np.asarray(part_mesh.mesh.vertices, dtype=float)
-    rotations = presentation_rotations(situation.toward)
     boxes = scene_boxes(situation)
     extents = _obb_extents(vertices)
     tags = set(situation.obj.tags).union(*part_tags) if part_tags else set(situation.obj.tags)
@@ -256,6 +269,12 @@ def build_context(
         payload=float(situation.robot.payload_per_hand),
         max_opening=float(gripper.max_opening),
     )
+    s = situation
+    goals = rule_goals(rules, s.task, s.obj.axes, s.directions, Facts(
+        tags=facts.tags, mass=facts.mass, size=facts.size, min_width=facts.min_width,
+        payload=facts.payload, max_opening=facts.max_opening, role=s.receiver.role,
+        age=s.receiver.years, task=s.task_id, mode=None))
+    rotations = presentation_rotations(s.toward, goals, principal_axes(part_mesh.mesh.triangles))
     return PlanContext(
         situation=situation,
         part_mesh=part_mesh,

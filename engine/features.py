@@ -63,10 +63,34 @@ def handover_targets(ctx: PlanContext, hands: Hands) -> Body:
     return ctx.world.without_receiving_arms(hands.receiving)
 
 
+def _per_row(ctx: PlanContext, name: str, hands: Hands, gi: np.ndarray, pk: np.ndarray,
+             compute) -> np.ndarray:
+    """(R,) int64: ``compute(gi, pk)`` memoised per row (grasp, presentation) under
+    ``name`` and the hands' key: a row judged by an earlier mode or an explanation is not
+    judged again (the value is a pure function of the row and the hands)."""
+    memo = ctx.memo.setdefault(name, {})
+    known = memo.get(hands.key)
+    if known is None:
+        known = memo[hands.key] = np.full(ctx.n * ctx.k, -1, dtype=np.int64)
+    idx = np.asarray(gi, dtype=np.int64) * ctx.k + np.asarray(pk, dtype=np.int64)
+    todo = np.unique(idx[known[idx] < 0])
+    if len(todo):
+        known[todo] = compute(todo // ctx.k, todo % ctx.k)
+    return known[idx]
+
+
 def collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
                        pk: np.ndarray) -> np.ndarray:
     """(R,) int64 bit mask: which of :func:`handover_targets` the gripper at grasp ``gi``
-    touches with the object offered in presentation ``pk`` (bit ``HANDOVER_BIT + p``)."""
+    touches with the object offered in presentation ``pk`` (bit ``HANDOVER_BIT + p``).
+    Memoised per row."""
+    return _per_row(ctx, "collision_handover", hands, gi, pk,
+                    lambda g, k: _collision_handover(ctx, hands, g, k))
+
+
+def _collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
+                        pk: np.ndarray) -> np.ndarray:
+    """:func:`collision_handover`, computed."""
     targets = handover_targets(ctx, hands)
     out = np.zeros(len(gi), dtype=np.int64)
     if len(targets) == 0:
@@ -135,7 +159,10 @@ def hand_model(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites, k
     rot = pose[:3, :3]
     site = rot @ sites.site[k] + pose[:3, 3]
     axis = rot @ (sites.axis[k] if sites.axis is not None else region.axis)
-    approach = hand_approach(axis, ctx.situation.toward, np.array([0.0, 0.0, 1.0]))
+    if sites.approach is not None:  # turned to fit the part (presentation.predict_receiver_sites)
+        approach = rot @ sites.approach[k]
+    else:
+        approach = hand_approach(axis, ctx.situation.toward, np.array([0.0, 0.0, 1.0]))
     depth = float(sites.depth[k]) if sites.depth is not None else None
     return ctx.hand.boxes(site, axis, approach, float(sites.thickness[k]), depth,
                           cupped=sites.cupped)
@@ -153,7 +180,15 @@ def receiver_hand_boxes(ctx: PlanContext, hands: Hands, k: int) -> list:
 
 def collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
                             pk: np.ndarray) -> np.ndarray:
-    """(R,) bool: the gripper at grasp ``gi`` in presentation ``pk`` hits a receiver hand."""
+    """(R,) bool: the gripper at grasp ``gi`` in presentation ``pk`` hits a receiver hand.
+    Memoised per row."""
+    return _per_row(ctx, "collision_receiver_hand", hands, gi, pk,
+                    lambda g, k: _collision_receiver_hand(ctx, hands, g, k)).astype(bool)
+
+
+def _collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
+                             pk: np.ndarray) -> np.ndarray:
+    """:func:`collision_receiver_hand`, computed."""
     from handover.geometry.collision import BoxWorld
 
     out = np.zeros(len(gi), dtype=bool)

@@ -5,11 +5,10 @@ A placement is planned when a rule forbids handing the object over but names
 ``fallback: place`` (see :mod:`handover.engine.planner`). The robot then sets the object down
 on the scene's table, within the receiver's reach, the way a careful person would:
 
-1. **Resting orientations.** The object rests on a face of its convex hull. A face is a
-   stable rest when the support polygon (the convex hull of the points within
-   :data:`SUPPORT_TOL` of the table) contains the projection of the centre of mass, with a
-   margin: tipping it over its nearest edge takes at least :data:`MIN_TIP_DEG` (a ball or a
-   pen lying on its side rolls away; a knife lies flat). The :data:`MAX_RESTS` most stable
+1. **Resting orientations.** The object rests on a face of its convex hull
+   (:mod:`handover.geometry.rests`): a face is a stable rest when tipping the object over the
+   support polygon's nearest edge takes at least ``MIN_TIP_DEG`` (a ball or a pen lying on
+   its side rolls away; a knife lies flat). The ``MAX_RESTS`` most stable
    rests are turned about the vertical every :data:`YAW_STEP_DEG` degrees, and to the angles
    that put each named axis exactly toward, away from or across the receiver.
 2. **The same rules orient it.** The culture's active ``axis`` rules are judged in the placed
@@ -44,28 +43,19 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.attempt import Attempt, Chosen, Hands, Phase
+from handover.geometry.rests import (
+    MIN_TIP_DEG,
+    resting_rotations,
+    solid_hull,
+)
 
 if TYPE_CHECKING:
     from handover.engine.compiler import CompiledRule, ConstraintGraph
     from handover.engine.context import PlanContext
     from handover.engine.loader import KB
 
-__all__ = [
-    "PlacementPlan",
-    "plan_placement",
-    "resting_rotations",
-    "PLACE_KINDS",
-    "SUPPORT_TOL",
-    "MIN_TIP_DEG",
-]
+__all__ = ["PlacementPlan", "plan_placement", "PLACE_KINDS"]
 
-SUPPORT_TOL = 2e-4
-"""m: hull points this close to the table carry the object (its support polygon): a rigid
-object on a rigid table, so a curved surface's nearly flat patch does not count as a face."""
-MIN_TIP_DEG = 15.0
-"""Degrees the object must be tilted to tip over its support's nearest edge, at least."""
-MAX_RESTS = 6
-"""How many resting faces (the most stable first) are turned about the vertical."""
 YAW_STEP_DEG = 15.0
 """Step of the turns about the vertical, degrees."""
 GRID_SPACING = 0.02
@@ -108,79 +98,6 @@ class PlacementPlan:
     hand: str = ""
     site: dict | None = None
     record: dict = field(default_factory=dict)
-
-
-def _down_rotation(n: np.ndarray) -> np.ndarray:
-    """(3, 3) the smallest rotation taking unit ``n`` to -z (a half turn about x for +z)."""
-    target = np.array([0.0, 0.0, -1.0])
-    v = np.cross(n, target)
-    c = float(n @ target)
-    if np.linalg.norm(v) < 1e-12:
-        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    vx = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-    return np.eye(3) + vx + vx @ vx / (1.0 + c)
-
-
-def _hull(vertices: np.ndarray):
-    """The convex hull (trimesh) of ``vertices`` (V, 3), or None when they span no volume
-    (a flat or degenerate mesh rests on no face of its own)."""
-    import trimesh
-
-    with np.errstate(invalid="ignore", divide="ignore"):  # a flat hull has no volume
-        try:
-            hull = trimesh.convex.convex_hull(np.asarray(vertices, dtype=float))
-        except (ValueError, RuntimeError):  # scipy's QhullError is a RuntimeError
-            return None
-        return hull if len(hull.faces) >= 4 and abs(hull.volume) > 1e-12 else None
-
-
-def resting_rotations(vertices: np.ndarray, com: np.ndarray,
-                      limit: int = MAX_RESTS) -> tuple[np.ndarray, np.ndarray]:
-    """The object's stable rests on a flat table, most stable first.
-
-    vertices : (V, 3) m, object frame. com : (3,) m, its centre of mass.
-    Returns rotations (S, 3, 3) object -> world (the resting face down, -z) and the tipping
-    angle of each (S,) degrees: how far it tilts before its centre of mass passes its
-    support's nearest edge (at least :data:`MIN_TIP_DEG`). S <= ``limit``; 0 when nothing
-    rests (a sphere).
-    """
-    import shapely
-
-    hull = _hull(vertices)
-    if hull is None:
-        return np.zeros((0, 3, 3)), np.zeros(0)
-    hv = np.asarray(hull.vertices, dtype=float)
-    grouped = {int(f) for facet in hull.facets for f in facet}
-    normals = [hull.face_normals[facet[0]] for facet in hull.facets]
-    normals += [hull.face_normals[f] for f in range(len(hull.faces)) if f not in grouped]
-    if not normals:
-        return np.zeros((0, 3, 3)), np.zeros(0)
-    n = np.asarray(normals, dtype=float)
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    dots = hv @ n.T  # (H, F)
-    plane = dots.max(axis=0)
-    height = plane - com @ n.T  # (F,) the centre of mass above the table
-    support = dots >= plane[None, :] - SUPPORT_TOL  # (H, F)
-    rel = hv - com
-    radial = rel[:, None, :] - (rel @ n.T)[:, :, None] * n[None, :, :]  # (H, F, 3)
-    spread = np.where(support, np.linalg.norm(radial, axis=2), 0.0).max(axis=0)
-    bound = np.degrees(np.arctan2(spread, np.maximum(height, 1e-12)))
-    tips = np.zeros(len(n))
-    for f in np.flatnonzero(bound >= MIN_TIP_DEG):  # only faces that could be stable
-        u = np.cross(n[f], [1.0, 0.0, 0.0] if abs(n[f][0]) < 0.9 else [0.0, 1.0, 0.0])
-        u /= np.linalg.norm(u)
-        w = np.cross(n[f], u)
-        pts = hv[support[:, f]] @ np.stack([u, w], axis=1)
-        poly = shapely.MultiPoint(pts).convex_hull
-        centre = shapely.Point(float(com @ u), float(com @ w))
-        if poly.geom_type != "Polygon" or not poly.contains(centre):
-            continue
-        d = float(poly.exterior.distance(centre))
-        tips[f] = np.degrees(np.arctan2(d, max(float(height[f]), 1e-12)))
-    stable = np.flatnonzero(tips >= MIN_TIP_DEG)
-    order = stable[np.lexsort((stable, -np.round(tips[stable], 9)))][:limit]
-    rotations = np.array([_down_rotation(n[f]) for f in order]).reshape(-1, 3, 3)
-    return rotations, tips[order]
 
 
 def _yawed(rests: np.ndarray, toward: np.ndarray, axes: list[np.ndarray]
@@ -466,7 +383,7 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
     order = np.flatnonzero(ok)
     order = order[np.lexsort((order, -np.round(tips[rest_of[order]], 9),
                               -np.round(score[order], 9)))]
-    hull = np.asarray(_hull(vertices).vertices, dtype=float)  # rests exist: so does the hull
+    hull = np.asarray(solid_hull(vertices).vertices, dtype=float)  # rests exist: so does the hull
     edges = np.cumsum((0, *ROUNDS))
     last_reason = None
     placed_any = 0

@@ -37,12 +37,14 @@ __all__ = ["plan", "decide", "Decided", "refusing_rules", "fallback_rules", "Pla
 
 
 def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
-         mesh: trimesh.Trimesh | None = None) -> Plan:
+         mesh: trimesh.Trimesh | None = None, what_if: bool = False) -> Plan:
     """Plan a handover, choosing the mode (``auto``) or using the forced one; or, when the
     rules say so, set the object down or refuse (see :func:`decide`).
 
     db : the grasp database (``handover.engine.graspdb.GraspDB``) or None to generate.
     mesh : an object given as a mesh (object frame, metres) instead of ``query.object``.
+    what_if : when no handover is feasible, list the verified changes that would make one
+    feasible (``result.what_if``, :mod:`handover.engine.whatif`).
     Returns the :class:`Plan` (any outcome) with its context and chosen attempt.
     """
     from handover.engine.assemble import build_result
@@ -52,6 +54,10 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
     d = decide(kb, ctx, query.mode)
     result = build_result(ctx, d.attempt, d.tried, d.mode_reason, why_not, outcome=d.outcome,
                           placement=d.placement, refused=d.refused, fallback=d.fallback)
+    if what_if:  # a handover has nothing to change: []
+        from handover.engine.whatif import what_if as changes
+
+        result.what_if = changes(kb, query, ctx, d.attempt, d.tried, db=db, mesh=mesh)
     if d.placement is not None and d.placement.feasible:
         return Plan(result, d.placement.context, d.placement.attempt)
     return Plan(result, ctx, d.attempt)
@@ -323,10 +329,12 @@ class Planner:
         robot: str | None = None,
         mesh_scale: float = 1.0,
         why_not: tuple[int, ...] = (),
+        what_if: bool = False,
     ) -> Plan:
         """Plan handing ``obj`` (an object id of the KB, a mesh file, or a trimesh mesh in
         metres) to ``receiver`` of ``culture``; None takes the defaults (adult, common, the
-        object's default task, the table scene)."""
+        object's default task, the table scene). what_if: an infeasible plan lists the
+        verified changes that would make it feasible (``to_dict()["what_if"]``)."""
         mesh = None
         name = obj
         if not isinstance(obj, (str, Path)):
@@ -337,4 +345,5 @@ class Planner:
             scene=scene or DEFAULTS["scene"], mode=mode, gripper=gripper,
             robot=robot or DEFAULTS["robot"], mesh_scale=mesh_scale,
         )
-        return plan(self.kb, query, why_not=tuple(why_not), db=self.db, mesh=mesh)
+        return plan(self.kb, query, why_not=tuple(why_not), db=self.db, mesh=mesh,
+                    what_if=what_if)

@@ -83,7 +83,11 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None) 
         finger_thickness=spec.finger_thickness,
         grip_width=spec.grip_width,
     )
-    ctx = build_context(situation, part_mesh, part_tags, candidates, stats, gripper, hand)
+    from handover.engine.etiquette import resolve_culture
+
+    rules = [r.rule for r in resolve_culture(kb, situation.query.culture)]
+    ctx = build_context(situation, part_mesh, part_tags, candidates, stats, gripper, hand,
+                        rules)
     ctx.collider = collider
     ctx.kb_root = kb.root
     ctx.warnings.extend(hints)

@@ -1,10 +1,17 @@
 """How the object is presented at the handover, and where the receiver will hold it.
 
 Presentations are the 24 rotations that map the object's frame axes onto the receiver-frame
-basis ``[toward_receiver, robot's left, up]`` (every signed permutation with determinant +1).
-KB objects are written with their named axes along their frame axes, so the presentations
-cover "tip away", "handle toward", "upright", "handle to the receiver's right" exactly; the
-axis rules then choose among them.
+basis ``[toward_receiver, robot's left, up]`` (every signed permutation with determinant +1),
+and the rotations solved from the object's named axes (:func:`axis_goals`): for each
+direction an axis rule or the task wants a named axis to take (``up`` up, ``tip`` away from
+the receiver, ``handle`` toward them), the rotations that put that axis exactly there, turned
+about it in steps of ``ROLL_STEP_DEG``. The turn's starting point is fixed by another named
+axis (its wanted direction, as near as the first allows), else by the object's principal
+axes, so the solved presentations are the same physical orientations whatever frame the
+object is written in (a glass whose ``up`` is tilted 30 degrees in its own frame is still
+offered upright). A frame-aligned rotation that meets a rule only roughly (that glass 20
+degrees off upright) is left out, and near-identical rotations are kept once
+(``SAME_ROTATION_DEG``); the axis rules then choose among them all.
 
 The receiver's grasp site (the seed's C, section 3.1) lies on the part the task or etiquette
 gives the receiver. Along the robot->receiver direction, the receiver takes the middle of the
@@ -14,10 +21,19 @@ half of the object near itself (a ``giver_side`` rule).
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from itertools import permutations, product
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import trimesh
+
+    from handover.engine.applies import Facts
+    from handover.engine.schema import RuleBase, Task
+    from handover.geometry.hand import HumanHand
 
 # A compact object's receiver hand stops this far (m) short of the object's middle.
 COMPACT_GAP = 0.005
@@ -30,7 +46,24 @@ ISOTROPY = 0.95
 direction of its own (a disc, a square plate, a cube): its frame, not its shape, would pick
 the SVD's axis, so the hand's axis is taken from the presentation instead."""
 
+ROLL_STEP_DEG = 90.0
+"""degrees: presentations solved from a named axis are sampled about it at this step (the
+frame-aligned ones are 90 degrees apart too)."""
+SAME_ROTATION_DEG = 1.0
+"""degrees: two presentations whose relative rotation is smaller than this are one (the
+first is kept: the frame-aligned ones come first)."""
+MIN_PROJECTION = 0.3
+"""A direction whose part perpendicular to the solved axis is shorter than this (as a
+fraction of a unit vector) does not fix the turn about it (it nearly lies along the axis)."""
+
 __all__ = [
+    "AxisGoal",
+    "axis_goals",
+    "meets_approximately",
+    "solved_rotations",
+    "unique_rotations",
+    "rule_goals",
+    "principal_axes",
     "presentation_rotations",
     "handover_poses",
     "ReceiverRegion",
@@ -43,12 +76,22 @@ __all__ = [
 ]
 
 
-def presentation_rotations(toward: np.ndarray) -> np.ndarray:
-    """The 24 candidate orientations of the object at the handover.
+def presentation_rotations(toward: np.ndarray, goals: Sequence[AxisGoal] = (),
+                           shape_axes: np.ndarray | None = None,
+                           roll_step_deg: float = ROLL_STEP_DEG) -> np.ndarray:
+    """The candidate orientations of the object at the handover.
 
     toward : (3,) unit, world, horizontal. Robot -> receiver.
-    Returns (24, 3, 3) float: rotation matrices object frame -> world, in a fixed order
-    (identity-aligned first: object x toward the receiver, z up).
+    goals : where rules want the named axes (:func:`axis_goals`); none: the 24 only.
+    shape_axes : (M, 3) rows, object frame: the object's principal axes that its shape
+        decides (:func:`principal_axes`), which fix the turn about a goal's axis when no
+        other goal does; after them (or None), the frame axis most across the goal's axis.
+    Returns (K, 3, 3) float: rotation matrices object frame -> world, in a fixed order: the
+    24 frame-aligned ones first (identity-aligned first: object x toward the receiver, z
+    up) but those that put a goal's axis within its rule's bounds without meeting the goal
+    (:func:`meets_approximately`), then those solved from ``goals`` that no earlier one
+    matches within ``SAME_ROTATION_DEG``. An object written with its named axes along its
+    frame's axes keeps all 24 (they meet a rule exactly or miss it by 90 degrees or more).
     """
     up = np.array([0.0, 0.0, 1.0])
     basis = np.stack([toward, np.cross(up, toward), up], axis=1)  # columns: x, y, z targets
@@ -60,7 +103,217 @@ def presentation_rotations(toward: np.ndarray) -> np.ndarray:
                 p[row, col] = sign
             if np.linalg.det(p) > 0:
                 mats.append(basis @ p)
-    return np.asarray(mats)
+    aligned = np.asarray(mats)
+    if not goals:
+        return aligned
+    # A frame-aligned presentation that meets a rule only roughly (a glass tilted 20 degrees
+    # in its own frame, still "upright" within the rule) is left out: the solved ones meet
+    # it exactly, and keeping it would let the frame the object is written in pick the plan.
+    aligned = aligned[~meets_approximately(aligned, goals)]
+    solved = solved_rotations(goals, toward, shape_axes, roll_step_deg)
+    return unique_rotations(np.concatenate([aligned, solved]))
+
+
+def solved_rotations(goals: Sequence[AxisGoal], toward: np.ndarray,
+                     shape_axes: np.ndarray | None = None,
+                     roll_step_deg: float = ROLL_STEP_DEG) -> np.ndarray:
+    """(G * B * S, 3, 3) object -> world: for each goal, the rotations that put its axis
+    exactly on its target, turned about the target in ``S = 360 / roll_step_deg`` steps from
+    each of ``B`` starting points: one per other goal whose axis and target are not along
+    this one's (that goal's axis as near its target as this one allows), else one from the
+    object's first principal axis not along this goal's axis (sent to the part of
+    ``toward``, else of up, perpendicular to the target). See
+    :func:`presentation_rotations`."""
+    from handover.geometry.frames import rotation_about_axis
+
+    up = np.array([0.0, 0.0, 1.0])
+    rolls = np.radians(np.arange(0.0, 360.0 - 1e-9, roll_step_deg))
+    out = []
+    seen: list[AxisGoal] = []
+    for g in goals:
+        if any(h.axis == g.axis and np.allclose(h.target, g.target, atol=1e-12) for h in seen):
+            continue
+        seen.append(g)
+        v, d = g.vector, g.target
+        starts = []
+        for other in goals:
+            u, w = _across(other.vector, v), _across(other.target, d)
+            if u is not None and w is not None:
+                starts.append((u, w))
+        if not starts:
+            w = _across(toward, d)
+            w = w if w is not None else _across(up, d)
+            candidates = list(shape_axes) if shape_axes is not None else []
+            candidates.append(np.eye(3)[int(np.argmin(np.abs(v)))])  # a frame axis, last
+            u = next(a for a in (_across(c, v) for c in candidates) if a is not None)
+            starts.append((u, w))
+        for u, w in starts:
+            src = np.stack([v, u, np.cross(v, u)], axis=1)
+            dst = np.stack([d, w, np.cross(d, w)], axis=1)
+            start = dst @ src.T  # v -> d, u -> w
+            out.append(rotation_about_axis(d, rolls) @ start)
+    return np.concatenate(out) if out else np.zeros((0, 3, 3))
+
+
+def _across(vector: np.ndarray, axis: np.ndarray) -> np.ndarray | None:
+    """The unit part of ``vector`` perpendicular to the unit ``axis``; None where it is
+    shorter than ``MIN_PROJECTION``."""
+    part = vector - (vector @ axis) * axis
+    length = float(np.linalg.norm(part))
+    return part / length if length >= MIN_PROJECTION else None
+
+
+def unique_rotations(rotations: np.ndarray, tol_deg: float = SAME_ROTATION_DEG) -> np.ndarray:
+    """``rotations`` (K, 3, 3) without those within ``tol_deg`` of an earlier one (the angle
+    of ``R_i^T R_j``), in their order."""
+    k = len(rotations)
+    if k < 2:
+        return rotations
+    # trace(R_i^T R_j) = 1 + 2 cos(angle): pairwise, vectorised
+    trace = np.einsum("iab,jab->ij", rotations, rotations)
+    close = trace > 1.0 + 2.0 * np.cos(np.radians(tol_deg))
+    earlier = np.tril(close, k=-1).any(axis=1)  # a match before it
+    keep = np.ones(k, dtype=bool)
+    for i in np.flatnonzero(earlier):  # only a duplicate of a kept one is dropped
+        keep[i] = not (close[i, :i] & keep[:i]).any()
+    return rotations[keep]
+
+
+@dataclass(frozen=True)
+class AxisGoal:
+    """A direction a rule wants a named object axis to point at the handover.
+
+    axis : the axis's name. vector : (3,) unit, object frame. direction : (3,) unit, world,
+    the rule's direction. lo_deg, hi_deg : the rule's bounds on the angle between them.
+    target : (3,) unit, world, where the axis is put: in the middle of what the bounds allow
+    (on ``direction``, opposite it, or on the cone between).
+    """
+
+    axis: str
+    vector: np.ndarray
+    direction: np.ndarray
+    target: np.ndarray
+    lo_deg: float = 0.0
+    hi_deg: float = 180.0
+
+    @property
+    def angle_deg(self) -> float:
+        """The angle (degrees) between ``target`` and ``direction``: the one wanted."""
+        return float(np.degrees(np.arccos(np.clip(self.target @ self.direction, -1.0, 1.0))))
+
+
+def axis_goals(axes: Mapping[str, Sequence[float]],
+               wants: Iterable[tuple[str, np.ndarray, float | None, float | None]],
+               toward: np.ndarray) -> list[AxisGoal]:
+    """The exact directions the named axes should take, from what the rules want.
+
+    axes : the object's named axes (object frame, any length).
+    wants : (axis, direction (3,) unit world, min_deg, max_deg) per rule: the axis within
+        [min_deg, max_deg] of the direction. Only a maximum: the axis is put on the
+        direction; only a minimum: opposite it (a tip away from the receiver); a band that
+        allows neither: on its middle cone, at the four sides of the direction (in the
+        vertical plane through ``toward`` and across it).
+    toward : (3,) unit, world, robot -> receiver.
+    Returns the goals in order, each once; unknown or zero axes are skipped.
+    """
+    up = np.array([0.0, 0.0, 1.0])
+    goals: list[AxisGoal] = []
+    for name, direction, lo, hi in wants:
+        raw = np.asarray(axes.get(name, (0.0, 0.0, 0.0)), dtype=float)
+        if not np.isfinite(raw).all() or np.linalg.norm(raw) < 1e-9:
+            continue
+        vector = raw / np.linalg.norm(raw)
+        d = np.asarray(direction, dtype=float)
+        lo, hi = float(lo or 0.0), 180.0 if hi is None else float(hi)
+        if lo <= 0.0:
+            targets = [d]
+        elif hi >= 180.0:
+            targets = [-d]
+        else:
+            side = _across(toward, d)
+            side = side if side is not None else _across(up, d)
+            third = np.cross(d, side)
+            mid = np.radians(0.5 * (lo + hi))
+            targets = [np.cos(mid) * d + np.sin(mid) * p for p in (side, third, -side, -third)]
+        for t in targets:
+            goal = AxisGoal(name, vector, d, t / np.linalg.norm(t), lo, hi)
+            if not any(g.axis == name and np.allclose(g.target, goal.target, atol=1e-12)
+                       and (g.lo_deg, g.hi_deg) == (lo, hi) for g in goals):
+                goals.append(goal)
+    return goals
+
+
+def meets_approximately(rotations: np.ndarray, goals: Sequence[AxisGoal],
+                        tol_deg: float = SAME_ROTATION_DEG) -> np.ndarray:
+    """(K,) bool: the rotations (K, 3, 3) that put some goal's axis within its rule's bounds
+    but not at the angle the goal wants (more than ``tol_deg`` off it)."""
+    out = np.zeros(len(rotations), dtype=bool)
+    for g in goals:
+        cos = np.clip((rotations @ g.vector) @ g.direction, -1.0, 1.0)
+        angle = np.degrees(np.arccos(cos))
+        within = (angle >= g.lo_deg - 1e-9) & (angle <= g.hi_deg + 1e-9)
+        out |= within & (np.abs(angle - g.angle_deg) > tol_deg)
+    return out
+
+
+def rule_goals(rules: Iterable[RuleBase], task: Task | None, axes: Mapping[str, Sequence[float]],
+               directions: Mapping[str, np.ndarray], facts: Facts) -> list[AxisGoal]:
+    """:func:`axis_goals` of the ``axis`` rules whose conditions may hold for ``facts`` (a
+    condition on the mode counts as may: one set of presentations serves every mode) and of
+    the ``task``'s ``present`` entries, for an object with the named ``axes``.
+
+    directions : the receiver frame's named directions, world (``Situation.directions``).
+    """
+    from handover.engine.applies import check
+
+    wants = []
+    for rule in rules:
+        if rule.kind == "axis" and rule.axis in axes and check(rule.applies, facts)[0] is not False:
+            wants.append((rule.axis, directions[rule.toward], rule.min_deg, rule.max_deg))
+    for entry in (task.present if task is not None else ()):
+        if entry.axis in axes:
+            wants.append((entry.axis, directions[entry.toward], None, entry.max_deg))
+    return axis_goals(axes, wants, directions["toward_receiver"])
+
+
+def principal_axes(triangles: np.ndarray) -> np.ndarray:
+    """(M, 3) rows, unit, object frame: the principal axes of a surface that its shape
+    decides, largest spread first; M is 3, 1 (a cylinder: its axis) or 0 (a sphere, a cube).
+    An axis whose spread is within ``ISOTROPY`` of another's is left out: there the frame the
+    mesh is written in, not its shape, would pick it. Each is signed so that the surface's
+    third moment along it is not negative, so that the axes follow the shape, not the frame.
+
+    triangles : (F, 3, 3) m, object frame, the mesh's faces (area-weighted exactly).
+    """
+    tri = np.asarray(triangles, dtype=float)
+    if len(tri) == 0:
+        return np.zeros((0, 3))
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    total = float(area.sum())
+    if total <= 0.0:
+        return np.zeros((0, 3))
+    mean = (area @ tri.mean(axis=1)) / total
+    rel = tri - mean
+    corner_sum = rel.sum(axis=1)
+    # a triangle's second moment about the mean: A/12 (sum v v^T + (sum v)(sum v)^T)
+    second = (np.einsum("f,fvi,fvj->ij", area, rel, rel)
+              + np.einsum("f,fi,fj->ij", area, corner_sum, corner_sum)) / (12.0 * total)
+    spread, vectors = np.linalg.eigh(second)
+    order = np.argsort(spread)[::-1]
+    spread, vectors = spread[order], vectors[:, order].T
+    keep = []
+    for i in range(3):
+        near = [j for j in (i - 1, i + 1) if 0 <= j < 3]
+        apart = all(min(spread[i], spread[j]) < ISOTROPY * max(spread[i], spread[j])
+                    for j in near)
+        if apart and spread[i] > 0:
+            keep.append(i)
+    axes = vectors[keep]
+    centres = tri.mean(axis=1) - mean
+    skew = area @ (centres @ axes.T) ** 3
+    scale = total * float(np.abs(centres).max()) ** 3
+    sign = np.where(skew < -1e-9 * scale, -1.0, 1.0)
+    return axes * sign[:, None]
 
 
 def handover_poses(
@@ -190,8 +443,10 @@ class ReceiverSites:
     axis : (K, 3) unit, object frame, or None. The direction the hand wraps around, where
         it differs from the region's axis (an edge held by one of two hands).
     depth : (K,) m, or None (then ``thickness``). Size of the grasped section along the
-        hand's approach (:func:`hand_approach`).
+        hand's approach.
     cupped : the hand cups a compact object (no part to close round).
+    approach : (K, 3) unit, object frame, or None (then :func:`hand_approach`). The
+        direction the hand moves in, turned where it would not fit as it comes.
     """
 
     site: np.ndarray
@@ -201,6 +456,7 @@ class ReceiverSites:
     axis: np.ndarray | None = None
     depth: np.ndarray | None = None
     cupped: bool = False
+    approach: np.ndarray | None = None
 
 
 def predict_receiver_sites(
@@ -210,6 +466,8 @@ def predict_receiver_sites(
     grip_width: float,
     where: str = "middle",
     finger_thickness: float = 0.02,
+    hand: HumanHand | None = None,
+    mesh: trimesh.Trimesh | None = None,
 ) -> ReceiverSites:
     """The seed's C for every presentation.
 
@@ -222,7 +480,14 @@ def predict_receiver_sites(
     holds too): the hand pinches its receiver cap, from the receiver's face to
     ``COMPACT_GAP`` short of the middle, so the robot can hold it across the middle.
 
+    The hand comes from the receiver, toward the robot; where its boxes would then reach
+    into the object (a mug's handle to the receiver's side: the palm across the body), it
+    turns to fit (:func:`_fitted`): about the part's axis, or, cupping, about the vertical
+    (the palm on the handle's outer face).
+
     rotations : (K, 3, 3) object -> world. grip_width : m, the hand's width along the part.
+    hand : the receiver's hand model; mesh : the object (object frame, m). Without both, the
+        hand never turns.
     """
     k = len(rotations)
     site = np.full((k, 3), np.nan)
@@ -248,7 +513,7 @@ def predict_receiver_sites(
     site = (band.T.astype(float) @ region.points) / counts[:, None]
     n_parts = int(region.parts.max()) + 1
     votes = np.zeros((k, n_parts))
-    for col in range(k):  # K = 24: a per-presentation tally, not per candidate
+    for col in range(k):  # K presentations: a per-presentation tally, not per candidate
         np.add.at(votes[col], region.parts[band[:, col]], 1.0)
     part = votes.argmax(axis=1)
     axes = hand_axes(region, rotations, toward)  # (K, 3)
@@ -258,48 +523,181 @@ def predict_receiver_sites(
     # A part the receiver is meant to hold (a handle) takes the hand around it. An object
     # with no such part is held by the robot as well: the hand may only take the receiver's
     # half, so one shorter than two hands is cupped too (a 10 cm box, not only a ball).
+    band_site = site
     if length < grip_width or (not region.tags and length < 2.0 * grip_width):
         # A compact region (a ball, a short box): no handle to close around, so the hand
-        # cups the receiver's half, wrapping the horizontal lateral direction: its depth the
-        # depth of that half along robot->receiver, from the receiver's face to COMPACT_GAP
-        # short of the middle (the palm on the face, the fingers and thumb up the sides);
-        # its thickness the half's extent across the hand, the site the middle of both.
+        # cups the half facing it: see :func:`_cupped`.
         up = np.array([0.0, 0.0, 1.0])
         l_obj = np.einsum("kji,j->ki", rotations, np.cross(up, toward))
-        half = 0.5 * (s_max - s_min)
-        depth = np.maximum(half - COMPACT_GAP - finger_thickness, 0.005)
-        centre_s = s_max - depth / 2.0
-        site = site + (centre_s - np.einsum("ki,ki->k", site, d_obj))[:, None] * d_obj
-        across = np.cross(-d_obj, l_obj)  # the hand's y (its approach is -d_obj)
-        y = region.points @ across.T  # (M, K)
-        cap = s >= (s_max - half)[None, :]
-        y_lo = np.where(cap, y, np.inf).min(axis=0)
-        y_hi = np.where(cap, y, -np.inf).max(axis=0)
-        thickness = np.maximum(y_hi - y_lo, MIN_SECTION)
-        mid = 0.5 * (y_lo + y_hi) - np.einsum("ki,ki->k", site, across)
-        site = site + mid[:, None] * across
-        return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=l_obj,
-                             depth=depth, cupped=True)
-    # The hand closes round the region's whole section at the band's place along the axis
-    # (every sample within half a grip of it, all round, not only the receiver's half): the
-    # site is the centre of that section's extent across the hand and along its approach,
-    # so it lies on the part's axis (a stem's, a handle's), never beside it in the air.
-    up_obj = np.einsum("kji,j->ki", rotations, np.array([0.0, 0.0, 1.0]))
-    approach = hand_approach(axes, d_obj, up_obj)  # (K, 3)
+        up_obj = np.einsum("kji,j->ki", rotations, up)
+
+        def measure(turn: float) -> ReceiverSites:
+            # the hand turns about the vertical: its approach, and the direction it wraps
+            spin = _spin(up_obj, turn)
+            return _cupped(region, band_site, part, np.einsum("kij,kj->ki", spin, -d_obj),
+                           np.einsum("kij,kj->ki", spin, l_obj), finger_thickness)
+    else:
+        up_obj = np.einsum("kji,j->ki", rotations, np.array([0.0, 0.0, 1.0]))
+        default = hand_approach(axes, d_obj, up_obj)  # (K, 3)
+
+        def measure(turn: float) -> ReceiverSites:
+            # the hand turns about the part's axis
+            approach = np.einsum("kij,kj->ki", _spin(axes, turn), default)
+            return _wrapped(region, band_site, part, axes, approach, band, grip_width, mesh)
+    return _fitted(measure, hand, mesh)
+
+
+APPROACH_TURNS_DEG = (0.0, 45.0, -45.0, 90.0, -90.0)
+"""degrees: the turns of the receiver's hand tried, in order, where it does not fit as it
+comes (about the part's axis for a hand that wraps it; about the vertical for one that cups
+a compact part): it keeps to the receiver's side (a quarter turn at most)."""
+HAND_GIVE = 0.005
+"""m: how deep a hand's box may reach into the object and still fit (soft tissue gives a few
+millimetres; the ``hand_fit`` rule judges with its own ``max_depth_m``)."""
+
+
+OVERHANG = 0.25
+"""The fraction of its width a wrapping hand may hang past the end of the part it holds (a
+little finger beyond a short handle's end)."""
+FIT_LATTICE = 3
+"""Points per box edge where the hand's turn is chosen (27 a box: the corners, the middles
+of the edges and faces, the centre)."""
+
+
+def _spin(axes: np.ndarray, deg: float) -> np.ndarray:
+    """(K, 3, 3): rotations by ``deg`` about each of ``axes`` (K, 3) unit."""
+    from handover.geometry.frames import rotation_about_axis
+
+    return rotation_about_axis(axes, np.full(len(axes), np.radians(deg)))
+
+
+def _fitted(measure, hand, mesh) -> ReceiverSites:
+    """The receiver's sites with each presentation's hand turned (``APPROACH_TURNS_DEG``,
+    ``measure(turn)`` giving the sites of every presentation at that turn) to the first turn
+    at which its boxes reach at most ``HAND_GIVE`` into ``mesh`` (the least deep where none
+    does). Without a hand model or a mesh: the untouched first turn."""
+    first = measure(APPROACH_TURNS_DEG[0])
+    if hand is None or mesh is None or not first.valid.any():
+        return first
+    from handover.geometry.penetration import box_depths
+
+    chosen = first
+    best = _box_depths(first, hand, mesh, np.flatnonzero(first.valid), box_depths)
+    todo = np.flatnonzero(first.valid)[best[first.valid] > HAND_GIVE]
+    for turn in APPROACH_TURNS_DEG[1:]:
+        if not len(todo):
+            break
+        other = measure(turn)
+        depth = _box_depths(other, hand, mesh, todo, box_depths)
+        better = todo[depth[todo] < best[todo]]
+        if len(better):
+            chosen = _take(chosen, other, better)
+            best[better] = depth[better]
+        todo = todo[best[todo] > HAND_GIVE]
+    return chosen
+
+
+def _box_depths(sites: ReceiverSites, hand, mesh, ks: np.ndarray, box_depths) -> np.ndarray:
+    """(K,) m: how deep the hand's deepest box reaches into ``mesh`` in presentations ``ks``
+    (object frame; inf elsewhere)."""
+    out = np.full(len(sites.site), np.inf)
+    centres, rots, halves, owner = [], [], [], []
+    for k in ks:
+        depth = None if sites.depth is None else float(sites.depth[k])
+        for _, ext, pose in hand.boxes(sites.site[k], sites.axis[k], sites.approach[k],
+                                       float(sites.thickness[k]), depth, cupped=sites.cupped):
+            centres.append(pose[:3, 3])
+            rots.append(pose[:3, :3])
+            halves.append(ext / 2.0)
+            owner.append(k)
+    if owner:
+        # a 3-point lattice (a subset of the rule's 5-point one): it never finds a box
+        # deeper than the rule does, so the hand turns only where it must
+        depth = box_depths(mesh, np.array(centres), np.array(rots), np.array(halves),
+                           lattice=FIT_LATTICE)
+        out[ks] = 0.0
+        np.maximum.at(out, np.array(owner), depth)
+    return out
+
+
+def _take(into: ReceiverSites, other: ReceiverSites, ks: np.ndarray) -> ReceiverSites:
+    """``into`` with presentations ``ks`` taken from ``other``."""
+    def mix(a, b):
+        if a is None:
+            return None
+        out = np.array(a, copy=True)
+        out[ks] = b[ks]
+        return out
+    return ReceiverSites(mix(into.site, other.site), mix(into.part, other.part),
+                         mix(into.thickness, other.thickness), mix(into.valid, other.valid),
+                         axis=mix(into.axis, other.axis), depth=mix(into.depth, other.depth),
+                         cupped=into.cupped, approach=mix(into.approach, other.approach))
+
+
+def _cupped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, approach: np.ndarray,
+            axis: np.ndarray, finger_thickness: float) -> ReceiverSites:
+    """The hand cupping a compact region, coming along ``approach`` (K, 3) and wrapping
+    ``axis`` (K, 3) (both object frame, unit, perpendicular): it takes the half facing it,
+    its depth that half's along the approach, from the face it meets to ``COMPACT_GAP``
+    short of the middle (the palm on the face, the fingers and thumb up the sides); its
+    thickness the half's extent across the hand, the site the middle of both (along the
+    axis: ``site``'s, the band's middle)."""
+    k = len(site)
+    facing = -approach  # from the object toward the hand
+    s = region.points @ facing.T  # (M, K)
+    s_min, s_max = s.min(axis=0), s.max(axis=0)
+    half = 0.5 * (s_max - s_min)
+    depth = np.maximum(half - COMPACT_GAP - finger_thickness, 0.005)
+    centre_s = s_max - depth / 2.0
+    site = site + (centre_s - np.einsum("ki,ki->k", site, facing))[:, None] * facing
+    across = np.cross(approach, axis)  # the hand's y
+    y = region.points @ across.T  # (M, K)
+    cap = s >= (s_max - half)[None, :]
+    y_lo = np.where(cap, y, np.inf).min(axis=0)
+    y_hi = np.where(cap, y, -np.inf).max(axis=0)
+    thickness = np.maximum(y_hi - y_lo, MIN_SECTION)
+    mid = 0.5 * (y_lo + y_hi) - np.einsum("ki,ki->k", site, across)
+    site = site + mid[:, None] * across
+    return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=axis,
+                         depth=depth, cupped=True, approach=approach)
+
+
+def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: np.ndarray,
+             approach: np.ndarray, band: np.ndarray, grip_width: float,
+             mesh: trimesh.Trimesh | None = None) -> ReceiverSites:
+    """The hand closing round the region's whole section at the band's place along the axis
+    (every sample within half a grip of it, all round, not only the receiver's half), coming
+    along ``approach`` (K, 3): the site is the centre of that section's extent across the
+    hand and along its approach, so it lies on the part's axis (a stem's, a handle's), never
+    beside it in the air. With the ``mesh``, the hand's middle stays on the region along its
+    axis (``OVERHANG`` of a grip in from its ends: a few coarse faces must not pull the
+    band's middle onto an end cap) and the section also holds the mesh's exact cross-section
+    there."""
+    import trimesh
+
+    k = len(site)
+    site = np.array(site, copy=True)
     across = np.cross(approach, axes)
-    depth = np.zeros(k)
+    thickness, depth = np.zeros(k), np.zeros(k)
     along = np.einsum("ki,ki->k", site, axes)
     solid = region.points if region.solid is None else region.solid
-    for col in range(k):  # K = 24 presentations
+    if mesh is not None:
+        ext = region.points @ axes.T  # (M, K)
+        lo, hi = ext.min(axis=0) + OVERHANG * grip_width, ext.max(axis=0) - OVERHANG * grip_width
+        along = np.where(lo <= hi, np.clip(along, lo, np.maximum(lo, hi)), along)
+    for col in range(k):  # K presentations (tens), not candidates
         section = np.abs(solid @ axes[col] - along[col]) <= grip_width / 2.0 + BAND_TOL
         pts = solid[section] if section.any() else region.points[band[:, col]]
+        if mesh is not None:
+            cut = trimesh.intersections.mesh_plane(mesh, axes[col], along[col] * axes[col])
+            pts = np.concatenate([pts, np.asarray(cut, dtype=float).reshape(-1, 3)])
         y, z = pts @ across[col], pts @ approach[col]
         thickness[col] = max(float(np.ptp(y)), MIN_SECTION)
         depth[col] = max(float(np.ptp(z)), MIN_SECTION)
         site[col] = (along[col] * axes[col] + 0.5 * (y.min() + y.max()) * across[col]
                      + 0.5 * (z.min() + z.max()) * approach[col])  # fmt: skip
-    return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool),
-                         axis=axes if region.isotropic else None, depth=depth)  # fmt: skip
+    return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=axes,
+                         depth=depth, approach=approach)
 
 
 def hand_approach(axis: np.ndarray, toward: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -357,7 +755,7 @@ def predict_two_hand_sites(
         part = np.zeros(k, dtype=np.int64)
         thickness = np.zeros(k)
         depth = np.zeros(k)
-        for col in range(k):  # K = 24 presentations
+        for col in range(k):  # K presentations (tens), not candidates
             parts = np.bincount(region.parts[band[:, col]], minlength=n_parts)
             part[col] = int(parts.argmax())
             # the hand closes round the edge it holds: the site is the middle of that

@@ -99,6 +99,7 @@ class PlanResult:
     outcome: str = ""
     placement: dict | None = None
     refused: list[dict] = field(default_factory=list)
+    what_if: list[dict] | None = None
 
     def __post_init__(self) -> None:
         if not self.outcome:  # a result built without one: from ``feasible``
@@ -147,6 +148,8 @@ class PlanResult:
         )
         if self.why_not:
             out["why_not"] = self.why_not
+        if self.what_if is not None:
+            out["what_if"] = self.what_if
         return to_jsonable(out)
 
     def to_json(self) -> str:

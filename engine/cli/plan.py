@@ -55,6 +55,9 @@ def plan(
     output: Path | None = typer.Option(None, "-o", "--output", help="Write the JSON here."),
     explain: bool = typer.Option(False, "--explain", "-e", help="Show the full rule trace."),
     why_not: list[int] = typer.Option([], "--why-not", help="Explain why candidate ID lost."),
+    what_if: bool = typer.Option(
+        False, "--what-if", help="When infeasible, list the smallest verified changes that "
+        "would make the plan feasible (rules, mode, gripper, scene, receiver)."),
     rrd: Path | None = typer.Option(None, "--rrd", help="Write a rerun recording here."),
     db: Path | None = typer.Option(
         None, "--db", help="Grasp database folder (default: $HANDOVER_DB, else the user cache)."
@@ -77,7 +80,8 @@ def plan(
 
     kb = load_kb(state.kb_dir, urdf=False)
     query = _query(object_, task, receiver, culture, scene, mode, gripper, mesh_scale)
-    planned = run_plan(kb, query, why_not=tuple(why_not), db=open_db(db, disabled=no_db))
+    planned = run_plan(kb, query, why_not=tuple(why_not), db=open_db(db, disabled=no_db),
+                       what_if=what_if)
     result = planned.result
     data = result.to_dict()
     if rrd is not None:
@@ -96,8 +100,27 @@ def plan(
         from handover.engine.trace import render_plan
 
         render_plan(data, Console(highlight=False, soft_wrap=False), explain=explain)
+    if what_if and not json_out:
+        _render_what_if(data, Console(highlight=False, soft_wrap=False))
     if data["outcome"] in EXIT_CODES_4:
         raise typer.Exit(EXIT_INFEASIBLE)
+
+
+def _render_what_if(data: dict, console) -> None:
+    """Print ``--what-if``'s verified changes, smallest first (safety rules marked)."""
+    from rich.markup import escape
+
+    if data.get("what_if") is None or data["outcome"] == "handover":
+        return
+    changes = data["what_if"]
+    if not changes:
+        console.print("what if: no single change of a rule, mode, gripper, scene or receiver "
+                      "makes it feasible")
+        return
+    console.print("what if (each change verified by planning again, smallest first):")
+    for c in changes:
+        mark = "[bold red]SAFETY[/] " if c["safety"] else ""
+        console.print(f"  {mark}{c['kind']}: {escape(c['detail'])}")
 
 
 EXIT_CODES_4 = ("refuse", "infeasible")

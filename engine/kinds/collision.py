@@ -61,4 +61,4 @@ class CollisionRule(RuleBase):
         ok = mask == 0
         return Outcome(ok, mask.astype(float), ok.astype(float),
                        "no collision with " + ", ".join(checked or ["nothing checked here"]),
-                       "collides")
+                       "targets hit")

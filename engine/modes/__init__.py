@@ -36,7 +36,8 @@ if TYPE_CHECKING:
     from handover.engine.kinds.mode import Bend
     from handover.engine.loader import KB
 
-__all__ = ["PLANNERS", "choose", "attempt_mode", "chosen_traces", "required_mode"]
+__all__ = ["PLANNERS", "choose", "attempt_mode", "chosen_traces", "required_mode",
+           "closest_attempt", "progress"]
 
 
 def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
@@ -83,6 +84,36 @@ def _checked(ctx: PlanContext, attempt: Attempt) -> Attempt:
     return replace(attempt, extra=attempt.extra | {"trace": trace})
 
 
+def progress(attempt: Attempt) -> tuple[float, int]:
+    """How far an infeasible attempt got: (the fewest hard rules any of its rows fails, on
+    the exact table; how many rows fail that few). Rows that passed every hard rule in a
+    mode that failed later: (0, rows kept) when it got to pairing grasps (``pairs_checked``),
+    else (1, rows kept): failing to find a pair (or a first grasp) counts as one rule more.
+    (inf, 0) when nothing was judged (the mode was not tried, or the robot lacks hands)."""
+    d = attempt.decision
+    if d is None or d.n_rows == 0:
+        return float("inf"), 0
+    if d.kept.any():
+        paired = attempt.extra.get("pairs_checked", 0) > 0
+        return (0.0 if paired else 1.0), int(d.kept.sum())
+    counts = d.exact().fails.sum(axis=1)
+    fewest = int(counts.min())
+    return float(fewest), int((counts == fewest).sum())
+
+
+def closest_attempt(tried: list[Attempt]) -> Attempt:
+    """The attempt whose reason speaks for an infeasible plan: the one that got furthest
+    (:func:`progress`: the fewest rules failed, then the most rows failing that few), ties
+    in the catalogue's order (H1G1, H2G2, H2G1)."""
+    rank = {m: n for n, m in enumerate(PLANNERS)}
+
+    def key(a: Attempt) -> tuple:
+        fewest, rows = progress(a)
+        return fewest, -rows, rank.get(a.mode, len(rank))
+
+    return min(tried, key=key)
+
+
 def _reason_with_targets(ctx: PlanContext, attempt: Attempt) -> str | None:
     """An infeasible attempt's reason, with what its collision rules hit and, when nothing
     could be offered anywhere, why not."""
@@ -96,7 +127,7 @@ def _reason_with_targets(ctx: PlanContext, attempt: Attempt) -> str | None:
     if attempt.decision is not None:
         hits = attempt.decision.collision_hits(handover_targets(ctx, hands).names)
         for rule_id, tally in hits.items():
-            if reason and rule_id in reason:
+            if reason and rule_id in reason and f"{rule_id} [geometry" not in reason:
                 listed = ", ".join(f"{t} ({n})" for t, n in list(tally.items())[:4])
                 reason = f"{reason}; {rule_id} hit {listed}"
     where = location_reason(ctx, hands,
@@ -210,9 +241,8 @@ def choose(kb: KB, ctx: PlanContext, asked: str) -> tuple[Attempt, list[Attempt]
                 why = f"{mode} tried because " + "; ".join(
                     a.reason or "" for a in tried if not a.feasible and a.mode != mode)
             return attempt, tried, why
-    last = tried[-1]
     tried.sort(key=lambda a: rank[a.mode])
-    return last, tried, "no mode is feasible"
+    return closest_attempt(tried), tried, "no mode is feasible"
 
 
 def _said(c: CompiledRule) -> str:

@@ -199,15 +199,10 @@ def _palm_depth_by_sampling(mesh: trimesh.Trimesh, ext, pose) -> float:
     return float(dist.max())
 
 
-HAND_APPROACH_FIXED = pytest.mark.xfail(strict=True, reason=(
-    "the receiver's hand always approaches from the receiver toward the robot: on a mug's "
-    "handle pointing to their side the palm lies across the body; a hand turned to the handle "
-    "(approach chosen per presentation) is not built yet"))
+BUILTIN_OBJECTS = sorted(p.stem for p in (builtin_kb_dir() / "objects").glob("*.yaml"))
 
 
-@pytest.mark.parametrize("obj", [
-    pytest.param(p.stem, marks=HAND_APPROACH_FIXED) if p.stem == "mug" else p.stem
-    for p in sorted((builtin_kb_dir() / "objects").glob("*.yaml"))])
+@pytest.mark.parametrize("obj", BUILTIN_OBJECTS)
 def test_the_receiver_palm_enters_no_builtin_object_beyond_the_tolerance(obj):
     plan = Planner(db=False).plan(obj)
     result = plan.to_dict()
@@ -220,3 +215,50 @@ def test_the_receiver_palm_enters_no_builtin_object_beyond_the_tolerance(obj):
                 continue
             local = to_object @ np.asarray(box["pose"])
             assert _palm_depth_by_sampling(mesh, np.asarray(box["extents"]), local) <= 0.0055
+
+
+LOOP_MUG = """\
+id: loop_mug
+name: A mug with a loop handle
+mass: 0.35
+tags: [drinkware]
+geometry:
+  primitives:
+    - {shape: cylinder, part: body, radius: 0.04, height: 0.09, position: [0, 0, 0.045]}
+    - {shape: box, part: handle, extents: [0.01, 0.012, 0.06], position: [0.07, 0, 0.045]}
+    - {shape: box, part: handle, extents: [0.035, 0.012, 0.008], position: [0.0525, 0, 0.071]}
+    - {shape: box, part: handle, extents: [0.035, 0.012, 0.008], position: [0.0525, 0, 0.019]}
+parts:
+  body: {tags: [body]}
+  handle: {tags: [handle]}
+axes:
+  up: [0, 0, 1]
+  handle: [1, 0, 0]
+"""
+
+
+def test_the_receivers_hand_turns_to_take_a_side_handle_from_outside(tmp_path):
+    """A mug offered with its loop handle to the receiver's side: a hand coming straight
+    from the receiver would lay its palm across the body; it turns and rests on the handle's
+    outer face instead, entering neither body nor handle."""
+    root = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), root)
+    (root / "objects" / "loop_mug.yaml").write_text(LOOP_MUG)
+    plan = Planner(kb=root, db=False).plan("loop_mug")
+    result = plan.to_dict()
+    assert result["outcome"] == "handover", result["reason"]
+    pose = np.asarray(result["object_pose"])
+    handle_world = pose[:3, :3] @ [1.0, 0.0, 0.0]
+    toward = np.array([1.0, 0.0, 0.0])  # the table scene: the receiver straight ahead
+    assert abs(handle_world @ toward) < 0.5  # to their side (the mug rule), not at them
+    mesh = plan.context.part_mesh.mesh
+    to_object = np.linalg.inv(pose)
+    (hand,) = result["human_grasps"]
+    assert hand["part"] == "handle"
+    boxes = {b["name"]: b for b in hand["model"]}
+    for name, box in boxes.items():
+        local = to_object @ np.asarray(box["pose"])
+        assert _palm_depth_by_sampling(mesh, np.asarray(box["extents"]), local) <= 0.0055, name
+    palm = to_object @ np.asarray(boxes["palm"]["pose"])
+    # the palm lies beyond the handle's outer face (x = 0.075), not over the body
+    assert palm[0, 3] > 0.075

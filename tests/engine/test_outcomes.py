@@ -406,7 +406,7 @@ def test_a_box_rests_on_its_largest_face_first_and_a_ball_nowhere():
     takes atan(half width / half height) = 63 deg), the end faces last; a ball rolls."""
     import trimesh
 
-    from handover.engine.place import MIN_TIP_DEG, resting_rotations
+    from handover.geometry.rests import MIN_TIP_DEG, resting_rotations
 
     brick = trimesh.creation.box((0.10, 0.06, 0.03))
     rotations, tips = resting_rotations(brick.vertices, np.zeros(3))
