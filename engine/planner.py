@@ -148,7 +148,7 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
         modes = list(PLANNERS) if asked.lower() == "auto" else [asked.upper()]
         why = "; ".join(refusal_text(ctx, c) for c in refusing)
         tried = [Attempt(m, False, f"{m}: not tried: rule {first.id} refuses to hand it "
-                         f"over ({first.source})") for m in modes]
+                         f"over ({first.source})", extra={"not_tried": True}) for m in modes]
         attempt = Attempt(modes[0], False, why, graph=cg)
         every = all(c.rule.fallback == "place" for c in refusing)
         fallback = list(refusing) if every else []

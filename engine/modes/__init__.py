@@ -104,12 +104,13 @@ def progress(attempt: Attempt) -> tuple[float, int]:
 def closest_attempt(tried: list[Attempt]) -> Attempt:
     """The attempt whose reason speaks for an infeasible plan: the one that got furthest
     (:func:`progress`: the fewest rules failed, then the most rows failing that few), ties
-    in the catalogue's order (H1G1, H2G2, H2G1)."""
+    in the catalogue's order (H1G1, H2G2, H2G1). A mode a rule kept from being tried never
+    speaks while one was tried."""
     rank = {m: n for n, m in enumerate(PLANNERS)}
 
     def key(a: Attempt) -> tuple:
         fewest, rows = progress(a)
-        return fewest, -rows, rank.get(a.mode, len(rank))
+        return bool(a.extra.get("not_tried")), fewest, -rows, rank.get(a.mode, len(rank))
 
     return min(tried, key=key)
 
@@ -205,7 +206,8 @@ def choose(kb: KB, ctx: PlanContext, asked: str) -> tuple[Attempt, list[Attempt]
         required, preferred = preferred, None
     tried: list[Attempt] = []
     if required is not None:
-        tried += [Attempt(m, False, f"{m}: not tried, {_said(required)}")
+        tried += [Attempt(m, False, f"{m}: not tried, {_said(required)}",
+                          extra={"not_tried": True})
                   for m in PLANNERS if m != required.rule.mode]
     plain: dict[str, Attempt] = {}
     rank = {m: n for n, m in enumerate(PLANNERS)}
