@@ -41,7 +41,10 @@ class Applies(KBModel):
     min_mass: the object's mass is at least this (kg).
     min_size: the object's largest bounding-box extent is at least this (m).
     exceeds_payload: the object's mass exceeds one robot hand's payload.
-    exceeds_opening: the object cannot be grasped across any single gripper opening.
+    exceeds_opening: no single gripper can take the object: no grasp candidate within the
+    gripper's opening has both contacts on parts the robot may hold (parts no active hard
+    giver contact rule forbids). Decided from the candidates, not from a bounding box: a mug
+    wider than the opening is still taken by its handle.
     """
 
     object_tags_any: list[Tag] = []
@@ -70,6 +73,8 @@ class Facts:
 
     tags : the object's and its parts' tags. mass : kg. size : m, largest extent; min_width :
     m, smallest. payload : kg, one robot hand's. max_opening : m, the gripper's.
+    single_grasps : how many single-gripper grasp candidates lie within the opening on parts
+    the robot may hold (``exceeds_opening`` holds when there is none).
     """
 
     tags: frozenset[str]
@@ -78,6 +83,7 @@ class Facts:
     min_width: float | None = None
     payload: float | None = None
     max_opening: float | None = None
+    single_grasps: int | None = None
     role: str | None = None
     age: float | None = None
     task: object = ...
@@ -136,10 +142,14 @@ def check(applies: Applies, facts: Facts) -> tuple[bool | None, str]:
                 if known else "mass against one hand's payload")
         checks.append((_tri(known, exceeds == a.exceeds_payload), text))
     if a.exceeds_opening is not None:
-        known = facts.min_width is not None and facts.max_opening is not None
-        exceeds = known and facts.min_width > facts.max_opening
-        text = (f"thinnest extent {facts.min_width:.3f} m {'>' if exceeds else '<='} opening "
-                f"{facts.max_opening:g} m" if known else "thinnest extent against the opening")
+        known = facts.single_grasps is not None
+        exceeds = known and facts.single_grasps == 0
+        opening = (f" within the {facts.max_opening:g} m opening"
+                   if facts.max_opening is not None else "")
+        text = ((f"no single-gripper grasp{opening} on the parts the robot may hold" if exceeds
+                 else f"{facts.single_grasps} single-gripper grasps{opening} on the parts "
+                 "the robot may hold") if known
+                else "whether one gripper can take the parts the robot may hold")
         checks.append((_tri(known, exceeds == a.exceeds_opening), text))
     failed = [text for ok, text in checks if ok is False]
     if failed:
@@ -178,8 +188,8 @@ def describe(applies: Applies) -> str:
         )
     if a.exceeds_opening is not None:
         said.append(
-            "no single gripper opening spans it"
+            "no single gripper can take it"
             if a.exceeds_opening
-            else "a single gripper opening spans it"
+            else "a single gripper can take it"
         )
     return "; ".join(said) or "always"

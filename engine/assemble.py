@@ -207,6 +207,7 @@ def build_result(
 
         for rec, c in zip(robot_grasps, shown.chosen, strict=True):
             rec.update(arm_record(sctx, c.phase, c.grasp, c.presentation))
+    robot_grasps += list(shown.extra.get("support_grasps", []))
     human: list[dict] = []
     trace: list[dict] = []
     regrasp = None
@@ -323,7 +324,7 @@ def build_result(
         result.placement = placement.record | {"robot_grasp": robot_grasps[0], "rules": trace}
     if attempt.graph is not None and attempt.decision is not None:
         result.why_not = [_why_not(attempt, ctx, gid) for gid in why_not]
-    result.warnings.extend(ctx.warnings)
+    result.warnings.extend(ctx.warnings + list(attempt.extra.get("warnings", [])))
     for c in attempt.graph.order if attempt.graph is not None else []:
         if c.overridden_safety:
             result.warnings.append(

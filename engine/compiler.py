@@ -14,7 +14,8 @@ order of the graph, since features never depend on rules.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import networkx as nx
@@ -123,13 +124,24 @@ class ConstraintGraph:
         raise KeyError(rule_id)
 
 
-def query_facts(ctx: PlanContext, mode: str) -> Facts:
-    """What a rule's ``applies`` is judged on for this query in ``mode``."""
+def query_facts(ctx: PlanContext, mode: str, rules: Iterable[RuleBase] = ()) -> Facts:
+    """What a rule's ``applies`` is judged on for this query in ``mode``. ``rules`` (the
+    culture's resolved rules) say which parts the robot may hold: the tags forbidden by those
+    hard giver contact rules whose conditions hold (judged before this fact is known), for
+    ``single_grasps`` (whether one gripper can take the object at all)."""
     f, s = ctx.facts, ctx.situation
-    return Facts(tags=f.tags, mass=f.mass, size=f.size, min_width=f.min_width,
-                 payload=f.payload, max_opening=f.max_opening, role=s.receiver.role,
-                 age=s.receiver.years,
-                 task=s.task_id, mode=mode)
+    facts = Facts(tags=f.tags, mass=f.mass, size=f.size, min_width=f.min_width,
+                  payload=f.payload, max_opening=f.max_opening, role=s.receiver.role,
+                  age=s.receiver.years,
+                  task=s.task_id, mode=mode)
+    forbid: set[str] = set()
+    for rule in rules:
+        if (rule.kind == "contact" and rule.who == "giver" and rule.hard
+                and check(rule.applies, facts)[0] is True):
+            forbid.update(rule.forbid_tags)
+    if rules:
+        ctx.memo.setdefault("giver_forbid", {})[mode] = frozenset(forbid)
+    return replace(facts, single_grasps=ctx.single_grasps(frozenset(forbid)))
 
 
 def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  # noqa: A001
@@ -141,7 +153,7 @@ def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  #
     from handover.engine.etiquette import resolve_culture
 
     resolved = resolve_culture(kb, ctx.situation.query.culture)
-    facts = query_facts(ctx, mode)
+    facts = query_facts(ctx, mode, [rr.rule for rr in resolved])
     graph = nx.DiGraph()
     for name, (cost, varies, text) in FEATURES.items():
         graph.add_node(f"feature:{name}", kind="feature", cost=cost, varies=varies, text=text)

@@ -45,7 +45,9 @@ class ObjectFacts:
     """Query-level facts that rule conditions (``Applies``) read.
 
     tags : object tags plus every part's tags. size : m, largest extent of the oriented
-    bounding box; min_width : m, its smallest extent. payload : kg, one robot hand's.
+    bounding box; min_width : m, its smallest extent (informative: whether one gripper spans
+    the object is decided from the grasp candidates, :meth:`PlanContext.single_grasps`).
+    payload : kg, one robot hand's. max_opening : m, the gripper's.
     """
 
     tags: frozenset[str]
@@ -109,6 +111,28 @@ class PlanContext:
                 self.gripper_poses(), self.candidates.width
             )
         return self.memo["gripper_boxes"]
+
+    def single_grasps(self, forbid: frozenset[str] = frozenset()) -> int:
+        """How many single-gripper candidates lie within the gripper's opening with both
+        contacts on parts the robot may hold (no part tagged with one of ``forbid``, the
+        tags the giver's hard contact rules forbid). Zero means no single gripper can take
+        the object: a mug too wide for the gripper still has its handle, a saucepan its
+        handle; a tray wider than any opening with no rim to pinch has none. Memoised per
+        ``forbid``."""
+        memo = self.memo.setdefault("single_grasps", {})
+        if forbid not in memo:
+            c = self.candidates
+            held = np.array([not (t & forbid) for t in self.part_tags] or [True], dtype=bool)
+            ok = (c.width <= self.gripper.max_opening + 1e-12) if len(c) else np.zeros(0, bool)
+            if len(c):
+                ok &= held[c.parts].all(axis=1)
+            memo[forbid] = int(ok.sum())
+        return memo[forbid]
+
+    def giver_forbid(self, mode: str | None) -> frozenset[str]:
+        """The tags the giver's hard contact rules forbid in ``mode``, as the compiler found
+        them for this query (:func:`~handover.engine.compiler.query_facts`; empty before)."""
+        return self.memo.get("giver_forbid", {}).get(mode, frozenset())
 
     def d_obj(self) -> np.ndarray:
         """(K, 3): robot->receiver direction in the object frame, per presentation."""

@@ -311,8 +311,9 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
         decision = None  # a table over something else than these candidates
     k = shown_presentation(result, decision, ctx.k)
     handover_grasps = [g for g in result.robot_grasps if g.get("stage") != "pick"]
-    pick_grasps = [g for g in result.robot_grasps if g.get("stage") != "handover"]
-    chosen_ids = [int(g["id"]) for g in handover_grasps] if result.feasible else []
+    pick_grasps = [g for g in result.robot_grasps if g.get("stage") not in ("handover", "support")]
+    chosen_ids = [int(g["id"]) for g in handover_grasps if g.get("id") is not None] \
+        if result.feasible else []
     classes = stage_classes(decision, n, k, chosen_ids)
     legend, lut = class_table(decision)
     stats = row_stats(decision)

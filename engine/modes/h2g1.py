@@ -14,8 +14,14 @@ grasp. The left hand's gripper has its palm
 in the outer ``SIDE_BAND`` of the object's extent on the robot's left, or beyond it (it
 holds the left end, or comes from the left), the right hand's on its right, both in the
 same presentation. Pairs are kept when the two grippers do not collide and each
-hand's share of the weight is within its payload, and scored for balance: the mean of the two
-grasps' rule scores, and how close the line between the grasps passes to the centre of mass.
+hand's share of the weight is within its payload and its torque limit, and scored for balance:
+the mean of the two grasps' rule scores, and how close the line between the grasps passes to
+the centre of mass.
+
+The weight is shared in the presented pose: the centre of mass lies between the two grasp
+centres along the horizontal line joining them, and each gripper carries its share by the
+lever rule (:func:`~handover.engine.kinds.torque.load_shares`): a laptop held at its two
+sides puts about half its weight on each gripper, not all of it on both.
 """
 
 from __future__ import annotations
@@ -30,6 +36,7 @@ from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import ConstraintGraph, compile
 from handover.engine.evaluate import evaluate, infeasible_reason
 from handover.engine.features import collision_scene
+from handover.engine.kinds.torque import load_shares, pair_lever
 from handover.engine.modes.common import hands_for, register
 
 if TYPE_CHECKING:
@@ -68,6 +75,26 @@ def _palm_centres(ctx: PlanContext) -> np.ndarray:
     back = g.finger_length / 2.0 + g.palm[2] / 2.0
     poses = ctx.gripper_poses()
     return poses[:, :3, 3] - back * poses[:, :3, 2]
+
+
+def _overloaded(ctx: PlanContext, cg: ConstraintGraph, gl: np.ndarray, gr: np.ndarray, k: int,
+                com: np.ndarray) -> np.ndarray:
+    """(L, R) bool: pairs (left grasp ``gl``, right grasp ``gr``, object frame, presentation
+    ``k``) where a gripper's share of the weight, in the presented pose, exceeds one hand's
+    payload or its torque an active hard torque rule's limit."""
+    rot = ctx.rotations[k]
+    com_w = rot @ com
+    left = (ctx.candidates.centre[gl] @ rot.T)[:, None, :]
+    right = (ctx.candidates.centre[gr] @ rot.T)[None, :, :]
+    share_l = load_shares(com_w, left, right)  # (L, R)
+    lever = pair_lever(com_w, left, right)
+    mass, payload = ctx.facts.mass, ctx.facts.payload
+    over = (np.maximum(share_l, 1.0 - share_l) * mass > payload + 1e-12)
+    for c in cg.hard:
+        if c.rule.kind == "torque":
+            worst = np.maximum(share_l, 1.0 - share_l)
+            over |= c.rule.torques(ctx, worst, lever) > c.rule.max_nm + 1e-12
+    return over
 
 
 @register("H2G1", hands=2)
@@ -112,7 +139,7 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     best = None
     found: list[tuple] = []  # with arms: the best pairs of each presentation, for the arms
     arms = reach_rule(cg, ctx) is not None
-    checked = colliding = unpickable = 0
+    checked = colliding = unpickable = overloaded = 0
     for k in np.unique(pk):  # at most 24 presentations; pairs within one are vectorised
         li = ranking[(pk == k) & left][:SIDE_POOL]
         ri = ranking[(pk == k) & right][:SIDE_POOL]
@@ -131,12 +158,14 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
         balance = 1.0 - np.clip(off / max(facts.size / 2.0, 1e-9), 0.0, 1.0)
         mean = 0.5 * (decision.score[li][:, None] + decision.score[ri][None, :])
         score = (1 - BALANCE_WEIGHT) * mean + BALANCE_WEIGHT * balance
+        heavy = _overloaded(ctx, cg, gl, gr, int(k), com) & ~hit
+        overloaded += int(heavy.sum())
         pick_l = ~collision_scene(ctx, gl)  # free of table and obstacles at pick-up
         pick_r = ~collision_scene(ctx, gr)
         lifts = (pick_l[:, None] & pick_r[None, :]) if both_pick else (
             pick_l[:, None] | pick_r[None, :])
-        unpickable += int((~hit & ~lifts).sum())
-        score = np.where(hit | ~lifts, -np.inf, score)
+        unpickable += int((~hit & ~heavy & ~lifts).sum())
+        score = np.where(hit | heavy | ~lifts, -np.inf, score)
         if arms:
             flat_all = np.argsort(-score, axis=None, kind="stable")[:ARM_PAIRS]
             for fl in flat_all:
@@ -150,12 +179,17 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
             best = (float(score[a, b]), int(gl[a]), int(gr[b]), int(k), float(off[a, b]))
     extra.update(pairs_checked=checked, pairs_colliding=colliding,
                  pairs_not_liftable=unpickable)
+    if overloaded:
+        extra["pairs_overloaded"] = overloaded
     if best is None:
         lift = "both hands" if both_pick else "either hand"
+        heavy = (f", {overloaded} where a gripper's share of the weight exceeds its payload "
+                 f"or torque limit" if overloaded else "")
         return Attempt("H2G1", False,
                        f"H2G1: no pair of grasps at the far left and far right ({checked} pairs "
-                       f"checked, {colliding} with colliding grippers, {unpickable} that "
-                       f"{lift} cannot take from the table)", cg, decision, phase, extra=extra)
+                       f"checked, {colliding} with colliding grippers{heavy}, {unpickable} "
+                       f"that {lift} cannot take from the table)", cg, decision, phase,
+                       extra=extra)
     arm = {"left": None, "right": None}
     if arms:  # the best pair the left and right arms hold exactly
         found.sort(key=lambda p: -p[0])  # stable: presentations in order on a tie
