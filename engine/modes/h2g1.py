@@ -26,9 +26,11 @@ import numpy as np
 
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import ConstraintGraph, compile
-from handover.engine.evaluate import evaluate, infeasible_reason
+from handover.engine.evaluate import evaluate
+from handover.engine.explain import infeasible_reason
 from handover.engine.features import collision_scene
-from handover.engine.modes.common import hands_for, register
+from handover.engine.hands import hands_for
+from handover.engine.modes.common import register
 
 if TYPE_CHECKING:
     from handover.engine.context import PlanContext
