@@ -92,7 +92,7 @@ def bench_objects(kb, modes: list[str], runs: int) -> None:
 
 
 def bench_explain(kb, runs: int) -> None:
-    from handover.engine.evaluate import QUICK_REASONS
+    from handover.engine.explain import QUICK_REASONS
     from handover.engine.modes import attempt_mode
     from handover.engine.prepare import prepare
 

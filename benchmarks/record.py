@@ -35,7 +35,8 @@ from handover.engine.attempt import Attempt, Hands, Phase  # noqa: E402
 from handover.engine.compiler import CompiledRule  # noqa: E402
 from handover.engine.context import PlanContext  # noqa: E402
 from handover.engine.evaluate import Decision  # noqa: E402
-from handover.engine.presentation import ReceiverRegion, ReceiverSites, presentation_rotations  # noqa: E402
+from handover.engine.presentation import presentation_rotations  # noqa: E402
+from handover.engine.receiver_sites import ReceiverRegion, ReceiverSites  # noqa: E402
 from handover.engine.record import write_recording  # noqa: E402
 from handover.engine.result import PlanResult  # noqa: E402
 from handover.engine.schema import parse_rule  # noqa: E402

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.blocking import blocking_sets
 from handover.engine.errors import UsageError
 from handover.engine.evaluate import trace_row
 from handover.engine.features import handover_targets
@@ -18,7 +19,7 @@ if TYPE_CHECKING:
     from handover.engine.compiler import CompiledRule, ConstraintGraph
     from handover.engine.context import PlanContext
     from handover.engine.place import PlacementPlan
-    from handover.engine.presentation import ReceiverSites
+    from handover.engine.receiver_sites import ReceiverSites
     from handover.engine.schema import GripperSpec
     from handover.geometry.bodies import Body
 
@@ -253,7 +254,7 @@ def build_result(
             candidates[key] = shown.extra[key]
     if d is not None and not shown.feasible:
         candidates["blocking_sets"] = [
-            {"rules": list(ids), "candidates": n} for ids, n in d.blocking_sets()
+            {"rules": list(ids), "candidates": n} for ids, n in blocking_sets(d)
         ]
     if placed and attempt.decision is not None:  # what the handover got to, for the record
         candidates["handover"] = {"generated": int(attempt.decision.n_rows),

@@ -18,7 +18,7 @@ import numpy as np
 if TYPE_CHECKING:
     from handover.engine.compiler import ConstraintGraph
     from handover.engine.evaluate import Decision
-    from handover.engine.presentation import ReceiverRegion, ReceiverSites
+    from handover.engine.receiver_sites import ReceiverRegion, ReceiverSites
     from handover.engine.world import Locations
 
 __all__ = ["Roles", "Hands", "Phase", "Chosen", "Attempt"]

@@ -15,15 +15,13 @@ import numpy as np
 
 from handover.engine.applies import Facts
 from handover.engine.attempt import Hands, Roles
-from handover.engine.presentation import (
+from handover.engine.presentation import presentation_rotations, principal_axes, rule_goals
+from handover.engine.query import Situation
+from handover.engine.receiver_sites import (
     predict_receiver_sites,
     predict_two_hand_sites,
-    presentation_rotations,
-    principal_axes,
     receiver_region,
-    rule_goals,
 )
-from handover.engine.query import Situation
 from handover.engine.world import Locations, World, build_world, candidate_locations, place
 
 if TYPE_CHECKING:

@@ -16,7 +16,7 @@ import numpy as np
 if TYPE_CHECKING:
     from handover.engine.attempt import Hands
     from handover.engine.context import PlanContext
-    from handover.engine.presentation import ReceiverRegion, ReceiverSites
+    from handover.engine.receiver_sites import ReceiverRegion, ReceiverSites
     from handover.geometry.bodies import Body
     from handover.geometry.interior import Interior
 
@@ -154,12 +154,12 @@ def hand_model(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites, k
     with the object at ``pose`` (4, 4); empty where that hand has no site."""
     if not sites.valid[k]:
         return []
-    from handover.engine.presentation import hand_approach
+    from handover.engine.receiver_sites import hand_approach
 
     rot = pose[:3, :3]
     site = rot @ sites.site[k] + pose[:3, 3]
     axis = rot @ (sites.axis[k] if sites.axis is not None else region.axis)
-    if sites.approach is not None:  # turned to fit the part (presentation.predict_receiver_sites)
+    if sites.approach is not None:  # turned to fit the part (receiver_sites.predict_receiver_sites)
         approach = rot @ sites.approach[k]
     else:
         approach = hand_approach(axis, ctx.situation.toward, np.array([0.0, 0.0, 1.0]))

@@ -339,10 +339,11 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
     """Plan setting the object down (see the module docstring) because the rules
     ``because`` (compiled, each naming ``fallback: place``) forbid handing it over."""
     from handover.engine.compiler import compile
-    from handover.engine.evaluate import evaluate, infeasible_reason
+    from handover.engine.evaluate import evaluate
+    from handover.engine.explain import infeasible_reason
+    from handover.engine.hands import receiver_roles
     from handover.engine.modes import beyond_reach
-    from handover.engine.modes.common import receiver_roles
-    from handover.engine.presentation import predict_receiver_sites, receiver_region
+    from handover.engine.receiver_sites import predict_receiver_sites, receiver_region
 
     s = ctx.situation
     if s.scene.support is None:

@@ -105,6 +105,7 @@ def fallback_rules(kb: KB, ctx: PlanContext, tried: list[Attempt]) -> list[Compi
     named in its reason. Rules in KB order, each once."""
     import re
 
+    from handover.engine.blocking import blocking_sets
     from handover.engine.compiler import compile
 
     found: dict[str, CompiledRule] = {}
@@ -119,7 +120,7 @@ def fallback_rules(kb: KB, ctx: PlanContext, tried: list[Attempt]) -> list[Compi
             continue
         named: set[str] = set()
         if a.decision is not None and a.decision.n_rows:
-            named |= {rid for ids, _ in a.decision.blocking_sets() for rid in ids}
+            named |= {rid for ids, _ in blocking_sets(a.decision) for rid in ids}
         for c in a.graph.hard:
             if c.rule.fallback != "place" or c.id in found:
                 continue

@@ -10,7 +10,7 @@ the changes that really give a feasible plan are listed, smallest first:
 2. last, and marked ``safety: true``, sets that relax a safety rule.
 
 The rules to relax are read from the exact decision tables of the modes tried
-(:meth:`engine.evaluate.Decision.blocking_sets`): each blocking set is a candidate change.
+(:func:`engine.blocking.blocking_sets`): each blocking set is a candidate change.
 
 >>> from handover import Planner
 >>> planner = Planner()
@@ -103,7 +103,7 @@ def _rule_sets(tried: list[Attempt]) -> list[tuple[list, bool, dict]]:
     """The blocking sets of every mode tried, each once: (compiled rules, safety, what each
     rule measured on the rows the set blocks), without a safety rule first, then by size
     and rows."""
-    from handover.engine.evaluate import verified_sets
+    from handover.engine.blocking import verified_sets
 
     seen: dict[tuple[str, ...], tuple[int, list, bool, dict]] = {}
     for a in tried:
@@ -128,7 +128,7 @@ def _rule_sets(tried: list[Attempt]) -> list[tuple[list, bool, dict]]:
 def _feasible(kb: KB, ctx: PlanContext, mode: str) -> Attempt | None:
     """The attempt planning ``ctx`` with ``kb`` gives, when feasible (infeasible attempts
     are not explained on the way: only feasibility is asked)."""
-    from handover.engine.evaluate import QUICK_REASONS
+    from handover.engine.explain import QUICK_REASONS
     from handover.engine.modes import choose
 
     before = ctx.memo.get(QUICK_REASONS)

@@ -1,4 +1,4 @@
-"""What the mode planners share: their registry, and the roles read from a compiled graph."""
+"""What the mode planners share: their registry, and the robot hand nearer a grasp."""
 
 from __future__ import annotations
 
@@ -8,12 +8,11 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from handover.engine.attempt import Attempt, Hands, Roles
-    from handover.engine.compiler import ConstraintGraph
+    from handover.engine.attempt import Attempt
     from handover.engine.context import PlanContext
     from handover.engine.loader import KB
 
-__all__ = ["PLANNERS", "HANDS_NEEDED", "register", "receiver_roles", "hands_for", "hand_at"]
+__all__ = ["PLANNERS", "HANDS_NEEDED", "register", "hand_at"]
 
 Planner = Callable[["KB", "PlanContext"], "Attempt"]
 PLANNERS: dict[str, Planner] = {}
@@ -31,19 +30,6 @@ def register(mode: str, hands: int = 1) -> Callable[[Planner], Planner]:
         return fn
 
     return add
-
-
-def receiver_roles(cg: ConstraintGraph, ctx: PlanContext) -> Roles:
-    """The roles of ``cg``'s active contact rules, the query's task first."""
-    task = ctx.situation.task
-    return cg.roles(tuple(task.receiver_tags) if task is not None else ())
-
-
-def hands_for(cg: ConstraintGraph, ctx: PlanContext, count: int = 1) -> Hands:
-    """Where the receiver's ``count`` hands go and where each presentation is offered,
-    under ``cg``'s contact and location rules."""
-    locations = tuple(c for c in cg.order if c.rule.kind == "location")
-    return ctx.hands(receiver_roles(cg, ctx), count, locations)
 
 
 def hand_at(pose: np.ndarray, centre: np.ndarray, hands=("left", "right")) -> str:

@@ -9,8 +9,10 @@ from typing import TYPE_CHECKING
 from handover.engine.arms import CONFIRM_LIMIT, choose_row, reach_rule
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import compile
-from handover.engine.evaluate import evaluate, infeasible_reason
-from handover.engine.modes.common import hand_at, hands_for, register
+from handover.engine.evaluate import evaluate
+from handover.engine.explain import infeasible_reason
+from handover.engine.hands import hands_for
+from handover.engine.modes.common import hand_at, register
 
 if TYPE_CHECKING:
     from handover.engine.context import PlanContext

@@ -34,10 +34,12 @@ from handover.engine.armpairs import choose_pair_h2g1, side_reaches
 from handover.engine.arms import reach_rule
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import ConstraintGraph, compile
-from handover.engine.evaluate import evaluate, infeasible_reason
+from handover.engine.evaluate import evaluate
+from handover.engine.explain import infeasible_reason
 from handover.engine.features import collision_scene
+from handover.engine.hands import hands_for
 from handover.engine.kinds.torque import load_shares, pair_lever
-from handover.engine.modes.common import hands_for, register
+from handover.engine.modes.common import register
 
 if TYPE_CHECKING:
     from handover.engine.context import PlanContext

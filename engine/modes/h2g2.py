@@ -23,8 +23,10 @@ from handover.engine.armpairs import choose_pair_h2g2
 from handover.engine.arms import MIDAIR_BACKOFF, reach_rule
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import CompiledRule, compile
-from handover.engine.evaluate import evaluate, evaluate_rule, infeasible_reason
-from handover.engine.modes.common import hand_at, hands_for, register
+from handover.engine.evaluate import evaluate, evaluate_rule
+from handover.engine.explain import infeasible_reason
+from handover.engine.hands import hands_for
+from handover.engine.modes.common import hand_at, register
 
 if TYPE_CHECKING:
     from handover.engine.context import PlanContext

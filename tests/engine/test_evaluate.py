@@ -10,6 +10,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from handover.engine.blocking import blocking_sets
 from handover.engine.evaluate import Decision
 from handover.engine.kinds import Outcome
 
@@ -44,7 +45,7 @@ def test_blocking_sets_and_rejections_match_a_row_by_row_count(rows, n_hard, den
         if not any(q < p for q in patterns)
     }
     ranked = sorted(expected.items(), key=lambda kv: (len(kv[0]), -kv[1], kv[0]))
-    assert d.blocking_sets(limit=1000) == ranked
+    assert blocking_sets(d, limit=1000) == ranked
     assert d.rejected_by() == {
         f"rule_{h:02d}": c for h, c in sorted(Counter(fails.argmax(axis=1)).items())
     }
@@ -106,6 +107,6 @@ def test_the_exact_table_gives_the_blocking_sets_of_the_whole_truth(rows, n_chea
     whole = Decision(gi=d.gi, pk=d.pk, hard=d.hard, soft=[], fails=truth,
                      checked=np.ones_like(truth), kept=d.kept, score=d.score,
                      first_fail=d.first_fail, soft_scores=d.soft_scores)  # fmt: skip
-    assert d.blocking_sets(limit=1000) == whole.blocking_sets(limit=1000)
+    assert blocking_sets(d, limit=1000) == blocking_sets(whole, limit=1000)
     # rows that cannot change the answer are not judged again
     assert sum(asked[n_cheap:]) <= rows * n_collision

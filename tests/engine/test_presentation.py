@@ -8,14 +8,16 @@ from numpy.testing import assert_allclose
 
 from handover.engine.presentation import (
     axis_goals,
-    hand_axes,
     handover_poses,
-    predict_receiver_sites,
-    predict_two_hand_sites,
     presentation_rotations,
     principal_axes,
-    receiver_region,
     unique_rotations,
+)
+from handover.engine.receiver_sites import (
+    hand_axes,
+    predict_receiver_sites,
+    predict_two_hand_sites,
+    receiver_region,
 )
 
 TOWARD = np.array([1.0, 0.0, 0.0])

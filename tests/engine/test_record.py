@@ -22,7 +22,7 @@ from handover.engine.context import PlanContext
 from handover.engine.errors import UsageError
 from handover.engine.evaluate import Decision
 from handover.engine.kinds import KINDS
-from handover.engine.presentation import ReceiverRegion, ReceiverSites
+from handover.engine.receiver_sites import ReceiverRegion, ReceiverSites
 from handover.engine.record import write_recording
 from handover.engine.recording import read_recording
 from handover.engine.recordstages import (

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 import yaml
 
+from handover.engine.blocking import blocking_sets
 from handover.engine.loader import load_kb
 from handover.engine.modes import attempt_mode
 from handover.engine.prepare import prepare
@@ -106,7 +107,7 @@ def test_every_reported_blocking_set_is_blocking_and_minimal(generated):
         if attempt.feasible or d is None or d.n_rows == 0 or d.kept.any():
             continue
         infeasible += 1
-        sets = d.blocking_sets(limit=3)
+        sets = blocking_sets(d, limit=3)
         assert sets, attempt.reason
         assert any(" + ".join(ids) in attempt.reason for ids, _ in sets), attempt.reason
         for ids, count in sets:

@@ -29,7 +29,7 @@ and the files are written with every digit: a difference between the plans is th
 planner's, not rounding's. Shapes whose receiver region has two equal principal extents (a
 square box or plate, a disc) used to be left out: the SVD's axis for them, and so the way the
 receiver's hand was predicted to wrap around them, was chosen by the frame. Their hand now
-wraps the rim tangent the presentation gives (``engine.presentation.hand_axes``), and they are
+wraps the rim tangent the presentation gives (``engine.receiver_sites.hand_axes``), and they are
 in: boxes with equal sides, and a square plate larger than two hands in all 24 frames. Only
 regions within 0.1 % of the isotropy threshold (``ISOTROPY``) are left out, where rounding
 may classify them differently in each frame.
@@ -354,7 +354,7 @@ def test_a_cylinder_plans_the_same_in_any_frame(tmp_path_factory, mesh, transfor
 def test_a_square_plate_plans_the_same_in_any_frame(tmp_path, turn):
     """A square plate larger than two hands: its receiver region has no long axis (the SVD
     picks one by the frame), so the receiver's hand wraps the rim tangent the presentation
-    gives (``engine.presentation.hand_axes``), the same in every frame."""
+    gives (``engine.receiver_sites.hand_axes``), the same in every frame."""
     import trimesh
 
     mesh = trimesh.creation.box(extents=[0.24, 0.24, 0.012])
