@@ -60,7 +60,8 @@ def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
     if moved and k in moved["presentations"]:  # H2G2: the arms could not hold it there
         first = (f"the receiver's grasp site at the next best location (soft location rules) "
                  f"where every hard location rule passes and nothing is hit, after "
-                 f"{moved['locations_tried']} better one(s) where {moved['why']}: ")
+                 f"{moved['locations_tried']} better one(s) where H2G2 found no plan "
+                 f"({moved['why']}): ")
     return {
         "position": point,
         "presentation": k,

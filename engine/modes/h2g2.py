@@ -135,6 +135,7 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     # location rule still holding), a few times over.
     avoid: set[int] = set()
     tried = attempt
+    missed: list[str] = []  # why each round found no plan, in a few words
     for _ in range(RELOCATIONS):
         if tried.decision is None or not len(tried.decision.ranking()):
             break
@@ -143,6 +144,7 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
         if set(int(v) for v in used) <= avoid:
             break
         avoid |= {int(v) for v in used}
+        missed.append(_short(tried.reason))
         moved = hands_for(cg, ctx, avoid=tuple(avoid))
         if np.array_equal(moved.location, tried.phase.hands.location):
             break
@@ -151,9 +153,14 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
             k = [int(v) for v in np.flatnonzero(moved.location != hands.location)]
             return replace(tried, extra=tried.extra | {"relocated": {
                 "presentations": k, "locations_tried": len(avoid),
-                "why": "no pair of the robot's arms holds a feasible pair of grasps "
-                       f"({reach_rule(cg, ctx).id})"}})
+                "why": "; ".join(dict.fromkeys(missed))}})
     return replace(attempt, extra=attempt.extra | {"relocations_tried": len(avoid)})
+
+
+def _short(reason: str | None) -> str:
+    """An H2G2 reason's first clause ("no pair of arms holds ... (arm_reaches)")."""
+    parts = (reason or "no plan").split(": ")
+    return parts[1] if len(parts) > 1 else parts[0]
 
 
 def _plan(ctx: PlanContext, cg, hands) -> Attempt:
