@@ -135,7 +135,7 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     # location rule still holding), a few times over.
     avoid: set[int] = set()
     tried = attempt
-    missed: list[str] = []  # why each round found no plan, in a few words
+    missed: list[str] = []  # why each location tried found no plan, in a few words
     for _ in range(RELOCATIONS):
         if tried.decision is None or not len(tried.decision.ranking()):
             break
@@ -154,7 +154,11 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
             return replace(tried, extra=tried.extra | {"relocated": {
                 "presentations": k, "locations_tried": len(avoid),
                 "why": "; ".join(dict.fromkeys(missed))}})
-    return replace(attempt, extra=attempt.extra | {"relocations_tried": len(avoid)})
+    if tried is attempt:  # no other location was tried
+        return attempt
+    elsewhere = "; ".join(dict.fromkeys([*missed[1:], _short(tried.reason)]))
+    return replace(attempt, reason=f"{attempt.reason}; nor at the next best locations "
+                   f"({elsewhere})", extra=attempt.extra | {"relocations_tried": len(avoid)})
 
 
 def _short(reason: str | None) -> str:

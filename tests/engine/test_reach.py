@@ -161,6 +161,20 @@ def test_a_seated_receiver_s_knife_is_held_by_both_arms_where_they_reach(capsys)
     assert hard and all(e["status"] == "pass" for e in hard)
 
 
+def test_when_the_next_locations_fail_too_the_reason_says_what_each_lacked(monkeypatch):
+    # Allowed one move only, the seated adult's knife goes to the next best place, 6 cm
+    # nearer the robot, where the midair pose hits the robot's torso: H2G2 is infeasible and
+    # its reason says both why (the arms at the first place, the torso at the next).
+    from handover.engine.modes import h2g2
+
+    monkeypatch.setattr(h2g2, "RELOCATIONS", 1)
+    r = Planner().plan("knife", receiver="seated_adult", mode="h2g2").to_dict()
+    assert r["outcome"] != "handover"
+    reason = next(m["reason"] for m in r["modes_tried"] if m["mode"] == "H2G2")
+    assert "arm_reaches" in reason and "nor at the next best locations" in reason
+    assert "body:robot:torso" in reason.split("nor at the next best locations")[1]
+
+
 def test_a_midair_regrasp_gives_both_arms_at_their_stages(capsys):
     code, r = plan_json(capsys, "plan", "pen", "--mode", "h2g2")
     if code != EXIT_OK:
