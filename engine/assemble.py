@@ -54,6 +54,14 @@ def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
                     f"{measured[c.rule.measure]:.3g}, {c.rule.threshold()})")
     point = locs.points[int(hands.location[k])] if locs is not None and len(locs.points) \
         else None
+    first = ("the receiver's grasp site at the best location (soft location rules) "
+             "where every hard location rule passes and nothing is hit: ")
+    moved = attempt.extra.get("relocated")
+    if moved and k in moved["presentations"]:  # H2G2: the arms could not hold it there
+        first = (f"the receiver's grasp site at the next best location (soft location rules) "
+                 f"where every hard location rule passes and nothing is hit, after "
+                 f"{moved['locations_tried']} better one(s) where H2G2 found no plan "
+                 f"({moved['why']}): ")
     return {
         "position": point,
         "presentation": k,
@@ -61,9 +69,7 @@ def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
         "measured": measured,
         "hits": list(hands.hits[k]),
         "candidates": 0 if locs is None else len(locs.points),
-        "why": ("the receiver's grasp site at the best location (soft location rules) "
-                "where every hard location rule passes and nothing is hit: " if
-                hands.located[k] else "no location passes every hard location rule here; "
+        "why": (first if hands.located[k] else "no location passes every hard location rule here; "
                 "the closest: ") + "; ".join(said),
     }
 

@@ -138,14 +138,20 @@ class PlanContext:
             self.memo["d_obj"] = np.einsum("kji,j->ki", self.rotations, self.situation.toward)
         return self.memo["d_obj"]
 
-    def hands(self, roles: Roles, count: int = 1, location_rules: tuple = ()) -> Hands:
+    def hands(self, roles: Roles, count: int = 1, location_rules: tuple = (),
+              avoid: tuple[int, ...] = ()) -> Hands:
         """Where the receiver's ``count`` hands (1 or 2) go in every presentation, given
         which parts the people may hold, and where each presentation is offered under the
-        compiled ``location_rules`` (memoised by roles, count and the rules)."""
+        compiled ``location_rules``, the candidate locations ``avoid`` tried last
+        (:func:`~handover.engine.world.place`; memoised by roles, count, the rules and
+        ``avoid``)."""
         memo = self.memo.setdefault("hands", {})
         key = (roles, count, tuple(c.rule.model_dump_json() for c in location_rules))
+        avoid = tuple(sorted({int(v) for v in avoid}))
+        if avoid:
+            key = (*key, ("avoid", avoid))
         if key not in memo:
-            memo[key] = _hands(self, roles, count, location_rules, key)
+            memo[key] = _hands(self, roles, count, location_rules, key, avoid)
         return memo[key]
 
     @property
@@ -174,7 +180,7 @@ class PlanContext:
 
 
 def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
-           key: tuple) -> Hands:
+           key: tuple, avoid: tuple[int, ...] = ()) -> Hands:
     """See :meth:`PlanContext.hands`. The giver's graspable region (parts the robot may
     hold) gives ``s_range``, whose robot-side half the ``giver_side`` rule measures (seed
     3.1: "the half of the graspable region near the robot")."""
@@ -202,7 +208,7 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
         ),)
     receiving = (s.receiver.dominant_hand,) if count == 1 else (
         s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")
-    placed = place(ctx, region, sites, list(location_rules), receiving)
+    placed = place(ctx, region, sites, list(location_rules), receiving, avoid)
     return Hands(key=key, region=region, sites=sites, s_range=s_range, poses=placed.poses,
                  location=placed.location, located=placed.located, measured=placed.measured,
                  hits=placed.hits, receiving=receiving,

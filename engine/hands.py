@@ -19,8 +19,10 @@ def receiver_roles(cg: ConstraintGraph, ctx: PlanContext) -> Roles:
     return cg.roles(tuple(task.receiver_tags) if task is not None else ())
 
 
-def hands_for(cg: ConstraintGraph, ctx: PlanContext, count: int = 1) -> Hands:
+def hands_for(cg: ConstraintGraph, ctx: PlanContext, count: int = 1,
+              avoid: tuple[int, ...] = ()) -> Hands:
     """Where the receiver's ``count`` hands go and where each presentation is offered,
-    under ``cg``'s contact and location rules."""
+    under ``cg``'s contact and location rules, the candidate locations ``avoid`` tried
+    last."""
     locations = tuple(c for c in cg.order if c.rule.kind == "location")
-    return ctx.hands(receiver_roles(cg, ctx), count, locations)
+    return ctx.hands(receiver_roles(cg, ctx), count, locations, avoid)

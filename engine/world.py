@@ -223,11 +223,13 @@ def site_points(ctx: PlanContext, sites: tuple) -> np.ndarray:
     return out
 
 
-def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str, ...]
-          ) -> Placement:
+def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str, ...],
+          avoid: tuple[int, ...] = ()) -> Placement:
     """Choose a location for every presentation (see the module docstring).
 
     rules : the active ``location`` rules (compiled); hands : the receiving hands.
+    avoid : indices of candidate locations tried last (a mode found no plan there): a
+    presentation offered at one of them moves to its next best location, the others stay.
     """
     from handover.engine.features import hand_model
 
@@ -251,7 +253,8 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
     for r in soft:
         score += r.weight * r.judge(locs.measures[r.measure])[1]
     score = score / total if total > 0 else score
-    order = np.lexsort((np.arange(L), -score, fails))  # fewest hard failures, best score
+    last = np.isin(np.arange(L), np.asarray(avoid, dtype=np.int64))
+    order = np.lexsort((np.arange(L), -score, last, fails))  # fewest hard failures, best score
     n_ok = int(ok.sum())
 
     anchor = site_points(ctx, sites)  # (K, 3)

@@ -145,6 +145,36 @@ def test_the_knife_s_joint_values_reproduce_its_poses(capsys):
     assert set(r["robot_grasps"][0]["joints"]) == {"pickup", "handover"}
 
 
+def test_a_seated_receiver_s_knife_is_held_by_both_arms_where_they_reach(capsys):
+    # Where the location rules would best offer the knife to a seated adult (their hand 0.12 m
+    # to the robot's left) the right arm reaches neither the handover nor, for any pick-up
+    # grasp, the midair regrasp 0.2 m nearer: the knife is offered at the next best place,
+    # every hard location rule still passing, and both arms' joints reproduce the poses.
+    code, r = plan_json(capsys, "plan", "knife", "--receiver", "seated_adult")
+    assert code == EXIT_OK and r["mode"] == "H2G2"
+    assert check_joints(builtin_kb_dir(), r) == 4
+    assert {g["arm"] for g in r["robot_grasps"]} == {"left", "right"}
+    point = r["handover_point"]
+    assert point["located"] and "next best location" in point["why"]
+    hard = [e for e in r["trace"] if e["hard"] and e["kind"] == "location"
+            and e["stage"] == "handover"]
+    assert hard and all(e["status"] == "pass" for e in hard)
+
+
+def test_when_the_next_locations_fail_too_the_reason_says_what_each_lacked(monkeypatch):
+    # Allowed one move only, the seated adult's knife goes to the next best place, 6 cm
+    # nearer the robot, where the midair pose hits the robot's torso: H2G2 is infeasible and
+    # its reason says both why (the arms at the first place, the torso at the next).
+    from handover.engine.modes import h2g2
+
+    monkeypatch.setattr(h2g2, "RELOCATIONS", 1)
+    r = Planner().plan("knife", receiver="seated_adult", mode="h2g2").to_dict()
+    assert r["outcome"] != "handover"
+    reason = next(m["reason"] for m in r["modes_tried"] if m["mode"] == "H2G2")
+    assert "arm_reaches" in reason and "nor at the next best locations" in reason
+    assert "body:robot:torso" in reason.split("nor at the next best locations")[1]
+
+
 def test_a_midair_regrasp_gives_both_arms_at_their_stages(capsys):
     code, r = plan_json(capsys, "plan", "pen", "--mode", "h2g2")
     if code != EXIT_OK:

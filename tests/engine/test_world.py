@@ -127,31 +127,56 @@ def armless_kb(tmp_path: Path) -> Path:
     return root
 
 
+def knife_part_centres(plan) -> dict[str, np.ndarray]:
+    """The world centroid of each of the offered knife's parts (blade, handle)."""
+    pm = plan.context.part_mesh
+    centres = np.asarray(pm.mesh.triangles_center)
+    pose = plan.object_pose
+    out = {}
+    for p, name in enumerate(pm.part_names):
+        c = centres[np.asarray(pm.face_part) == p].mean(axis=0)
+        out[name] = pose[:3, :3] @ c + pose[:3, 3]
+    return out
+
+
+def assert_knife_above_the_table(r: dict, plan) -> None:
+    table = next(b for b in r["scene"]["boxes"] if b["id"] == "table")
+    top = table["pose"][2][3] + table["extents"][2] / 2
+    # Every point of the knife is above the table top, or beyond its edge.
+    pts = surface_points(plan)
+    over = (np.abs(pts[:, 0] - table["pose"][0][3]) < table["extents"][0] / 2) & \
+        (np.abs(pts[:, 1] - table["pose"][1][3]) < table["extents"][1] / 2)
+    assert over.any() and (pts[over, 2] >= top - TOL).all()
+
+
 def test_a_seated_receiver_at_a_table_gets_the_knife_above_the_table(capsys, tmp_path):
-    # With the shipped arms no pair of arms holds the knife for a seated receiver (H1G1 is
-    # ruled out by the knife's rules, and in H2G2 the right arm reaches none of the first
-    # grasps at pick-up and midair): the plan says so, naming the reach rule. Where the
-    # knife is offered is then checked with floating grippers.
-    code = main(["plan", "knife", "--receiver", "seated_adult", "--json"])
-    out, err = capsys.readouterr()
+    # With the shipped arms: a seated adult at a table gets the knife, above the table, its
+    # tip toward the robot and its handle toward them, every hard rule passing (H1G1 is ruled
+    # out by the gripper and the receiver's hand on the handle; H2G2 gives it, the arms
+    # holding the grasps where both reach). Then again with floating grippers (no arms).
     import json
 
-    if code != 0:
-        assert code == EXIT_INFEASIBLE and "arm_reaches" in json.loads(out)["reason"], err
+    code = main(["plan", "knife", "--receiver", "seated_adult", "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    r = json.loads(out)
+    assert r["outcome"] == "handover" and r["receiver"]["posture"] == "seated"
+    assert [e["rule"] for e in r["trace"] if e["hard"] and e["status"] == "fail"] == []
+    assert all(g["joints"] for g in r["robot_grasps"])  # the arms' joints are given
+    plan = Planner().plan("knife", receiver="seated_adult")
+    assert_knife_above_the_table(r, plan)
+    parts = knife_part_centres(plan)
+    receiver = np.asarray(r["receiver"]["position"], dtype=float)
+    assert np.linalg.norm(parts["blade"][:2] - receiver[:2]) > \
+        np.linalg.norm(parts["handle"][:2] - receiver[:2]) + 0.05  # tip away from them
+    assert {h["part"] for h in r["human_grasps"]} == {"handle"}
     kb = armless_kb(tmp_path)
     code = main(["--kb", str(kb), "plan", "knife", "--receiver", "seated_adult", "--json"])
     out, err = capsys.readouterr()
     assert code == 0, err
     r = json.loads(out)
     assert r["receiver"]["posture"] == "seated"
-    table = next(b for b in r["scene"]["boxes"] if b["id"] == "table")
-    top = table["pose"][2][3] + table["extents"][2] / 2
-    # Every point of the knife is above the table top, or beyond its edge.
-    plan = Planner(kb=kb).plan("knife", receiver="seated_adult")
-    pts = surface_points(plan)
-    over = (np.abs(pts[:, 0] - table["pose"][0][3]) < table["extents"][0] / 2) & \
-        (np.abs(pts[:, 1] - table["pose"][1][3]) < table["extents"][1] / 2)
-    assert (pts[over, 2] >= top - TOL).all()
+    assert_knife_above_the_table(r, Planner(kb=kb).plan("knife", receiver="seated_adult"))
     code = main(["--kb", str(kb), "plan", "knife", "--receiver", "seated_adult", "--explain"])
     out, _ = capsys.readouterr()
     assert "within_receiver_reach" in out and "measured" in out and "receiver_reach" in out
