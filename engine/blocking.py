@@ -3,8 +3,9 @@ that, lifted together, let some row through.
 
 They are judged on the :meth:`Decision.exact <handover.engine.evaluate.Decision.exact>` table
 (every collision rule judged on every row that matters), so they are exact, not lower bounds.
-A set whose lifting moves the receiver's hands (a contact or location rule) is checked by
-judging the rows again without it.
+A set whose lifting moves the receiver's hands (a contact or location rule), or changes which
+rules apply (a giver contact rule decides whether one gripper can take the object at all, what
+``exceeds_opening`` mode rules read), is checked by judging the rows again without it.
 """
 
 from __future__ import annotations
@@ -13,6 +14,8 @@ from dataclasses import replace
 
 import numpy as np
 
+from handover.engine.applies import check
+from handover.engine.compiler import ConstraintGraph, giver_forbid, query_facts
 from handover.engine.evaluate import Decision, evaluate
 from handover.engine.hands import hands_for
 
@@ -98,8 +101,10 @@ def verified_sets(decision: Decision) -> list[tuple[tuple[str, ...], int, np.nda
             continue
         ids2, n = found
         ids2 = tuple(i for i in hard_ids if i in ids2)
-        if ids2 != ids:
-            mask = np.isin(np.arange(len(hard_ids)), [hard_ids.index(i) for i in ids2])
+        if ids2 != ids:  # the rows that fail only the set, and rules it makes not apply
+            ctx, _, cg = decision.judged_in
+            left = {c.id for c in _without(cg, ctx, set(ids2)).order}
+            mask = np.array([i in ids2 or i not in left for i in hard_ids], dtype=bool)
             rows = np.flatnonzero(exact.fails.any(axis=1)
                                   & ~(exact.fails & ~mask[None, :]).any(axis=1))
         if ids2 not in out:
@@ -111,21 +116,59 @@ def verified_sets(decision: Decision) -> list[tuple[tuple[str, ...], int, np.nda
 
 def _lifted(decision: Decision, removed: set[str]) -> tuple[int, Decision | None]:
     """How many rows pass every hard rule once ``removed`` rules are lifted from the
-    decision's graph, and the decision judged anew (None when the receiver's hands stay
-    where they are and the exact table answers)."""
+    decision's graph (the rules whose conditions then stop holding leave too, those that
+    start to hold join), and the decision judged anew (None when the receiver's hands stay
+    where they are, no rule joins, and the exact table answers)."""
     ctx, phase, cg = decision.judged_in
     hard = decision.hard
-    cg2 = replace(cg, order=[c for c in cg.order if c.id not in removed])
-    hands = phase.hands
+    cg2 = _without(cg, ctx, removed)
+    hands = phase.hands if phase is not None else None
     if phase is not None and any(c.rule.kind in ("contact", "location") for c in cg.order
                                  if c.id in removed):
         hands = hands_for(cg2, ctx, len(phase.hands.sites))
-    if phase is None or hands is phase.hands:
-        keep = [h for h, c in enumerate(hard) if c.id not in removed]
+    kept_ids = {c.id for c in cg2.order}
+    joined = any(c.id not in {o.id for o in cg.order} for c in cg2.order)
+    if phase is None or (hands is phase.hands and not joined):
+        keep = [h for h, c in enumerate(hard) if c.id in kept_ids]
         fails = decision.exact().fails[:, keep]
         return int((~fails.any(axis=1)).sum()), None
     again = evaluate(cg2, ctx, phase.but(hands=hands))
     return int(again.kept.sum()), again
+
+
+def _without(cg: ConstraintGraph, ctx, removed: set[str]) -> ConstraintGraph:
+    """``cg`` with ``removed`` rules lifted, as the compiler makes it for a culture without
+    them: when a hard giver contact rule leaves, the parts the robot may hold grow, so
+    whether one gripper can take the object (``exceeds_opening``) is judged again and the
+    rules reading it are made active or inactive as their conditions now say. Cheap: only
+    sets with a hard giver contact rule, and graphs with a rule reading ``exceeds_opening``,
+    are compiled again."""
+    order = [c for c in cg.order if c.id not in removed]
+    lifted = [c for c in cg.order + cg.inactive if c.id in removed]
+    reads = [c for c in order + cg.inactive if c.rule.applies.exceeds_opening is not None]
+    if not reads or not any(c.rule.kind == "contact" and getattr(c.rule, "who", "") == "giver"
+                            and c.rule.hard for c in lifted):
+        return replace(cg, order=order)
+    facts = query_facts(ctx, cg.mode)  # no rules: leaves the context's memo as it is
+    rules = [c.rule for c in cg.order + cg.inactive if c.id not in removed]
+    facts = replace(facts, single_grasps=ctx.single_grasps(giver_forbid(rules, facts)))
+    now: dict[str, tuple[bool, str | None]] = {}
+    for c in reads:
+        holds, why = check(c.rule.applies, facts)
+        if bool(holds) == c.active:
+            continue
+        reason = c.rule.not_applicable(ctx) if holds else why  # as the compiler says
+        now[c.id] = (reason is None, reason)
+    if not now:
+        return replace(cg, order=order)
+    active = [c for c in order if now.get(c.id, (True,))[0]]
+    active += [replace(c, active=True, reason=None) for c in cg.inactive
+               if c.id not in removed and now.get(c.id, (False,))[0]]
+    active.sort(key=lambda c: (not c.rule.hard, c.cost, cg.position(c.id)))
+    inactive = [c for c in cg.inactive if not now.get(c.id, (False,))[0]]
+    inactive += [replace(c, active=False, reason=now[c.id][1]) for c in order
+                 if not now.get(c.id, (True,))[0]]
+    return replace(cg, order=active, inactive=inactive)
 
 
 def _check_set(decision: Decision, ids: set[str]) -> tuple[set[str], int] | None:

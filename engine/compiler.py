@@ -30,7 +30,8 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
     from handover.engine.loader import KB
 
-__all__ = ["CompiledRule", "ConstraintGraph", "compile", "query_facts", "graph_to_dot"]
+__all__ = ["CompiledRule", "ConstraintGraph", "compile", "query_facts", "giver_forbid",
+           "graph_to_dot"]
 
 
 @dataclass
@@ -134,14 +135,22 @@ def query_facts(ctx: PlanContext, mode: str, rules: Iterable[RuleBase] = ()) -> 
                   payload=f.payload, max_opening=f.max_opening, role=s.receiver.role,
                   age=s.receiver.years,
                   task=s.task_id, mode=mode)
+    rules = list(rules)
+    forbid = giver_forbid(rules, facts)
+    if rules:
+        ctx.memo.setdefault("giver_forbid", {})[mode] = forbid
+    return replace(facts, single_grasps=ctx.single_grasps(forbid))
+
+
+def giver_forbid(rules: Iterable[RuleBase], facts: Facts) -> frozenset[str]:
+    """The tags the robot may not hold: those forbidden by the hard giver contact rules of
+    ``rules`` whose conditions hold on ``facts`` (judged before ``single_grasps`` is known)."""
     forbid: set[str] = set()
     for rule in rules:
         if (rule.kind == "contact" and rule.who == "giver" and rule.hard
                 and check(rule.applies, facts)[0] is True):
             forbid.update(rule.forbid_tags)
-    if rules:
-        ctx.memo.setdefault("giver_forbid", {})[mode] = frozenset(forbid)
-    return replace(facts, single_grasps=ctx.single_grasps(frozenset(forbid)))
+    return frozenset(forbid)
 
 
 def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  # noqa: A001
