@@ -356,7 +356,9 @@ def _cupped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, approach
     site = site + (centre_s - np.einsum("ki,ki->k", site, facing))[:, None] * facing
     across = np.cross(approach, axis)  # the hand's y
     y = region.points @ across.T  # (M, K)
-    cap = s >= (s_max - half)[None, :]
+    # a sample on the middle plane is in the half (within BAND_TOL: rounding, which the
+    # object's frame decides, must not say whether it is)
+    cap = s >= (s_max - half - BAND_TOL)[None, :]
     y_lo = np.where(cap, y, np.inf).min(axis=0)
     y_hi = np.where(cap, y, -np.inf).max(axis=0)
     thickness = np.maximum(y_hi - y_lo, MIN_SECTION)

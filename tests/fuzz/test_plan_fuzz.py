@@ -609,3 +609,21 @@ def test_any_kb_object_plans_or_says_why(fuzz_kb, capsys, text, mode, culture):
         assert "objects/fuzzed.yaml:" in err
     elif code in (EXIT_OK, EXIT_INFEASIBLE):
         assert json.loads(out)["feasible"] is (code == EXIT_OK)
+
+
+def test_a_hull_with_a_face_centre_on_the_cupping_hands_middle_plane_plans_the_same(
+        tmp_path):
+    """A hull found by the fuzzer: with the receiver's cupping hand turned 45 degrees, one
+    face centre lies exactly on the middle plane that splits off the half the hand takes
+    (the vertices are on a binary grid), so rounding, which the frame decides, said whether
+    that face was in the half: the hand's width, then its turn and the whole plan (feasible
+    H1G1 or infeasible) depended on the frame."""
+    vertices = snapped(np.array([
+        [0.00073242, -0.04638672, 0.02050781], [-0.00195312, 0.0078125, 0.03173828],
+        [-0.00195312, -0.01245117, 0.0], [-0.01611328, 0.03027344, 0.00024414],
+        [0.01879883, -0.01489258, -0.0480957], [-0.0222168, 0.05664062, 0.03662109],
+        [0.02246094, 0.05981445, 0.04833984], [0.05493164, -0.02246094, 0.0]]))
+    faces = np.array([[7, 0, 4], [6, 0, 7], [7, 4, 6], [3, 0, 5], [5, 6, 3], [3, 6, 4],
+                      [5, 0, 1], [1, 6, 5], [0, 6, 1], [2, 4, 0], [0, 3, 2], [2, 3, 4]])
+    turn = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+    check_invariance(tmp_path, vertices, faces, (turn, np.array([0.0, 0.0, 0.03515625])))
