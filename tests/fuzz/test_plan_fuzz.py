@@ -319,14 +319,17 @@ def check_invariance(tmp_path: Path, vertices, faces, transform) -> None:
     assert same_set(kept_a, kept_b), f"{len(kept_a)} vs {len(kept_b)} kept rows differ"
     assert same_set(best_a, best_b)
     if result_b.feasible and result_b.mode == "H1G1":
-        chosen = result_b.robot_grasps[0]
-        key = np.hstack([
-            canonical(np.asarray(chosen["pose_world"])[None])[0], chosen["score"]
-        ])  # fmt: skip
+        # The arms may pass over the best-scored rows (none of their poses is reachable), so
+        # the chosen grasp is the same kept row in both frames, not necessarily a best one.
         from scipy.spatial import cKDTree
 
-        handover = best_a[:, 9:]  # the chosen grasp at the handover, with its score
-        assert cKDTree(handover).query(key)[0] < 1e-7, "B chose a grasp that is not A's best"
+        def chosen_key(result) -> np.ndarray:
+            g = result.robot_grasps[0]
+            return np.hstack([canonical(np.asarray(g["pose_world"])[None])[0], g["score"]])
+
+        key_a, key_b = chosen_key(result_a), chosen_key(result_b)
+        assert np.linalg.norm(key_a - key_b) < 1e-7, "B chose another grasp than A"
+        assert cKDTree(kept_a[:, 9:]).query(key_b)[0] < 1e-7, "B chose a row A did not keep"
 
 
 # ---------------------------------------------------------------- invariance
