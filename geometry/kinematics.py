@@ -360,19 +360,8 @@ class Kinematics:
             q2, p2, r2 = self._solve(np.repeat(targets[rows], n, axis=0), flat, max_iterations,
                                      position_tolerance, rotation_tolerance, damping, max_step,
                                      _PATIENCE, np.repeat(np.arange(len(rows)), n))
-            q2 = q2.reshape(len(rows), n, self.dof)
-            p2, r2 = p2.reshape(len(rows), n), r2.reshape(len(rows), n)
-            good = (p2 <= position_tolerance) & (r2 <= rotation_tolerance)
-            cost = p2 / position_tolerance + r2 / rotation_tolerance
-            pick = np.where(good.any(axis=1), np.argmax(good, axis=1), np.argmin(cost, axis=1))
-            cols = np.arange(len(rows))
-            closer = good.any(axis=1) | (cost[cols, pick] < pos_err[rows] / position_tolerance
-                                         + rot_err[rows] / rotation_tolerance)  # fmt: skip
-            take = rows[closer]
-            q[take] = q2[cols, pick][closer]
-            pos_err[take] = p2[cols, pick][closer]
-            rot_err[take] = r2[cols, pick][closer]
-            ok[take] = good.any(axis=1)[closer]
+            _keep_best(q, pos_err, rot_err, ok, rows, (q2, p2, r2), n, position_tolerance,
+                       rotation_tolerance)
             attempts[rows] += n
         return IKResult(q, ok, pos_err, rot_err, attempts)
 
@@ -392,19 +381,7 @@ class Kinematics:
             starts = np.tile(self.clamp(shared), (len(rows), 1))  # row-major: (rows * r)
             q2, p2, r2 = self._solve(np.repeat(targets[rows], r, axis=0), starts, iterations,
                                      pos_tol, rot_tol, damping, max_step, _PATIENCE)
-            q2 = q2.reshape(len(rows), r, self.dof)
-            p2, r2 = p2.reshape(len(rows), r), r2.reshape(len(rows), r)
-            good = (p2 <= pos_tol) & (r2 <= rot_tol)
-            cost = p2 / pos_tol + r2 / rot_tol
-            pick = np.where(good.any(axis=1), np.argmax(good, axis=1), np.argmin(cost, axis=1))
-            cols = np.arange(len(rows))
-            closer = good.any(axis=1) | (cost[cols, pick] < pos_err[rows] / pos_tol
-                                         + rot_err[rows] / rot_tol)  # fmt: skip
-            take = rows[closer]
-            q[take] = q2[cols, pick][closer]
-            pos_err[take] = p2[cols, pick][closer]
-            rot_err[take] = r2[cols, pick][closer]
-            ok[take] = good.any(axis=1)[closer]
+            _keep_best(q, pos_err, rot_err, ok, rows, (q2, p2, r2), r, pos_tol, rot_tol)
             attempts[rows] += r
         return IKResult(q, ok, pos_err, rot_err, attempts)
 
@@ -464,3 +441,26 @@ class Kinematics:
             dq *= np.minimum(1.0, max_step / np.maximum(big, 1e-12))[:, None]
             q[active] = self.clamp(qa + dq)
         return q, pos_err, rot_err
+
+
+def _keep_best(q: np.ndarray, pos_err: np.ndarray, rot_err: np.ndarray, ok: np.ndarray,
+               rows: np.ndarray, runs: tuple[np.ndarray, np.ndarray, np.ndarray], n: int,
+               pos_tol: float, rot_tol: float) -> None:
+    """Update, in place, the answers of targets ``rows`` (k,) from their ``n`` restarts each:
+    ``runs`` = (q (k*n, dof), position errors (k*n,), rotation errors (k*n,)), row-major by
+    target. A target takes its first restart that reaches it, else its closest one if that is
+    closer (errors weighed by their tolerances) than its current answer."""
+    q2, p2, r2 = runs
+    q2 = q2.reshape(len(rows), n, q.shape[1])
+    p2, r2 = p2.reshape(len(rows), n), r2.reshape(len(rows), n)
+    good = (p2 <= pos_tol) & (r2 <= rot_tol)
+    cost = p2 / pos_tol + r2 / rot_tol
+    pick = np.where(good.any(axis=1), np.argmax(good, axis=1), np.argmin(cost, axis=1))
+    cols = np.arange(len(rows))
+    closer = good.any(axis=1) | (cost[cols, pick] < pos_err[rows] / pos_tol
+                                 + rot_err[rows] / rot_tol)  # fmt: skip
+    take = rows[closer]
+    q[take] = q2[cols, pick][closer]
+    pos_err[take] = p2[cols, pick][closer]
+    rot_err[take] = r2[cols, pick][closer]
+    ok[take] = good.any(axis=1)[closer]
