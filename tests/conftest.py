@@ -117,6 +117,25 @@ def make_kb(tmp_path: Path) -> Callable[..., Path]:
     return make
 
 
+@pytest.fixture
+def armless_kb(tmp_path: Path) -> Path:
+    """The built-in KB copied with the robot's arms taken off (a floating gripper per hand)."""
+    import shutil
+
+    import yaml
+
+    from handover.engine.store import builtin_kb_dir
+
+    root = tmp_path / "armless_kb"
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    path = root / "robots" / "idro.yaml"
+    spec = yaml.safe_load(path.read_text(encoding="utf-8"))
+    for key in ("urdf", "arms", "base_pose"):
+        spec.pop(key, None)
+    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
+    return root
+
+
 @pytest.fixture(scope="session")
 def builtin_kb():
     """The built-in knowledge base, loaded once (do not modify it)."""

@@ -195,15 +195,8 @@ def test_a_plan_with_arms_is_deterministic(capsys):
     assert outs[0] == outs[1]
 
 
-def test_a_robot_without_arms_makes_the_reach_rule_not_applicable(tmp_path):
-    root = tmp_path / "kb"
-    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
-    path = root / "robots" / "idro.yaml"
-    spec = yaml.safe_load(path.read_text())
-    for key in ("urdf", "arms", "base_pose"):
-        spec.pop(key, None)
-    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
-    plan = Planner(kb=root).plan("knife")
+def test_a_robot_without_arms_makes_the_reach_rule_not_applicable(armless_kb):
+    plan = Planner(kb=armless_kb).plan("knife")
     assert plan.feasible
     entry = next(e for e in plan.to_dict()["trace"] if e["rule"] == "arm_reaches")
     assert entry["status"] == "not_applicable" and "no arms" in entry["note"]

@@ -113,20 +113,6 @@ def test_every_object_to_every_receiver_is_offered_in_free_space_within_reach(
         np.testing.assert_allclose(point, sites.mean(axis=0), atol=1e-6)
 
 
-def armless_kb(tmp_path: Path) -> Path:
-    """The built-in KB with the robot's arms taken off (a floating gripper per hand)."""
-    import yaml
-
-    root = tmp_path / "kb"
-    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
-    path = root / "robots" / "idro.yaml"
-    spec = yaml.safe_load(path.read_text())
-    for key in ("urdf", "arms", "base_pose"):
-        spec.pop(key, None)
-    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
-    return root
-
-
 def knife_part_centres(plan) -> dict[str, np.ndarray]:
     """The world centroid of each of the offered knife's parts (blade, handle)."""
     pm = plan.context.part_mesh
@@ -149,7 +135,7 @@ def assert_knife_above_the_table(r: dict, plan) -> None:
     assert over.any() and (pts[over, 2] >= top - TOL).all()
 
 
-def test_a_seated_receiver_at_a_table_gets_the_knife_above_the_table(capsys, tmp_path):
+def test_a_seated_receiver_at_a_table_gets_the_knife_above_the_table(capsys, armless_kb):
     # With the shipped arms: a seated adult at a table gets the knife, above the table, its
     # tip toward the robot and its handle toward them, every hard rule passing (H1G1 is ruled
     # out by the gripper and the receiver's hand on the handle; H2G2 gives it, the arms
@@ -170,7 +156,7 @@ def test_a_seated_receiver_at_a_table_gets_the_knife_above_the_table(capsys, tmp
     assert np.linalg.norm(parts["blade"][:2] - receiver[:2]) > \
         np.linalg.norm(parts["handle"][:2] - receiver[:2]) + 0.05  # tip away from them
     assert {h["part"] for h in r["human_grasps"]} == {"handle"}
-    kb = armless_kb(tmp_path)
+    kb = armless_kb
     code = main(["--kb", str(kb), "plan", "knife", "--receiver", "seated_adult", "--json"])
     out, err = capsys.readouterr()
     assert code == 0, err
