@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from handover.engine.schema import GripperSpec
     from handover.geometry.bodies import Body
 
-__all__ = ["build_result", "grasp_record", "human_record", "rule_warnings"]
+__all__ = ["build_result", "grasp_record", "human_record", "robot_record", "rule_warnings"]
 
 
 def body_record(body: Body) -> list[dict]:
@@ -72,6 +72,14 @@ def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
         "why": (first if hands.located[k] else "no location passes every hard location rule here; "
                 "the closest: ") + "; ".join(said),
     }
+
+
+def robot_record(ctx: PlanContext) -> dict | None:
+    """The result's ``robot``: the arms' frames and joint names
+    (:meth:`~handover.engine.robot.RobotArms.describe`, whatever the outcome), None for a
+    robot without arms."""
+    arms = ctx.arms
+    return None if arms is None else arms.describe()
 
 
 def _gripper_meshes(spec: GripperSpec) -> dict:
@@ -326,6 +334,7 @@ def build_result(
         outcome=outcome,
         refused=[{"rule": c.id, "source": c.source, "why": c.rule.why.strip(),
                   "fallback": c.rule.fallback} for c in refused],
+        robot=robot_record(ctx),
     )
     if placed:
         result.placement = placement.record | {"robot_grasp": robot_grasps[0], "rules": trace}

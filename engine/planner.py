@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from handover.engine.result import PlanResult
 
 __all__ = ["plan", "decide", "Decided", "refusing_rules", "fallback_rules", "Planner", "Plan",
-           "RobotGrasp", "HumanGrasp"]
+           "RobotGrasp", "HumanGrasp", "Robot", "RobotArm"]
 
 
 def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
@@ -185,7 +185,14 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
 class RobotGrasp:
     """One of the robot's grasps. pose : (4, 4) gripper in the object frame ``[n o a p]``;
     pose_world : (4, 4) at the handover; width : m between the fingers; contacts : (2, 3) m,
-    object frame; parts : the parts the two contacts touch."""
+    object frame; parts : the parts the two contacts touch.
+
+    arm : the arm that holds it (``left``/``right``), None for a robot without arms (and for
+    a placement's grasp: placements do not check the arms). joints : {stage: {joint name:
+    rad (m for prismatic)}} for the stages it is held at (``pickup``, ``midair``,
+    ``handover``), such that the URDF's forward kinematics put the grasp frame at the grasp's
+    pose there (see :class:`Robot`). fingers_swapped : the stages where the arm holds it
+    turned half a turn about ``a`` (the fingers are alike)."""
 
     hand: str
     pose: np.ndarray
@@ -195,6 +202,36 @@ class RobotGrasp:
     parts: tuple[str, ...]
     score: float | None
     stage: str = "handover"
+    arm: str | None = None
+    joints: dict[str, dict[str, float]] = field(default_factory=dict)
+    fingers_swapped: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class RobotArm:
+    """One arm of the plan's robot (the JSON ``robot.arms[side]``).
+
+    base_link, tip_link : the URDF chain. tcp : (4, 4) tip link -> grasp frame (m).
+    gripper : its gripper id. joints : the chain's moving joints, base to tip."""
+
+    base_link: str
+    tip_link: str
+    tcp: np.ndarray
+    gripper: str
+    joints: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Robot:
+    """The plan's robot with arms (the JSON ``robot``). urdf : its URDF, posix path relative
+    to the KB folder. base_pose : (4, 4) the URDF's root link in the world (m). arms : side
+    -> :class:`RobotArm`. A grasp's pose at a stage is ``base_pose @ T(root <- tip_link at
+    joints) @ arms[arm].tcp`` (the URDF's forward kinematics from its root link)."""
+
+    id: str
+    urdf: str
+    base_pose: np.ndarray
+    arms: dict[str, RobotArm]
 
 
 @dataclass(frozen=True)
@@ -252,8 +289,24 @@ class Plan:
                            pose_world=np.asarray(g["pose_world"], dtype=float),
                            width=float(g["width"]), contacts=np.asarray(g["contacts"]),
                            parts=tuple(g["parts"]), score=g["score"],
-                           stage=g.get("stage", "handover"))
+                           stage=g.get("stage", "handover"), arm=g.get("arm"),
+                           joints={stage: {name: float(v) for name, v in q.items()}
+                                   for stage, q in g.get("joints", {}).items()},
+                           fingers_swapped=tuple(g.get("fingers_swapped", ())))
                 for g in self.result.robot_grasps]
+
+    @property
+    def robot(self) -> Robot | None:
+        """The robot's arms and frames (the JSON ``robot``), None for a robot without arms."""
+        r = self.result.robot
+        if r is None:
+            return None
+        return Robot(id=r["id"], urdf=r["urdf"],
+                     base_pose=np.asarray(r["base_pose"], dtype=float),
+                     arms={side: RobotArm(base_link=a["base_link"], tip_link=a["tip_link"],
+                                          tcp=np.asarray(a["tcp"], dtype=float),
+                                          gripper=a["gripper"], joints=tuple(a["joints"]))
+                           for side, a in r["arms"].items()})
 
     @property
     def human_grasps(self) -> list[HumanGrasp]:

@@ -55,6 +55,12 @@ Entities (see ``ENTITY_*``)::
     world/handover/grippers           Boxes3D: the chosen gripper(s) (stage 4)
     world/regrasp, .../object,        H2G2: the object and grippers at pick, midair,
     .../grippers                      handover (stages 5-7)
+    world/robot/arms/{pickup,midair,handover}/{capsules,boxes,chain}
+                                      Capsules3D, Boxes3D, LineStrips3D: the arms holding the
+                                      chosen grasps, posed by forward kinematics of the
+                                      result's joint values (robots with arms): at pick-up and
+                                      at the handover (stage 4); in H2G2 only the arms of
+                                      stages 5 (pick-up), 6 (midair), 7 (handover)
     trace/summary                     TextDocument (markdown), one per stage
     trace/log                         TextLog: one line per rule decision of each chosen grasp
 
@@ -70,6 +76,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.arms import STAGE_WORDS
 from handover.engine.errors import UsageError
 from handover.engine.features import receiver_hand_boxes
 from handover.engine.files import atomic_path, write_error
@@ -78,6 +85,7 @@ from handover.engine.recordstages import (
     CLASS_CHOSEN,
     CLASS_KEPT,
     ENTITY_APPROACH,
+    ENTITY_ARMS,
     ENTITY_CANDIDATES,
     ENTITY_CENTRES,
     ENTITY_LOCATIONS,
@@ -98,13 +106,16 @@ if TYPE_CHECKING:
     from handover.engine.attempt import Attempt
     from handover.engine.context import PlanContext
     from handover.engine.result import PlanResult
+    from handover.engine.robot import RobotArms
 
-__all__ = ["write_recording", "blueprint", "camera"]
+__all__ = ["write_recording", "blueprint", "camera", "arm_primitives"]
 
 SECOND_HAND_COLOUR = (0, 200, 255)
 RECEIVER_HAND_COLOUR = (225, 175, 130)
 RECEIVER_BODY_COLOUR = (200, 160, 140)
 ROBOT_BODY_COLOUR = (110, 115, 130)
+ARM_COLOURS = {"left": (90, 125, 180), "right": (180, 120, 80)}
+"""The arms' links: the robot's muted style, blue-grey on the left, bronze on the right."""
 LOCATION_COLOURS = {"candidate": (150, 200, 255), "chosen": (255, 220, 0),
                     "closest": (230, 40, 40)}
 SCENE_COLOURS = {"table": (170, 130, 90), "obstacle": (120, 120, 135)}
@@ -136,14 +147,19 @@ def _quaternions(rotations: np.ndarray) -> np.ndarray:
     return Rotation.from_matrix(rotations).as_quat()
 
 
-def _log_body(rec, entity: str, primitives: list[dict], colour: tuple[int, int, int]) -> None:
+def _log_body(rec, entity: str, primitives: list[dict], colour: tuple[int, int, int] | list,
+              static: bool = True) -> None:
     """A body (the result's ``bodies`` entry: capsules and boxes, world) as two batched
-    entities, ``{entity}/capsules`` and ``{entity}/boxes``."""
+    entities, ``{entity}/capsules`` and ``{entity}/boxes``. colour : one RGB, or one per
+    primitive. static : logged once for the whole recording, else at the current stage."""
     import rerun as rr
 
     from handover.geometry.frames import perpendicular
 
+    colours = [colour] * len(primitives) if isinstance(colour, tuple) else list(colour)
     caps = [p for p in primitives if p["shape"] == "capsule"]
+    cap_colours = [c for p, c in zip(primitives, colours, strict=True) if p["shape"] == "capsule"]
+    box_colours = [c for p, c in zip(primitives, colours, strict=True) if p["shape"] == "box"]
     if caps:
         p0 = np.array([c["p0"] for c in caps], dtype=float)
         d = np.array([c["p1"] for c in caps], dtype=float) - p0
@@ -154,14 +170,68 @@ def _log_body(rec, entity: str, primitives: list[dict], colour: tuple[int, int, 
         frames = np.stack([n, np.cross(a, n), a], axis=2)  # columns n, o, a: z along the axis
         rec.log(f"{entity}/capsules", rr.Capsules3D(
             lengths=length, radii=[c["radius"] for c in caps], translations=p0,
-            quaternions=_quaternions(frames), colors=colour, labels=[c["name"] for c in caps],
-            fill_mode="solid"), static=True)  # fmt: skip
+            quaternions=_quaternions(frames), colors=cap_colours,
+            labels=[c["name"] for c in caps], fill_mode="solid"), static=static)  # fmt: skip
     boxes = [(p["name"], p["extents"], p["pose"]) for p in primitives if p["shape"] == "box"]
     names, centres, half, quats = _boxes_arrays(boxes)
     if names:
         rec.log(f"{entity}/boxes", rr.Boxes3D(centers=centres, half_sizes=half, quaternions=quats,
-                                               colors=colour, labels=names, fill_mode="solid"),
-                static=True)  # fmt: skip
+                                               colors=box_colours, labels=names,
+                                               fill_mode="solid"), static=static)  # fmt: skip
+
+
+def arm_primitives(arms: RobotArms, grasps: list[dict],
+                   stage: str) -> tuple[list[dict], list[tuple], list[dict]]:
+    """The arms holding ``grasps`` (result records with ``arm`` and ``joints``) at ``stage``
+    (``pickup``, ``midair``, ``handover``), posed by forward kinematics of their joint values:
+    the links' collision shapes as body primitives (capsules ``{name, shape, p0, p1,
+    radius}``, boxes ``{name, shape, extents, pose}``, world, m; named by link), their colours
+    (:data:`ARM_COLOURS`, by arm), and one chain per arm ``{"side", "points" (L, 3)}``: the
+    link origins from the chain's base link to its tip link, world, m. Each arm once (the
+    first grasp it holds at ``stage``)."""
+    prims: list[dict] = []
+    colours: list[tuple] = []
+    chains: list[dict] = []
+    for g in grasps:
+        side, joints = g.get("arm"), (g.get("joints") or {}).get(stage)
+        if side is None or joints is None or side in {c["side"] for c in chains}:
+            continue
+        arm = arms.arm(side)
+        q = np.array([float(joints[name]) for name in arm.chain.joint_names])
+        poses = arms.link_poses(side, q[None])[0]  # (L, 4, 4), indexed like chain.links
+        sh = arm.shapes
+        colour = ARM_COLOURS.get(side, ROBOT_BODY_COLOUR)
+        at = poses[sh.cap_link]
+        p0 = np.einsum("cij,cj->ci", at[:, :3, :3], sh.cap_a) + at[:, :3, 3]
+        p1 = np.einsum("cij,cj->ci", at[:, :3, :3], sh.cap_b) + at[:, :3, 3]
+        for c, link in enumerate(sh.cap_link):
+            prims.append({"name": sh.links[link], "shape": "capsule", "p0": p0[c], "p1": p1[c],
+                          "radius": float(sh.cap_radius[c])})  # fmt: skip
+            colours.append(colour)
+        for b, link in enumerate(sh.box_link):
+            prims.append({"name": sh.links[link], "shape": "box",
+                          "extents": sh.box_extents[b], "pose": poses[link] @ sh.box_pose[b]})
+            colours.append(colour)
+        tip = arm.chain.links.index(arm.chain.tip_link)
+        chains.append({"side": side, "points": poses[: tip + 1, :3, 3]})
+    return prims, colours, chains
+
+
+def _log_arms(rec, arms: RobotArms, grasps: list[dict], stage: str) -> None:
+    """The arms at ``stage`` (:func:`arm_primitives`) at the current time, as
+    ``world/robot/arms/{stage}/capsules``, ``.../boxes`` (the links' collision shapes) and
+    ``.../chain`` (LineStrips3D through the link origins, one strip per arm)."""
+    import rerun as rr
+
+    prims, colours, chains = arm_primitives(arms, grasps, stage)
+    if not chains:
+        return
+    entity = f"{ENTITY_ARMS}/{stage}"
+    _log_body(rec, entity, prims, colours, static=False)
+    rec.log(f"{entity}/chain", rr.LineStrips3D(
+        [c["points"] for c in chains], radii=0.005,
+        colors=[ARM_COLOURS.get(c["side"], ROBOT_BODY_COLOUR) for c in chains],
+        labels=[f"{c['side']} arm, {STAGE_WORDS[stage]}" for c in chains]))  # fmt: skip
 
 
 def _log_locations(rec, phase, k: int) -> None:
@@ -422,13 +492,18 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
         if s in docs:
             rec.log(ENTITY_SUMMARY, rr.TextDocument(docs[s], media_type=rr.MediaType.MARKDOWN))
 
-    # -- stage 4: the chosen grippers, at the handover and at pick-up; the receiver's grasp
+    # -- stage 4: the chosen grippers, at the handover and at pick-up, and the arms holding
+    # them; the receiver's grasp
+    arms = ctx.arms if result.robot is not None else None
     if 4 in stages:
         rec.set_time(TIMELINE, sequence=4)
         _log_grippers(rec, ctx, "world/handover/grippers", handover_grasps,
                       [OUTCOME_COLOURS["chosen"]] * len(handover_grasps))  # fmt: skip
         _log_grippers(rec, ctx, "world/initial/grippers", pick_grasps,
                       [OUTCOME_COLOURS["chosen"]] * len(pick_grasps))  # fmt: skip
+        if arms is not None:
+            for stage in ("pickup", "handover"):
+                _log_arms(rec, arms, result.robot_grasps, stage)
         if result.human_grasps:
             rec.log("world/receiver/sites", rr.Points3D(
                 [np.asarray(h["position_world"], dtype=float) for h in result.human_grasps],
@@ -452,9 +527,17 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
             if s == 5:
                 rec.log("world/regrasp/object", mesh)
             _log_grippers(rec, ctx, "world/regrasp/grippers", grasps, colours)
+            if arms is not None:  # the arms of this stage only
+                gone, shown = ("handover", None) if s == 5 else ("pickup", "midair")
+                rec.log(f"{ENTITY_ARMS}/{gone}", rr.Clear(recursive=True))
+                if shown:
+                    _log_arms(rec, arms, result.robot_grasps, shown)
             rec.log(ENTITY_SUMMARY, rr.TextDocument(docs[s], media_type=rr.MediaType.MARKDOWN))
         rec.set_time(TIMELINE, sequence=7)
         rec.log("world/regrasp", rr.Clear(recursive=True))
+        if arms is not None:
+            rec.log(f"{ENTITY_ARMS}/midair", rr.Clear(recursive=True))
+            _log_arms(rec, arms, result.robot_grasps, "handover")
         rec.log(ENTITY_SUMMARY, rr.TextDocument(docs[7], media_type=rr.MediaType.MARKDOWN))
 
     # -- the trace: one batch

@@ -40,6 +40,7 @@ __all__ = [
     "ENTITY_APPROACH",
     "ENTITY_LOG",
     "ENTITY_SUMMARY",
+    "ENTITY_ARMS",
     "hex_colour",
     "kind_colour",
     "rows_in",
@@ -98,6 +99,8 @@ ENTITY_CENTRES = "world/handover/candidates/centres"
 ENTITY_APPROACH = "world/handover/candidates/approach"
 ENTITY_LOG = "trace/log"
 ENTITY_SUMMARY = "trace/summary"
+ENTITY_ARMS = "world/robot/arms"
+"""The robot's arms: ``{ENTITY_ARMS}/{pickup,midair,handover}/{capsules,boxes,chain}``."""
 
 
 def hex_colour(rgb: tuple[int, int, int]) -> str:

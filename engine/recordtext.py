@@ -82,12 +82,19 @@ def _removed_table(removed: dict[str, int], decision: Decision, shown: np.ndarra
 
 
 def _grasps_table(grasps: list[dict]) -> str:
-    lines = ["| hand | grasp | parts | width m | quality | score |", "|---|---|---|---|---|---|"]
+    """Markdown rows of the chosen grasps; with arms, the arm holding each and the stages its
+    joint values are given for (drawn under ``world/robot/arms``)."""
+    arms = any(g.get("arm") for g in grasps)
+    columns = ["hand", "grasp", "parts", "width m", "quality", "score"] + \
+        (["arm (stages)"] if arms else [])
+    lines = ["| " + " | ".join(columns) + " |", "|---" * len(columns) + "|"]
     for g in grasps:
-        lines.append(
-            f"| {g.get('hand')} | {g.get('id')} | {'/'.join(g.get('parts') or [])} | "
-            f"{_fmt(g.get('width'))} | {_fmt(g.get('quality'))} | {_fmt(g.get('score'))} |"
-        )
+        row = (f"| {g.get('hand')} | {g.get('id')} | {'/'.join(g.get('parts') or [])} | "
+               f"{_fmt(g.get('width'))} | {_fmt(g.get('quality'))} | {_fmt(g.get('score'))} |")
+        if arms:
+            row += (f" {g['arm']} ({', '.join(g.get('joints') or {})}) |" if g.get("arm")
+                    else " - |")
+        lines.append(row)
     return "\n".join(lines)
 
 

@@ -70,6 +70,16 @@ class PlanResult:
     ``robot_grasps`` entry), "why", "rules" (the placement grasp's trace), "considered"}.
     refused : with ``refuse`` (and ``place`` after a refusal): the refusing rules [{"rule",
     "source", "why", "fallback"}].
+    robot : the robot's arms (:meth:`handover.engine.robot.RobotArms.describe`), or None for
+    a robot without arms (a floating gripper per hand): {"id", "urdf" (posix path relative to
+    the KB folder), "base_pose" (4, 4) the URDF's root link in the world, "arms": {side:
+    {"base_link", "tip_link", "tcp" (4, 4) tip link -> grasp frame, "gripper", "joints"
+    [names, chain order]}}}. A robot grasp's ``arm`` and ``joints`` ({stage: {joint name:
+    rad (m for prismatic)}}, stages ``pickup``, ``midair``, ``handover``) satisfy
+    ``base_pose @ T(root <- base_link) @ FK(joints)[tip_link] @ tcp`` = the grasp's pose at
+    that stage (``initial_pose @ pose`` at pick-up, ``regrasp.midair_pose @ pose`` midair,
+    ``pose_world`` at the handover), turned half a turn about ``a`` at the stages its
+    ``fingers_swapped`` names.
     """
 
     object: str
@@ -100,6 +110,7 @@ class PlanResult:
     placement: dict | None = None
     refused: list[dict] = field(default_factory=list)
     what_if: list[dict] | None = None
+    robot: dict | None = None
 
     def __post_init__(self) -> None:
         if not self.outcome:  # a result built without one: from ``feasible``
@@ -132,6 +143,7 @@ class PlanResult:
         out.update(
             {
                 "gripper": self.gripper,
+                "robot": self.robot,
                 "candidates": self.candidates,
                 "trace": self.trace,
                 "initial_pose": self.initial_pose,

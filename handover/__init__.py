@@ -13,10 +13,10 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-__all__ = ["Planner", "Plan", "RobotGrasp", "HumanGrasp"]
+__all__ = ["Planner", "Plan", "RobotGrasp", "HumanGrasp", "Robot", "RobotArm"]
 
 if TYPE_CHECKING:
-    from handover.engine.planner import HumanGrasp, Plan, Planner, RobotGrasp
+    from handover.engine.planner import HumanGrasp, Plan, Planner, Robot, RobotArm, RobotGrasp
 
 
 def __getattr__(name: str):
