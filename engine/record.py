@@ -186,9 +186,9 @@ def arm_primitives(arms: RobotArms, grasps: list[dict],
     (``pickup``, ``midair``, ``handover``), posed by forward kinematics of their joint values:
     the links' collision shapes as body primitives (capsules ``{name, shape, p0, p1,
     radius}``, boxes ``{name, shape, extents, pose}``, world, m; named by link), their colours
-    (:data:`ARM_COLOURS`, by arm), and one chain per arm ``{"side", "points" (L, 3)}``: the
-    link origins from the chain's base link to its tip link, world, m. Each arm once (the
-    first grasp it holds at ``stage``)."""
+    (:data:`ARM_COLOURS`, by arm), and one chain per arm ``{"side", "points" (P, 3)}``: the
+    link origins from the link carrying the first joint (the mount) to the tip link, world,
+    m, coinciding ones once. Each arm once (the first grasp it holds at ``stage``)."""
     prims: list[dict] = []
     colours: list[tuple] = []
     chains: list[dict] = []
@@ -212,8 +212,11 @@ def arm_primitives(arms: RobotArms, grasps: list[dict],
             prims.append({"name": sh.links[link], "shape": "box",
                           "extents": sh.box_extents[b], "pose": poses[link] @ sh.box_pose[b]})
             colours.append(colour)
-        tip = arm.chain.links.index(arm.chain.tip_link)
-        chains.append({"side": side, "points": poses[: tip + 1, :3, 3]})
+        chain = arm.chain
+        mount = int(np.flatnonzero(chain.link_joint < 0).max())  # carries the first joint
+        points = poses[mount: chain.links.index(chain.tip_link) + 1, :3, 3]
+        moved = np.linalg.norm(np.diff(points, axis=0), axis=1) > 1e-9  # coinciding frames
+        chains.append({"side": side, "points": points[np.concatenate([[True], moved])]})
     return prims, colours, chains
 
 

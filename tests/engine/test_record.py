@@ -543,6 +543,91 @@ def test_real_plan_recording_agrees_with_its_result(kb, tmp_path, obj, mode, sce
         assert f"no feasible handover: {result.reason}" in trace_text
 
 
+def _capsule_ends(rows: list[dict], stage: int) -> dict[str, list]:
+    """The capsules logged at ``stage``: label -> sorted [(radius, end, end)] (world, m), each
+    capsule's ends from its translation, quaternion and length (rerun's z along the axis)."""
+    from scipy.spatial.transform import Rotation
+
+    (row,) = [r for r in rows if r["stage"] == stage]
+    out: dict[str, list] = {}
+    for label, t, q, length, radius in zip(
+            row["Capsules3D:labels"], row["Capsules3D:translations"],
+            row["Capsules3D:quaternions"], row["Capsules3D:lengths"], row["Capsules3D:radii"],
+            strict=True):  # fmt: skip
+        t = np.asarray(t, dtype=float)
+        end = t + length * Rotation.from_quat(q).as_matrix()[:, 2]
+        out.setdefault(label, []).append((radius, *sorted([tuple(t), tuple(end)])))
+    return {k: sorted(v) for k, v in out.items()}
+
+
+def _urdf_capsules(urdf, base: np.ndarray, links: list[str]) -> dict[str, list]:
+    """The URDF's cylinders and spheres of ``links`` at its current configuration, posed by
+    yourdfpy, as :func:`_capsule_ends` gives them."""
+    out: dict[str, list] = {}
+    for link in links:
+        at = base @ urdf.get_transform(link, urdf.base_link)
+        for col in urdf.link_map[link].collisions:
+            pose = at @ (np.eye(4) if col.origin is None else col.origin)
+            g = col.geometry
+            if g.cylinder is not None:
+                half = 0.5 * g.cylinder.length * pose[:3, 2]
+                ends, radius = (pose[:3, 3] - half, pose[:3, 3] + half), g.cylinder.radius
+            elif g.sphere is not None:
+                ends, radius = (pose[:3, 3], pose[:3, 3]), g.sphere.radius
+            else:
+                continue
+            out.setdefault(link, []).append((radius, *sorted(tuple(e) for e in ends)))
+    return {k: sorted(v) for k, v in out.items()}
+
+
+def test_the_arm_is_drawn_at_its_joints_at_pick_up_and_at_the_handover(kb, tmp_path):
+    """The knife's arm, read back from the recording, lies where yourdfpy's forward
+    kinematics of the result's joint values put the URDF's links (from the JSON ``robot``
+    block), and its tip link where the gripper pose minus the tcp offset is."""
+    import yourdfpy
+
+    from handover.engine.store import builtin_kb_dir
+
+    result, _, path = _real(kb, tmp_path, "knife", "auto", "table")
+    data = result.to_dict()  # as the JSON gives it
+    robot = data["robot"]
+    (grasp,) = data["robot_grasps"]
+    arm = robot["arms"][grasp["arm"]]
+    base, tcp = np.asarray(robot["base_pose"]), np.asarray(arm["tcp"])
+    urdf = yourdfpy.URDF.load(str(builtin_kb_dir() / robot["urdf"]))
+    # The links the arm's joints move: below the first moving joint on the way to the tip.
+    parent = {j.child: j for j in urdf.robot.joints}
+    path_links, link = [], arm["tip_link"]
+    while link != arm["base_link"]:
+        path_links.append((link, parent[link].type != "fixed"))
+        link = parent[link].parent
+    path_links.reverse()
+    first = next(n for n, (_, moving) in enumerate(path_links) if moving)
+    moved = [name for name, _ in path_links[first:]]
+    cols = read_columns(path)
+    wanted = {"pickup": np.asarray(data["initial_pose"]) @ np.asarray(grasp["pose"]),
+              "handover": np.asarray(grasp["pose_world"])}
+    for stage, gripper in wanted.items():
+        entity = f"world/robot/arms/{stage}"
+        (strip,) = by_stage(cols[f"{entity}/chain"], "LineStrips3D:strips")[4]
+        tip = np.asarray(strip[-1])
+        np.testing.assert_allclose(tip, (gripper @ np.linalg.inv(tcp))[:3, 3], atol=1e-3)
+        urdf.update_cfg(grasp["joints"][stage])
+        np.testing.assert_allclose(
+            tip, (base @ urdf.get_transform(arm["tip_link"], urdf.base_link))[:3, 3], atol=1e-3)
+        drawn = _capsule_ends(cols[f"{entity}/capsules"], 4)
+        expected = _urdf_capsules(urdf, base, moved)
+        assert sorted(drawn) == sorted(expected)  # every moving link with a shape, no other
+        for link, caps in expected.items():
+            assert len(drawn[link]) == len(caps), link
+            for (r0, a0, b0), (r1, a1, b1) in zip(drawn[link], caps, strict=True):
+                assert r0 == pytest.approx(r1, abs=1e-6)
+                np.testing.assert_allclose([a0, b0], [a1, b1], atol=1e-3, err_msg=link)
+        colours = {c for c in cols[f"{entity}/capsules"][0]["Capsules3D:colors"]}
+        assert len(colours) == 1  # one arm, one colour
+    assert "world/robot/arms/midair/chain" not in cols  # H1G1: no midair regrasp
+
+
 def test_real_h2g2_plan_records_pick_midair_and_handover(kb, tmp_path):
     result, ctx, path = _real(kb, tmp_path, "hammer", "h2g2", "hammer_by_wall")
     if not result.feasible:
@@ -562,6 +647,18 @@ def test_real_h2g2_plan_records_pick_midair_and_handover(kb, tmp_path):
     # The candidates are drawn at the handover: the second hand's grasp is the chosen one.
     final = by_stage(cols[ENTITY_CENTRES], "Points3D:class_ids")[4]
     assert final[second["id"]] == CLASS_CHOSEN
+    # The arms: at pick-up and the handover (stage 4), then each stage's own: the first arm
+    # at pick-up (5), both midair (6), the second at the handover (7), each in its colour.
+    arms = "world/robot/arms"
+    logged = {stage: sorted(by_stage(cols[f"{arms}/{stage}/chain"], "LineStrips3D:strips"))
+              for stage in ("pickup", "midair", "handover")}
+    assert logged == {"pickup": [4], "midair": [6], "handover": [4, 7]}
+    midair = [r for r in cols[f"{arms}/midair/chain"] if r["stage"] == 6][0]
+    assert len(midair["LineStrips3D:strips"]) == 2 and len(set(midair["LineStrips3D:colors"])) == 2
+    cleared = {(r["stage"], e.rsplit("/", 1)[1]) for e in (f"{arms}/{s}" for s in
+               ("pickup", "midair", "handover")) for r in cols.get(e, [])
+               if r.get("Clear:is_recursive")}  # fmt: skip
+    assert cleared == {(5, "handover"), (6, "pickup"), (7, "midair")}
 
 
 def test_the_recording_draws_both_bodies_and_the_handover_locations(kb, tmp_path):

@@ -1,0 +1,282 @@
+"""The robot in the result: the JSON ``robot`` block (the arms' frames), each robot grasp's
+``arm`` and ``joints``, and the Python facade's view of them, through the CLI and
+``handover.Planner``.
+
+Every pose is checked with yourdfpy's own forward kinematics of the URDF the block names
+(not the planner's kinematics), from the block's ``base_pose``, ``tip_link`` and ``tcp``:
+``base_pose @ T(root <- tip_link at joints) @ tcp`` must be the grasp's pose at each stage.
+The robot's frames are compared with its YAML, read here. A KB copied into a temporary
+folder moves and turns the robot (so ``base_pose`` is not the identity), adds a lead weight
+that is set down instead of handed over, and the built-in KB without arms gives
+``robot: null``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+import yourdfpy
+from scipy.spatial.transform import Rotation
+
+from handover import Planner
+from handover.engine.cli.app import main
+from handover.engine.errors import EXIT_INFEASIBLE, EXIT_OK
+from handover.engine.store import builtin_kb_dir
+
+HANDOVER = Path(sys.executable).parent / "handover"
+FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])  # a grasp turned half a turn about a: the same grasp
+
+# The robot stands 5 cm forward and 4 cm to its left, turned 8 degrees to its left.
+MOVED_BASE = {"position": [0.05, 0.04, 0.0], "rotation_deg": [0.0, 0.0, 8.0]}
+
+# A 2.5 cm lead cube that a rule wants handed with two hands, or else set down.
+WEIGHT = """\
+id: lead_cube
+name: Lead cube
+mass: 0.3
+tags: [dense]
+geometry:
+  primitives:
+    - {shape: box, part: body, extents: [0.025, 0.025, 0.025]}
+parts:
+  body: {tags: []}
+axes:
+  up: [0, 0, 1]
+"""
+WEIGHTS = """\
+id: weights
+name: Dense things with two hands, or set down
+rules:
+  - id: dense_two_hands
+    kind: mode
+    mode: H2G1
+    applies: {object_tags_any: [dense]}
+    fallback: place
+    why: A dense weight is handed with two hands, or set down.
+"""
+
+
+def frame(pose: dict) -> np.ndarray:
+    """(4, 4) of a KB pose ``{position, rotation_deg}`` (extrinsic x, y, z degrees)."""
+    out = np.eye(4)
+    out[:3, :3] = Rotation.from_euler("xyz", pose.get("rotation_deg", [0, 0, 0]),
+                                      degrees=True).as_matrix()  # fmt: skip
+    out[:3, 3] = pose.get("position", [0, 0, 0])
+    return out
+
+
+@pytest.fixture(scope="module")
+def moved_kb(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("robot_result") / "kb"
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    path = root / "robots" / "idro.yaml"
+    spec = yaml.safe_load(path.read_text(encoding="utf-8"))
+    spec["base_pose"] = MOVED_BASE
+    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+    (root / "objects" / "lead_cube.yaml").write_text(WEIGHT, encoding="utf-8")
+    (root / "etiquette" / "weights.yaml").write_text(WEIGHTS, encoding="utf-8")
+    return root
+
+
+def plan_json(capsys, *args: str, code: int = EXIT_OK) -> dict:
+    got = main([*args, "--json"])
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err
+    result = json.loads(out)
+    assert got == code, result.get("reason")
+    return result
+
+
+_URDFS: dict[Path, yourdfpy.URDF] = {}
+
+
+def urdf_of(kb: Path, robot: dict) -> yourdfpy.URDF:
+    """The URDF the block names (relative to the KB folder), loaded by yourdfpy."""
+    path = kb / robot["urdf"]
+    if path not in _URDFS:
+        _URDFS[path] = yourdfpy.URDF.load(str(path))
+    return _URDFS[path]
+
+
+def assert_same_pose(a: np.ndarray, b: np.ndarray, what: str) -> None:
+    """Within 1 mm and 1 degree."""
+    assert np.linalg.norm(a[:3, 3] - b[:3, 3]) < 1e-3, what
+    cos = np.clip((np.trace(a[:3, :3].T @ b[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
+    assert np.degrees(np.arccos(cos)) < 1.0, what
+
+
+def stage_poses(result: dict, grasp: dict) -> dict[str, np.ndarray]:
+    """Where the plan says the gripper is at each stage (world)."""
+    pose = np.asarray(grasp["pose"])
+    out = {"pickup": np.asarray(result["initial_pose"]) @ pose,
+           "handover": np.asarray(grasp["pose_world"])}
+    if result.get("regrasp"):
+        out["midair"] = np.asarray(result["regrasp"]["midair_pose"]) @ pose
+    return out
+
+
+def check_grasps_by_fk(kb: Path, result: dict) -> list[tuple[str, str]]:
+    """Every robot grasp's joints at every stage, by yourdfpy's FK from the ``robot`` block,
+    put the grasp frame at the plan's pose, within the URDF's joint limits; the joints are
+    the block's arm's, in its order. Returns the (arm, stage) pairs checked."""
+    robot = result["robot"]
+    urdf = urdf_of(kb, robot)
+    base = np.asarray(robot["base_pose"])
+    checked = []
+    for g in result["robot_grasps"]:
+        arm = robot["arms"][g["arm"]]
+        tcp = np.asarray(arm["tcp"])
+        wanted = stage_poses(result, g)
+        assert g["joints"], "a grasp with no joint values"
+        for stage, joints in g["joints"].items():
+            assert list(joints) == arm["joints"]
+            for name, value in joints.items():
+                limit = urdf.joint_map[name].limit
+                assert limit.lower - 1e-9 <= value <= limit.upper + 1e-9, name
+            urdf.update_cfg(joints)
+            reached = base @ urdf.get_transform(arm["tip_link"], urdf.base_link) @ tcp
+            target = wanted[stage]
+            if stage in g.get("fingers_swapped", []):  # the fingers are alike
+                target = target @ FLIP
+            assert_same_pose(reached, target, f"{g['arm']} arm {stage}")
+            checked.append((g["arm"], stage))
+    return checked
+
+
+def check_block_against_yaml(kb: Path, robot: dict) -> None:
+    """The block's frames are the robot YAML's (read here), its joints the URDF's chain."""
+    spec = yaml.safe_load((kb / "robots" / "idro.yaml").read_text(encoding="utf-8"))
+    assert robot["id"] == spec["id"]
+    assert robot["urdf"] == f"robots/{spec['urdf']}"
+    np.testing.assert_allclose(robot["base_pose"], frame(spec["base_pose"]), atol=1e-6)
+    assert sorted(robot["arms"]) == sorted(spec["arms"])
+    urdf = urdf_of(kb, robot)
+    for side, arm in robot["arms"].items():
+        mine = spec["arms"][side]
+        assert (arm["base_link"], arm["tip_link"]) == (mine["base_link"], mine["tip_link"])
+        np.testing.assert_allclose(arm["tcp"], frame(mine["tcp"]), atol=1e-6)
+        assert arm["gripper"] == mine.get("gripper", spec["gripper"])
+        # The chain's moving joints, base to tip, walked up from the tip in the URDF.
+        parent = {j.child: j for j in urdf.robot.joints}
+        link, moving = arm["tip_link"], []
+        while link != arm["base_link"]:
+            joint = parent[link]
+            if joint.type != "fixed":
+                moving.append(joint.name)
+            link = joint.parent
+        assert arm["joints"] == moving[::-1]
+
+
+# ------------------------------------------------------------------ the JSON block
+
+
+def test_the_knife_s_robot_block_puts_each_grasp_where_the_plan_says(capsys):
+    kb = builtin_kb_dir()
+    r = plan_json(capsys, "plan", "knife")
+    assert r["outcome"] == "handover"
+    check_block_against_yaml(kb, r["robot"])
+    # One arm gives it: at pick-up (initial_pose @ pose) and at the handover (pose_world).
+    (grasp,) = r["robot_grasps"]
+    assert check_grasps_by_fk(kb, r) == [(grasp["arm"], "pickup"), (grasp["arm"], "handover")]
+
+
+def test_a_moved_robot_s_block_carries_its_base_pose(capsys, moved_kb):
+    """The robot moved and turned in a KB written here: the block's ``base_pose`` is the
+    YAML's, and FK from it still lands on the plan's poses (H1G1, and H2G2's midair)."""
+    r = plan_json(capsys, "--kb", str(moved_kb), "plan", "knife")
+    base = np.asarray(r["robot"]["base_pose"])
+    assert np.degrees(np.arctan2(base[1, 0], base[0, 0])) == pytest.approx(8.0, abs=1e-3)
+    check_block_against_yaml(moved_kb, r["robot"])
+    assert len(check_grasps_by_fk(moved_kb, r)) == 2
+    r = plan_json(capsys, "--kb", str(moved_kb), "plan", "knife", "--mode", "h2g2")
+    assert r["mode"] == "H2G2"
+    first, second = r["robot_grasps"]
+    assert first["arm"] != second["arm"]
+    checked = check_grasps_by_fk(moved_kb, r)
+    assert checked == [(first["arm"], "pickup"), (first["arm"], "midair"),
+                       (second["arm"], "midair"), (second["arm"], "handover")]
+
+
+def test_two_armed_h2g1_gives_both_arms_joints(capsys):
+    r = plan_json(capsys, "plan", "tray")
+    assert r["mode"] == "H2G1"
+    assert sorted(g["arm"] for g in r["robot_grasps"]) == ["left", "right"]
+    assert {arm for arm, stage in check_grasps_by_fk(builtin_kb_dir(), r)
+            if stage == "handover"} == {"left", "right"}
+
+
+def test_infeasible_and_placed_plans_still_name_the_robot(capsys, moved_kb):
+    """The block describes the robot whatever the outcome; a placement's grasp has no arm
+    or joints (placements do not check the arms)."""
+    handed = plan_json(capsys, "--kb", str(moved_kb), "plan", "knife")
+    r = plan_json(capsys, "--kb", str(moved_kb), "plan", "knife", "--mode", "h2g1",
+                  code=EXIT_INFEASIBLE)  # fmt: skip
+    assert r["outcome"] == "infeasible" and r["robot_grasps"] == []
+    assert r["robot"] == handed["robot"]
+    r = plan_json(capsys, "--kb", str(moved_kb), "plan", "lead_cube", "--culture", "weights",
+                  "--receiver", "seated_adult")  # near enough the table to set it down
+    assert r["outcome"] == "place", r["reason"]
+    assert r["robot"] == handed["robot"]
+    (grasp,) = r["robot_grasps"]
+    assert "arm" not in grasp and "joints" not in grasp
+    assert "arm" not in r["placement"]["robot_grasp"]
+
+
+def test_a_robot_without_arms_gives_robot_null(capsys, armless_kb):
+    r = plan_json(capsys, "--kb", str(armless_kb), "plan", "knife")
+    assert r["outcome"] == "handover"
+    assert "robot" in r and r["robot"] is None
+    assert all("arm" not in g and "joints" not in g for g in r["robot_grasps"])
+    plan = Planner(kb=armless_kb).plan("knife")
+    assert plan.robot is None
+    assert all(g.arm is None and g.joints == {} for g in plan.robot_grasps)
+
+
+def test_the_json_is_byte_identical_on_a_second_run(capsys, tmp_path):
+    main(["plan", "knife", "--json"])
+    first, _ = capsys.readouterr()
+    assert json.loads(first)["robot"] is not None
+    # Another process, another hash seed, the same grasp database.
+    env = dict(os.environ, PYTHONHASHSEED="12345")
+    second = subprocess.run([str(HANDOVER), "plan", "knife", "--json"], capture_output=True,
+                            text=True, env=env, check=False).stdout  # fmt: skip
+    assert second == first
+
+
+# ------------------------------------------------------------------ the facade
+
+
+def test_the_facade_exposes_the_robot_and_each_grasp_s_arm_and_joints(capsys):
+    plan = Planner().plan("knife", mode="h2g2")
+    data = plan.to_dict()
+    robot = plan.robot
+    assert robot.id == data["robot"]["id"] and robot.urdf == data["robot"]["urdf"]
+    assert isinstance(robot.base_pose, np.ndarray) and robot.base_pose.shape == (4, 4)
+    for side, arm in robot.arms.items():
+        block = data["robot"]["arms"][side]
+        assert arm.tip_link == block["tip_link"] and arm.joints == tuple(block["joints"])
+        assert arm.tcp.shape == (4, 4)
+        np.testing.assert_array_equal(arm.tcp, block["tcp"])
+    grasps = plan.robot_grasps
+    assert [g.arm for g in grasps] == [g["arm"] for g in data["robot_grasps"]]
+    for g, rec in zip(grasps, data["robot_grasps"], strict=True):
+        assert g.stage == rec["stage"] and list(g.joints) == list(rec["joints"])
+        for stage, joints in g.joints.items():  # the JSON rounds to microradians
+            assert joints == pytest.approx(rec["joints"][stage], abs=1e-6)
+        assert g.fingers_swapped == tuple(rec.get("fingers_swapped", ()))
+    # The facade's numbers put the grasp frame where the plan says, by yourdfpy's FK.
+    urdf = urdf_of(builtin_kb_dir(), data["robot"])
+    g = grasps[-1]
+    urdf.update_cfg(g.joints["handover"])
+    arm = robot.arms[g.arm]
+    reached = robot.base_pose @ urdf.get_transform(arm.tip_link, urdf.base_link) @ arm.tcp
+    target = g.pose_world @ (FLIP if "handover" in g.fingers_swapped else np.eye(4))
+    assert_same_pose(reached, target, "the facade's handover")
