@@ -189,6 +189,8 @@ def arm_primitives(arms: RobotArms, grasps: list[dict],
     (:data:`ARM_COLOURS`, by arm), and one chain per arm ``{"side", "points" (P, 3)}``: the
     link origins from the link carrying the first joint (the mount) to the tip link, world,
     m, coinciding ones once. Each arm once (the first grasp it holds at ``stage``)."""
+    from handover.geometry.armcollision import posed_boxes, posed_capsules
+
     prims: list[dict] = []
     colours: list[tuple] = []
     chains: list[dict] = []
@@ -201,16 +203,17 @@ def arm_primitives(arms: RobotArms, grasps: list[dict],
         poses = arms.link_poses(side, q[None])[0]  # (L, 4, 4), indexed like chain.links
         sh = arm.shapes
         colour = ARM_COLOURS.get(side, ROBOT_BODY_COLOUR)
-        at = poses[sh.cap_link]
-        p0 = np.einsum("cij,cj->ci", at[:, :3, :3], sh.cap_a) + at[:, :3, 3]
-        p1 = np.einsum("cij,cj->ci", at[:, :3, :3], sh.cap_b) + at[:, :3, 3]
+        p0, p1 = (ends[0] for ends in posed_capsules(sh, poses[None]))
+        centres, rotations = (v[0] for v in posed_boxes(sh, poses[None]))
         for c, link in enumerate(sh.cap_link):
             prims.append({"name": sh.links[link], "shape": "capsule", "p0": p0[c], "p1": p1[c],
                           "radius": float(sh.cap_radius[c])})  # fmt: skip
             colours.append(colour)
         for b, link in enumerate(sh.box_link):
-            prims.append({"name": sh.links[link], "shape": "box",
-                          "extents": sh.box_extents[b], "pose": poses[link] @ sh.box_pose[b]})
+            pose = np.eye(4)
+            pose[:3, :3], pose[:3, 3] = rotations[b], centres[b]
+            prims.append({"name": sh.links[link], "shape": "box", "extents": sh.box_extents[b],
+                          "pose": pose})  # fmt: skip
             colours.append(colour)
         chain = arm.chain
         mount = int(np.flatnonzero(chain.link_joint < 0).max())  # carries the first joint

@@ -70,8 +70,9 @@ class PlanResult:
     ``robot_grasps`` entry), "why", "rules" (the placement grasp's trace), "considered"}.
     refused : with ``refuse`` (and ``place`` after a refusal): the refusing rules [{"rule",
     "source", "why", "fallback"}].
-    robot : the robot's arms (:meth:`handover.engine.robot.RobotArms.describe`), or None for
-    a robot without arms (a floating gripper per hand): {"id", "urdf" (posix path relative to
+    robot : the robot's arms (:meth:`handover.engine.robot.RobotArms.describe`), whatever the
+    outcome, or None for a robot without arms (a floating gripper per hand; also for a KB
+    without a folder, whose plans do not load arms): {"id", "urdf" (posix path relative to
     the KB folder), "base_pose" (4, 4) the URDF's root link in the world, "arms": {side:
     {"base_link", "tip_link", "tcp" (4, 4) tip link -> grasp frame, "gripper", "joints"
     [names, chain order]}}}. A robot grasp's ``arm`` and ``joints`` ({stage: {joint name:

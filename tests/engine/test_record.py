@@ -23,7 +23,7 @@ from handover.engine.errors import UsageError
 from handover.engine.evaluate import Decision
 from handover.engine.kinds import KINDS
 from handover.engine.receiver_sites import ReceiverRegion, ReceiverSites
-from handover.engine.record import write_recording
+from handover.engine.record import ARM_COLOURS, write_recording
 from handover.engine.recording import read_recording
 from handover.engine.recordstages import (
     CLASS_ALIVE,
@@ -411,6 +411,71 @@ def test_h2g2_plan_adds_pick_midair_and_handover(tmp_path):
     assert colours[4][0] == rgb(OUTCOME_COLOURS["chosen"])
     stages = {t["stage"] for t in summary["trace"] if "grasp 5" in t["text"]}
     assert stages == {5}
+
+
+class OneJointArm:
+    """A robot with one arm on its ``right``, written here: a mount at (0.2, 0, 1) m; link
+    ``l1`` turns about z by the joint's angle there and carries a 0.2 m capsule along its z;
+    the tip link, 0.3 m along l1's x, carries a 0.1 x 0.04 x 0.02 m box 0.05 m further out.
+    What :func:`write_recording` needs of :class:`~handover.engine.robot.RobotArms`."""
+
+    MOUNT = np.array([0.2, 0.0, 1.0])
+
+    def __init__(self) -> None:
+        from handover.geometry.urdf import LinkShapes
+
+        box = np.eye(4)
+        box[0, 3] = 0.05
+        shapes = LinkShapes(
+            links=("mount", "l1", "tip"), cap_link=np.array([1]), cap_a=np.zeros((1, 3)),
+            cap_b=np.array([[0.0, 0.0, 0.2]]), cap_radius=np.array([0.03]),
+            box_link=np.array([2]), box_pose=box[None], box_extents=np.array([[0.1, 0.04, 0.02]]))
+        chain = SimpleNamespace(joint_names=("j1",), links=shapes.links, tip_link="tip",
+                                link_joint=np.array([-1, 0, 0]))  # fmt: skip
+        self._arm = SimpleNamespace(chain=chain, shapes=shapes)
+
+    def arm(self, side: str):
+        assert side == "right"
+        return self._arm
+
+    def link_poses(self, side: str, q: np.ndarray) -> np.ndarray:
+        (angle,) = np.asarray(q, dtype=float).reshape(-1)
+        mount, l1 = np.eye(4), np.eye(4)
+        mount[:3, 3] = l1[:3, 3] = self.MOUNT
+        c, s_ = np.cos(angle), np.sin(angle)
+        l1[:2, :2] = [[c, -s_], [s_, c]]
+        tip = l1.copy()
+        tip[:3, 3] += 0.3 * l1[:3, 0]
+        return np.stack([mount, l1, tip])[None]
+
+
+def test_an_arm_with_boxes_is_drawn_at_each_stage_s_joints(tmp_path):
+    """The hand-made plan held by :class:`OneJointArm`, at 0 rad at pick-up and at a quarter
+    turn at the handover: its capsule, its box and its chain where the test puts them."""
+    result, ctx, attempt = synthetic_plan()
+    result.robot = {"id": "one_arm", "arms": {"right": {}}}
+    result.robot_grasps[0].update(arm="right", joints={"pickup": {"j1": 0.0},
+                                                       "handover": {"j1": np.pi / 2}})
+    ctx.memo["arms"] = OneJointArm()
+    path = tmp_path / "arm.rrd"
+    write_recording(result, ctx, path, attempt)
+    cols = read_columns(path)
+    mount = OneJointArm.MOUNT
+    for stage, x_axis in (("pickup", [1.0, 0, 0]), ("handover", [0, 1.0, 0])):
+        entity = f"world/robot/arms/{stage}"
+        (capsule,) = [r for r in cols[f"{entity}/capsules"] if r["stage"] == 4]
+        assert capsule["Capsules3D:labels"] == ["l1"]
+        np.testing.assert_allclose(capsule["Capsules3D:translations"], [mount], atol=1e-6)
+        assert capsule["Capsules3D:lengths"] == pytest.approx([0.2])
+        (box,) = [r for r in cols[f"{entity}/boxes"] if r["stage"] == 4]
+        assert box["Boxes3D:labels"] == ["tip"]
+        np.testing.assert_allclose(box["Boxes3D:centers"], [mount + 0.35 * np.array(x_axis)],
+                                   atol=1e-6)  # fmt: skip
+        np.testing.assert_allclose(box["Boxes3D:half_sizes"], [[0.05, 0.02, 0.01]], atol=1e-6)
+        (strip,) = by_stage(cols[f"{entity}/chain"], "LineStrips3D:strips")[4]
+        # mount and l1 coincide: drawn once, then the tip
+        np.testing.assert_allclose(strip, [mount, mount + 0.3 * np.array(x_axis)], atol=1e-6)
+        assert capsule["Capsules3D:colors"] == box["Boxes3D:colors"] == [rgb(ARM_COLOURS["right"])]
 
 
 # ------------------------------------------------------------------ file handling
