@@ -7,6 +7,7 @@ an object above its reach) is said, naming the arm it has."""
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -49,7 +50,20 @@ receiver: {position: [0.95, 0.0, 0.0], facing: [-1.0, 0.0, 0.0]}
 object: {position: [0.33, 0.0]}
 """
 
+README = Path(__file__).resolve().parents[2] / "README.md"
+
 FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])  # the grasp turned half a turn about a
+
+
+def readme_robot() -> str:
+    """The robot YAML of the README's "Your own robot"."""
+    section = README.read_text(encoding="utf-8").split("#### Your own robot", 1)[1]
+    return re.findall(r"```yaml\n(.*?)```", section, flags=re.S)[0]
+
+
+def robot_yaml(ur5, robot_id: str, side: str) -> str:
+    return ur5.yaml(robot_id=robot_id, side=side, position=BASE, yaw_deg=YAW, payload=PAYLOAD,
+                    tcp_z=TCP_Z, tcp_yaw_deg=TCP_YAW, gripper="parallel_jaw")
 
 
 def rz(deg: float) -> np.ndarray:
@@ -66,16 +80,15 @@ def frame(rotation: np.ndarray, position) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def kb(tmp_path_factory, ur5) -> Path:
-    """The built-in KB with the one-arm robot (``rover``: its arm named ``right``; ``lefty``:
-    the same robot with its arm named ``left``), a heavy-tagged bottle and two scenes."""
+    """The built-in KB with the one-arm robot (``rover``: the README's, its arm named
+    ``right``; ``lefty``: the same robot with its arm named ``left``), a heavy-tagged bottle
+    and two scenes."""
     root = tmp_path_factory.mktemp("user_robot") / "kb"
     shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
     robots = root / "robots"
     (robots / "rover.urdf").write_text(ur5.urdf(), encoding="utf-8")
-    for robot_id, side in (("rover", "right"), ("lefty", "left")):
-        (robots / f"{robot_id}.yaml").write_text(ur5.yaml(
-            robot_id=robot_id, side=side, position=BASE, yaw_deg=YAW, payload=PAYLOAD,
-            tcp_z=TCP_Z, tcp_yaw_deg=TCP_YAW, gripper="parallel_jaw"), encoding="utf-8")
+    (robots / "rover.yaml").write_text(readme_robot(), encoding="utf-8")
+    (robots / "lefty.yaml").write_text(robot_yaml(ur5, "lefty", "left"), encoding="utf-8")
     (root / "scenes" / "high_shelf.yaml").write_text(SHELF, encoding="utf-8")
     (root / "scenes" / "close.yaml").write_text(CLOSE, encoding="utf-8")
     bottle = yaml.safe_load((root / "objects" / "bottle.yaml").read_text(encoding="utf-8"))
@@ -107,6 +120,11 @@ def assert_within_1_mm_and_1_degree(a: np.ndarray, b: np.ndarray) -> None:
     assert np.linalg.norm(a[:3, 3] - b[:3, 3]) < 1e-3
     cos = np.clip((np.trace(a[:3, :3].T @ b[:3, :3]) - 1.0) / 2.0, -1.0, 1.0)
     assert np.degrees(np.arccos(cos)) < 1.0
+
+
+def test_the_readme_s_robot_is_the_one_planned_here(ur5):
+    """The README's example is the robot these tests plan with (and check by its DH)."""
+    assert yaml.safe_load(readme_robot()) == yaml.safe_load(robot_yaml(ur5, "rover", "right"))
 
 
 @pytest.mark.parametrize(("robot", "side"), [("rover", "right"), ("lefty", "left")])
