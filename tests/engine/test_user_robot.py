@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 from handover.engine.cli.app import main
-from handover.engine.errors import EXIT_INFEASIBLE, EXIT_INVALID_KB, EXIT_OK
+from handover.engine.errors import EXIT_INFEASIBLE, EXIT_INVALID_KB, EXIT_OK, EXIT_USAGE
 from handover.engine.store import builtin_kb_dir
 
 # The mobile base stands just behind the table's robot-side edge (0.30 m in front of the
@@ -239,3 +239,10 @@ def test_a_broken_robot_is_a_kb_error_at_its_line_when_planning_as_when_validati
         assert "tip_link: tool9" in lines[at - 1]
     else:
         assert "robots/rover.urdf:" in errors["plan"]
+
+
+def test_an_unknown_robot_is_a_usage_error_naming_the_known_ones(capsys, kb):
+    code = main(["--kb", str(kb), "plan", "knife", "--robot", "rovr"])
+    err = capsys.readouterr().err
+    assert code == EXIT_USAGE and "Traceback" not in err
+    assert "unknown robot 'rovr'" in err and "rover" in err
