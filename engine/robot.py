@@ -412,6 +412,13 @@ def plan_arms(kb_root: Path | str | None, spec: RobotSpec) -> RobotArms | None:
         digest = ""  # RobotArms.load says what is wrong
     key = (str(kb_root), spec.model_dump_json(), digest)
     if key not in _PLAN_ARMS:
+        from handover.engine.yamlpos import parse_yaml
+
+        # The robot file's node positions, so that an error names the line at fault (the
+        # tip_link, not the document's first line), as ``handover kb validate`` does.
+        parsed = parse_yaml(kb.root / spec.source.file, spec.source.file)
+        if isinstance(parsed, tuple):
+            kb.marks[spec.source.file] = parsed[1]
         _PLAN_ARMS[key] = RobotArms.load(kb, spec, reach_dir=reach_dir(open_db()))
     return _PLAN_ARMS[key]
 

@@ -26,7 +26,8 @@ def check_mesh_scale(mesh_scale: float) -> float:
     return mesh_scale
 
 
-def _query(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0):
+def _query(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0,
+           robot=None):
     from handover.engine.query import DEFAULTS, Query
 
     return Query(
@@ -38,6 +39,7 @@ def _query(object_: str, task, receiver, culture, scene, mode, gripper, mesh_sca
         scene=scene or DEFAULTS["scene"],
         mode=(mode or "auto").lower(),
         gripper=gripper,
+        robot=robot or DEFAULTS["robot"],
     )
 
 
@@ -50,6 +52,7 @@ def plan(
     scene: str | None = typer.Option(None, "--scene", "-s", help="Scene id."),
     mode: str = typer.Option("auto", "--mode", "-m", help=MODE_HELP),
     gripper: str | None = typer.Option(None, "--gripper", help="Gripper id."),
+    robot: str | None = typer.Option(None, "--robot", help="Robot id (default: idro)."),
     mesh_scale: float = typer.Option(1.0, "--mesh-scale", help=MESH_SCALE_HELP),
     json_out: bool = typer.Option(False, "--json", help="Print the JSON result."),
     output: Path | None = typer.Option(None, "-o", "--output", help="Write the JSON here."),
@@ -79,7 +82,7 @@ def plan(
     from handover.engine.planner import plan as run_plan
 
     kb = load_kb(state.kb_dir, urdf=False)
-    query = _query(object_, task, receiver, culture, scene, mode, gripper, mesh_scale)
+    query = _query(object_, task, receiver, culture, scene, mode, gripper, mesh_scale, robot)
     planned = run_plan(kb, query, why_not=tuple(why_not), db=open_db(db, disabled=no_db),
                        what_if=what_if)
     result = planned.result

@@ -1,6 +1,7 @@
 """The robot's arms from the KB (engine.robot): grasp poses reached by IK checked by an
-independent forward kinematics (yourdfpy's, or a DH product written here), reachability by map
-and IK, the reach cache on disk, collisions named, and a user's own one-arm robot."""
+independent forward kinematics (yourdfpy's, or the DH product of the ``ur5`` fixture),
+reachability by map and IK, the reach cache on disk, collisions named, and a user's own
+one-arm robot."""
 
 from __future__ import annotations
 
@@ -202,86 +203,13 @@ def test_an_arm_folded_into_the_torso_hits_it(idro):
 
 # ---------------------------------------------------------------- a user's own robot
 
-# A UR5-like 6-DOF arm from Universal Robots' published DH parameters (standard DH,
-# universal-robots.com "DH parameters for calculations of kinematics and dynamics"), on a
-# mobile base: a 0.5 x 0.5 x 0.4 m box with a post to the arm's mount at 0.45 m.
-UR5_DH = {  # d, a, alpha per joint (m, m, rad)
-    "d": [0.089159, 0.0, 0.0, 0.10915, 0.09465, 0.0823],
-    "a": [0.0, -0.425, -0.39225, 0.0, 0.0, 0.0],
-    "alpha": [np.pi / 2, 0.0, 0.0, np.pi / 2, -np.pi / 2, 0.0],
-}
-MOUNT_Z = 0.45
-
-
-def ur5_urdf() -> str:
-    d, a, alpha = UR5_DH["d"], UR5_DH["a"], UR5_DH["alpha"]
-    names = ["shoulder_link", "upper_arm_link", "forearm_link", "wrist_1_link", "wrist_2_link",
-             "wrist_3_link"]  # fmt: skip
-    out = ['<robot name="ur5_on_base">',
-           '<link name="base_footprint"><collision><origin xyz="0 0 0.2"/>'
-           '<geometry><box size="0.5 0.5 0.4"/></geometry></collision></link>',
-           '<link name="ur_base"><collision><origin xyz="0 0 -0.03"/>'
-           '<geometry><cylinder radius="0.06" length="0.06"/></geometry></collision></link>',
-           '<joint name="mount" type="fixed"><parent link="base_footprint"/>'
-           f'<child link="ur_base"/><origin xyz="0 0 {MOUNT_Z}"/></joint>']  # fmt: skip
-    parent = "ur_base"
-    for i, link in enumerate(names):
-        # Link i's frame turns with joint i; its body runs to the next joint: d along z, then
-        # a along x (the DH offset, which the next joint's origin carries).
-        if a[i]:
-            geometry = (f'<origin xyz="{a[i] / 2} 0 0" rpy="0 1.5707963267948966 0"/>'
-                        f'<geometry><cylinder radius="0.05" length="{abs(a[i])}"/></geometry>')
-        else:
-            geometry = (f'<origin xyz="0 0 {d[i] / 2}"/>'
-                        f'<geometry><cylinder radius="0.045" length="{d[i]}"/></geometry>')
-        out.append(f'<link name="{link}"><collision>{geometry}</collision></link>')
-        origin = "0 0 0" if i == 0 else f"{a[i - 1]} 0 {d[i - 1]}"
-        rpy = "0 0 0" if i == 0 else f"{alpha[i - 1]} 0 0"
-        out.append(f'<joint name="joint{i + 1}" type="revolute"><parent link="{parent}"/>'
-                   f'<child link="{link}"/><origin xyz="{origin}" rpy="{rpy}"/>'
-                   '<axis xyz="0 0 1"/><limit lower="-6.283185" upper="6.283185" effort="150" '
-                   'velocity="3.15"/></joint>')  # fmt: skip
-        parent = link
-    out.append('<link name="tool0"/>')
-    out.append(f'<joint name="tool_fixed" type="fixed"><parent link="{parent}"/>'
-               f'<child link="tool0"/><origin xyz="{a[5]} 0 {d[5]}" rpy="{alpha[5]} 0 0"/>'
-               '</joint>')  # fmt: skip
-    out.append("</robot>")
-    return "\n".join(out) + "\n"
-
-
-def dh_fk(q: np.ndarray) -> np.ndarray:
-    """(4, 4) tool0 in ur_base by the textbook product of standard DH transforms."""
-    out = np.eye(4)
-    for theta, d, a, alpha in zip(q, UR5_DH["d"], UR5_DH["a"], UR5_DH["alpha"], strict=True):
-        ct, st, ca, sa = np.cos(theta), np.sin(theta), np.cos(alpha), np.sin(alpha)
-        out = out @ np.array([[ct, -st * ca, st * sa, a * ct], [st, ct * ca, -ct * sa, a * st],
-                              [0, sa, ca, d], [0, 0, 0, 1]])  # fmt: skip
-    return out
-
-
-UR_YAML = """\
-    id: rover
-    name: One UR5-like arm on a mobile base
-    payload_per_hand: 3.0
-    gripper: jaw
-    reach: 0.8
-    urdf: rover.urdf
-    base_pose: {position: [0.1, -0.2, 0.0], rotation_deg: [0, 0, 30]}
-    arms:
-      right:
-        base_link: base_footprint
-        tip_link: tool0
-        tcp: {position: [0, 0, 0.12], rotation_deg: [0, 0, 90]}
-    """
-
-
 @pytest.fixture
-def rover_kb(make_kb):
-    return make_kb({"robots/rover.yaml": UR_YAML, "robots/rover.urdf": ur5_urdf()})
+def rover_kb(make_kb, ur5):
+    """The minimal KB with the ``ur5`` fixture's one-arm robot (tests/engine/conftest.py)."""
+    return make_kb({"robots/rover.yaml": ur5.yaml(), "robots/rover.urdf": ur5.urdf()})
 
 
-def test_a_one_arm_robot_from_its_own_urdf(rover_kb):
+def test_a_one_arm_robot_from_its_own_urdf(rover_kb, ur5):
     kb = load_kb(rover_kb)
     assert kb.warnings == []
     spec = kb.robot("rover")
@@ -289,17 +217,17 @@ def test_a_one_arm_robot_from_its_own_urdf(rover_kb):
     arms = robot_arms(kb, "rover", map_params=SMALL_MAP)
     assert arms.sides == ("right",) and arms.arm("right").dof == 6
     base_pose = transform_from(rotation_from_euler_deg([0, 0, 30]), [0.1, -0.2, 0.0])
-    mount = transform_from(None, [0, 0, MOUNT_Z])
+    mount = transform_from(None, [0, 0, ur5.mount_z])
     tcp = transform_from(rotation_from_euler_deg([0, 0, 90]), [0, 0, 0.12])
     rng = np.random.default_rng(4)
     q0 = arms.arm("right").kin.random_configurations(200, rng)
     world = arms.fk("right", q0)
     for k in range(5):
-        assert_allclose(world[k], base_pose @ mount @ dh_fk(q0[k]) @ tcp, atol=1e-9)
+        assert_allclose(world[k], base_pose @ mount @ ur5.dh_fk(q0[k]) @ tcp, atol=1e-9)
     q, ok, _, _ = arms.solve("right", world)
     assert ok.mean() > 0.97
     for k in np.flatnonzero(ok)[:20]:
-        assert_poses_close(base_pose @ mount @ dh_fk(q[k]) @ tcp, world[k])
+        assert_poses_close(base_pose @ mount @ ur5.dh_fk(q[k]) @ tcp, world[k])
     assert arms.reachable("right", world).mean() > 0.8  # 2 M samples; 20 M give 0.999
     # Its body: the URDF's base box and the arm's mount, placed by the base pose.
     assert sorted(set(arms.body.names)) == ["base_footprint", "ur_base"]
@@ -309,8 +237,8 @@ def test_a_one_arm_robot_from_its_own_urdf(rover_kb):
     assert list(arms.joints_dict("right", q[0])) == [f"joint{i}" for i in range(1, 7)]
 
 
-def test_a_body_in_the_yaml_replaces_the_urdf_links(make_kb):
-    yaml_text = UR_YAML.rstrip(" ") + textwrap.indent(textwrap.dedent("""\
+def test_a_body_in_the_yaml_replaces_the_urdf_links(make_kb, ur5):
+    yaml_text = ur5.yaml() + textwrap.dedent("""\
         body:
           - id: mast
             shape: capsule
@@ -319,8 +247,8 @@ def test_a_body_in_the_yaml_replaces_the_urdf_links(make_kb):
             radius: 0.05
             position: [-0.2, 0, 0]
           - {id: chassis, shape: box, extents: [0.6, 0.5, 0.3], position: [0, 0, 0.15]}
-        """), "    ")  # fmt: skip
-    root = make_kb({"robots/rover.yaml": yaml_text, "robots/rover.urdf": ur5_urdf()})
+        """)
+    root = make_kb({"robots/rover.yaml": yaml_text, "robots/rover.urdf": ur5.urdf()})
     arms = robot_arms(load_kb(root), "rover", map_params={"samples": 100_000})
     assert arms.body.names == ("mast", "chassis")
     base_pose = transform_from(rotation_from_euler_deg([0, 0, 30]), [0.1, -0.2, 0.0])
