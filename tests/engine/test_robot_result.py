@@ -151,9 +151,9 @@ def check_grasps_by_fk(kb: Path, result: dict) -> list[tuple[str, str]]:
     return checked
 
 
-def check_block_against_yaml(kb: Path, robot: dict) -> None:
+def check_block_against_yaml(kb: Path, robot: dict, name: str = "idro") -> None:
     """The block's frames are the robot YAML's (read here), its joints the URDF's chain."""
-    spec = yaml.safe_load((kb / "robots" / "idro.yaml").read_text(encoding="utf-8"))
+    spec = yaml.safe_load((kb / "robots" / f"{name}.yaml").read_text(encoding="utf-8"))
     assert robot["id"] == spec["id"]
     assert robot["urdf"] == f"robots/{spec['urdf']}"
     np.testing.assert_allclose(robot["base_pose"], frame(spec["base_pose"]), atol=1e-6)
@@ -249,6 +249,40 @@ def test_the_json_is_byte_identical_on_a_second_run(capsys, tmp_path):
     second = subprocess.run([str(HANDOVER), "plan", "knife", "--json"], capture_output=True,
                             text=True, env=env, check=False).stdout  # fmt: skip
     assert second == first
+
+
+def test_a_one_armed_user_robot_s_block_and_recorded_arm(capsys, tmp_path, ur5):
+    """A user's robot written here (one UR5-like arm on a mobile base turned 15 degrees, its
+    tcp turned a quarter turn): the block names its one arm; FK from the block lands on the
+    plan's poses; the recording draws that arm with its tip link where the gripper pose minus
+    the tcp is."""
+    from rerun.chunk import RrdReader
+
+    from handover.engine.recording import read_recording
+
+    kb = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), kb, ignore=shutil.ignore_patterns("schema", "__*"))
+    (kb / "robots" / "rover.urdf").write_text(ur5.urdf(), encoding="utf-8")
+    (kb / "robots" / "rover.yaml").write_text(ur5.yaml(
+        position=(-0.02, 0.05, 0.0), yaw_deg=15.0, payload=2.0, tcp_z=0.11, tcp_yaw_deg=90.0,
+        gripper="parallel_jaw"), encoding="utf-8")  # fmt: skip
+    rrd = tmp_path / "rover.rrd"
+    r = plan_json(capsys, "--kb", str(kb), "plan", "knife", "--robot", "rover", "--rrd",
+                  str(rrd))  # fmt: skip
+    robot = r["robot"]
+    assert robot["id"] == "rover" and list(robot["arms"]) == ["right"]
+    check_block_against_yaml(kb, robot, "rover")
+    (grasp,) = r["robot_grasps"]
+    assert check_grasps_by_fk(kb, r) == [("right", "pickup"), ("right", "handover")]
+    entities = {e["path"]: e["stages"] for e in read_recording(rrd)["entities"]}
+    tcp = np.asarray(robot["arms"]["right"]["tcp"])
+    for stage, pose in stage_poses(r, grasp).items():
+        assert entities[f"world/robot/arms/{stage}/capsules"] == [4]
+        strips = [chunk.to_record_batch().column("LineStrips3D:strips").to_pylist()
+                  for chunk in RrdReader(rrd).stream().to_chunks()
+                  if chunk.entity_path.lstrip("/") == f"world/robot/arms/{stage}/chain"]
+        (((strip,),),) = strips  # one row, one arm
+        np.testing.assert_allclose(strip[-1], (pose @ np.linalg.inv(tcp))[:3, 3], atol=1e-3)
 
 
 # ------------------------------------------------------------------ the facade
