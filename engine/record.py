@@ -148,10 +148,11 @@ def _quaternions(rotations: np.ndarray) -> np.ndarray:
 
 
 def _log_body(rec, entity: str, primitives: list[dict], colour: tuple[int, int, int] | list,
-              static: bool = True) -> None:
+              static: bool = True, show_labels: bool = True) -> None:
     """A body (the result's ``bodies`` entry: capsules and boxes, world) as two batched
     entities, ``{entity}/capsules`` and ``{entity}/boxes``. colour : one RGB, or one per
-    primitive. static : logged once for the whole recording, else at the current stage."""
+    primitive. static : logged once for the whole recording, else at the current stage.
+    show_labels : draw the names in the view (else on hover only)."""
     import rerun as rr
 
     from handover.geometry.frames import perpendicular
@@ -171,13 +172,15 @@ def _log_body(rec, entity: str, primitives: list[dict], colour: tuple[int, int, 
         rec.log(f"{entity}/capsules", rr.Capsules3D(
             lengths=length, radii=[c["radius"] for c in caps], translations=p0,
             quaternions=_quaternions(frames), colors=cap_colours,
-            labels=[c["name"] for c in caps], fill_mode="solid"), static=static)  # fmt: skip
+            labels=[c["name"] for c in caps], show_labels=show_labels, fill_mode="solid"),
+            static=static)  # fmt: skip
     boxes = [(p["name"], p["extents"], p["pose"]) for p in primitives if p["shape"] == "box"]
     names, centres, half, quats = _boxes_arrays(boxes)
     if names:
         rec.log(f"{entity}/boxes", rr.Boxes3D(centers=centres, half_sizes=half, quaternions=quats,
                                                colors=box_colours, labels=names,
-                                               fill_mode="solid"), static=static)  # fmt: skip
+                                               show_labels=show_labels, fill_mode="solid"),
+                static=static)  # fmt: skip
 
 
 def arm_primitives(arms: RobotArms, grasps: list[dict],
@@ -233,7 +236,9 @@ def _log_arms(rec, arms: RobotArms, grasps: list[dict], stage: str) -> None:
     if not chains:
         return
     entity = f"{ENTITY_ARMS}/{stage}"
-    _log_body(rec, entity, prims, colours, static=False)
+    # The links' names on hover only (up to four arms' links at once would hide the view);
+    # the chain's label names the arm and the stage.
+    _log_body(rec, entity, prims, colours, static=False, show_labels=False)
     rec.log(f"{entity}/chain", rr.LineStrips3D(
         [c["points"] for c in chains], radii=0.005,
         colors=[ARM_COLOURS.get(c["side"], ROBOT_BODY_COLOUR) for c in chains],
