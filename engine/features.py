@@ -98,21 +98,19 @@ def _collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
     weights = np.left_shift(np.int64(1), HANDOVER_BIT + np.arange(len(targets), dtype=np.int64))
     posed = ctx.gripper_boxes()
     origin, g_reach = gripper_spheres(ctx)
-    # Every gripper box lies within ``reach`` of the object frame's origin: targets farther
-    # are never touched and are not tested; nor are grippers whose sphere misses every
-    # target's.
+    # Every gripper box lies within ``reach`` of the object frame's origin, and within
+    # ``g_reach`` of its grasp's origin: a target farther (the exact distance from a point to
+    # a capsule or box, not a bounding sphere: a table's sphere holds the whole room) is
+    # never touched, and is not box-tested.
     reach = float(np.linalg.norm(origin[gi], axis=1).max()) + g_reach if len(gi) else 0.0
-    centres, radii = targets.spheres()
     for k in np.unique(pk):  # the targets move into the object frame, not every gripper out
         rows = np.flatnonzero(pk == k)
         pose = hands.poses[k]
-        near = np.linalg.norm(centres - pose[:3, 3], axis=1) <= reach + radii
+        near = targets.point_distances(pose[:3, 3][None])[0] <= reach
         if not near.any():
             continue
         local = targets.subset(near).moved(np.linalg.inv(pose))
-        l_centres, l_radii = local.spheres()
-        gap = np.linalg.norm(origin[gi[rows]][:, None, :] - l_centres[None], axis=2)
-        rows = rows[(gap <= g_reach + l_radii[None, :]).any(axis=1)]
+        rows = rows[(local.point_distances(origin[gi[rows]]) <= g_reach).any(axis=1)]
         if not len(rows):
             continue
         sel = gi[rows]
