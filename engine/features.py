@@ -25,6 +25,7 @@ __all__ = [
     "axis_world",
     "collision_scene",
     "hand_model",
+    "hand_models",
     "receiver_hand_boxes",
     "collision_receiver_hand",
     "collision_other_gripper",
@@ -98,21 +99,19 @@ def _collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
     weights = np.left_shift(np.int64(1), HANDOVER_BIT + np.arange(len(targets), dtype=np.int64))
     posed = ctx.gripper_boxes()
     origin, g_reach = gripper_spheres(ctx)
-    # Every gripper box lies within ``reach`` of the object frame's origin: targets farther
-    # are never touched and are not tested; nor are grippers whose sphere misses every
-    # target's.
+    # Every gripper box lies within ``reach`` of the object frame's origin, and within
+    # ``g_reach`` of its grasp's origin: a target farther (the exact distance from a point to
+    # a capsule or box, not a bounding sphere: a table's sphere holds the whole room) is
+    # never touched, and is not box-tested.
     reach = float(np.linalg.norm(origin[gi], axis=1).max()) + g_reach if len(gi) else 0.0
-    centres, radii = targets.spheres()
     for k in np.unique(pk):  # the targets move into the object frame, not every gripper out
         rows = np.flatnonzero(pk == k)
         pose = hands.poses[k]
-        near = np.linalg.norm(centres - pose[:3, 3], axis=1) <= reach + radii
+        near = targets.point_distances(pose[:3, 3][None])[0] <= reach
         if not near.any():
             continue
         local = targets.subset(near).moved(np.linalg.inv(pose))
-        l_centres, l_radii = local.spheres()
-        gap = np.linalg.norm(origin[gi[rows]][:, None, :] - l_centres[None], axis=2)
-        rows = rows[(gap <= g_reach + l_radii[None, :]).any(axis=1)]
+        rows = rows[(local.point_distances(origin[gi[rows]]) <= g_reach).any(axis=1)]
         if not len(rows):
             continue
         sel = gi[rows]
@@ -152,30 +151,53 @@ def hand_model(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites, k
                pose: np.ndarray) -> list:
     """One receiver hand (palm and finger boxes, world) at ``sites`` in presentation ``k``
     with the object at ``pose`` (4, 4); empty where that hand has no site."""
-    if not sites.valid[k]:
-        return []
+    from handover.geometry.hand import BOX_NAMES
+
+    extents, poses, valid = hand_models(ctx, region, sites, np.array([k]), pose[None])
+    return [(name, extents[0, b], poses[0, b]) for b, name in enumerate(BOX_NAMES)
+            if valid[0, b]]
+
+
+def hand_models(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites,
+                ks: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`hand_model` of n rows at once: presentations ``ks`` (n,) int with the object
+    at ``poses`` (n, 4, 4). Returns extents (n, 4, 3) m, box poses (n, 4, 4, 4) world and
+    valid (n, 4) bool (``HumanHand.boxes_many``; no box valid where the hand has no site)."""
     from handover.engine.receiver_sites import hand_approach
 
-    rot = pose[:3, :3]
-    site = rot @ sites.site[k] + pose[:3, 3]
-    axis = rot @ (sites.axis[k] if sites.axis is not None else region.axis)
+    ks = np.asarray(ks, dtype=np.int64)
+    rot, shift = poses[:, :3, :3], poses[:, :3, 3]
+    site = np.einsum("nij,nj->ni", rot, sites.site[ks]) + shift
+    local_axis = sites.axis[ks] if sites.axis is not None else np.broadcast_to(
+        np.asarray(region.axis, dtype=float), (len(ks), 3))
+    axis = np.einsum("nij,nj->ni", rot, local_axis)
     if sites.approach is not None:  # turned to fit the part (receiver_sites.predict_receiver_sites)
-        approach = rot @ sites.approach[k]
+        approach = np.einsum("nij,nj->ni", rot, sites.approach[ks])
     else:
         approach = hand_approach(axis, ctx.situation.toward, np.array([0.0, 0.0, 1.0]))
-    depth = float(sites.depth[k]) if sites.depth is not None else None
-    return ctx.hand.boxes(site, axis, approach, float(sites.thickness[k]), depth,
-                          cupped=sites.cupped)
+    thickness = np.asarray(sites.thickness, dtype=float)[ks]
+    depth = np.asarray(sites.depth, dtype=float)[ks] if sites.depth is not None else thickness
+    extents, boxes, valid = ctx.hand.boxes_many(site, axis, approach, thickness, depth,
+                                                cupped=sites.cupped)
+    valid &= np.asarray(sites.valid, dtype=bool)[ks][:, None]
+    return extents, boxes, valid
 
 
 def receiver_hand_boxes(ctx: PlanContext, hands: Hands, k: int) -> list:
-    """Every receiver hand's boxes (world) at its sites in presentation ``k``."""
+    """Every receiver hand's boxes (world) at its sites in presentation ``k`` (those of every
+    presentation are built together, once per hands)."""
+    from handover.geometry.hand import BOX_NAMES
+
     memo = ctx.memo.setdefault("hand_boxes", {})
-    key = (hands.key, k)
-    if key not in memo:
-        memo[key] = [b for sites in hands.sites
-                     for b in hand_model(ctx, hands.region, sites, k, hands.poses[k])]
-    return memo[key]
+    if hands.key not in memo:
+        ks = np.arange(len(hands.poses))
+        per_k: list[list] = [[] for _ in ks]
+        for sites in hands.sites:
+            extents, poses, valid = hand_models(ctx, hands.region, sites, ks, hands.poses)
+            for kk, b in zip(*np.nonzero(valid), strict=True):
+                per_k[kk].append((BOX_NAMES[b], extents[kk, b], poses[kk, b]))
+        memo[hands.key] = per_k
+    return memo[hands.key][k]
 
 
 def collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
@@ -191,29 +213,21 @@ def _collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
     """:func:`collision_receiver_hand`, computed."""
     from handover.geometry.collision import BoxWorld
 
-    out = np.zeros(len(gi), dtype=bool)
     # The grippers are posed once in the object frame; each presentation's hands are moved
-    # into it (a few boxes per hand, instead of every gripper into the world). A gripper
-    # whose bounding sphere misses the hands' is not box-tested.
-    posed = ctx.gripper_boxes()
-    origin, reach = gripper_spheres(ctx)
+    # into it (a few boxes per hand, instead of every gripper into the world), and every row
+    # is tested in one batch.
+    worlds: list[BoxWorld] = []
+    group = np.full(len(gi), -1, dtype=np.int64)
     for k in np.unique(pk):
-        rows = np.flatnonzero(pk == k)
         boxes = receiver_hand_boxes(ctx, hands, int(k))
-        if not boxes:
-            continue
-        world = BoxWorld(boxes).moved(np.linalg.inv(hands.poses[k]))
-        hand_centre = world.centres.mean(axis=0)
-        hand_reach = float((np.linalg.norm(world.centres - hand_centre, axis=1)
-                            + 0.5 * np.linalg.norm(world.extents, axis=1)).max())
-        near = np.linalg.norm(origin[gi[rows]] - hand_centre, axis=1) <= reach + hand_reach
-        rows = rows[near]
-        if not len(rows):
-            continue
-        sel = gi[rows]
-        out[rows] = world.posed_hits(
-            posed._replace(centres=posed.centres[sel], rotations=posed.rotations[sel])
-        ).any(axis=1)
+        if boxes:
+            group[pk == k] = len(worlds)
+            worlds.append(BoxWorld(boxes).moved(np.linalg.inv(hands.poses[k])))
+    out = np.zeros(len(gi), dtype=bool)
+    rows = np.flatnonzero(group >= 0)
+    if len(rows):
+        out[rows] = BoxWorld.grippers_hit_any(ctx.gripper_boxes(), gi[rows], worlds,
+                                              group[rows])
     return out
 
 

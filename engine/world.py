@@ -231,7 +231,7 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
     avoid : indices of candidate locations tried last (a mode found no plan there): a
     presentation offered at one of them moves to its next best location, the others stay.
     """
-    from handover.engine.features import hand_model
+    from handover.engine.features import hand_models
 
     world = ctx.world
     locs = ctx.locations(hands[0])
@@ -272,17 +272,13 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
         """(n, P) bool: the object and the receiver's hands at (k, l) against the targets."""
         poses = poses_at(k_idx, l_idx)
         hit = targets.mesh_hits(ctx.collider, poses)
-        boxes, owner = [], []
-        for n, (k, pose) in enumerate(zip(k_idx, poses, strict=True)):
-            for s in sites:
-                for _, ext, bpose in hand_model(ctx, region, s, int(k), pose):
-                    boxes.append((ext, bpose))
-                    owner.append(n)
-        if boxes:
-            ext = np.array([b[0] for b in boxes])
-            bp = np.array([b[1] for b in boxes])
-            hand_hit = targets.boxes_hit(bp[:, :3, 3], bp[:, :3, :3], ext)
-            np.logical_or.at(hit, np.asarray(owner), hand_hit)
+        for s in sites:
+            ext, bp, valid = hand_models(ctx, region, s, k_idx, poses)
+            owner, box = np.nonzero(valid)
+            if len(owner):
+                hand_hit = targets.boxes_hit(bp[owner, box, :3, 3], bp[owner, box, :3, :3],
+                                             ext[owner, box])
+                np.logical_or.at(hit, owner, hand_hit)
         return hit
 
     chosen = np.full(K, -1, dtype=np.int64)

@@ -49,6 +49,11 @@ _SAT_EPS = 1e-12
 _AX = (0, 1, 2)
 # Box pairs per numpy batch (bounds the temporary arrays to a few tens of MB).
 _SAT_CHUNK = 1 << 17
+# Rows per batch of BoxWorld.grippers_hit_any (its temporaries stay in the CPU's cache).
+_ROWS_CHUNK = 8192
+# The gripper's parts in the order grippers_hit_any tries them: the fingers first (what a
+# receiver's hand meets most), then the palm.
+_PART_ORDER = (1, 2, 0)
 
 
 def boxes_overlap(
@@ -111,6 +116,51 @@ def boxes_overlap(
             radius = a[i1] * ab[i2][j] + a[i2] * ab[i1][j] + b[j1] * ab[i][j2] + b[j2] * ab[i][j1]
             sep |= np.abs(proj) > radius
     return ~sep
+
+
+def _grippers_hit_any(posed: PosedBoxes, ref: np.ndarray, g_half: np.ndarray, gi: np.ndarray,
+                      gr: np.ndarray, centres: np.ndarray, rotations: np.ndarray,
+                      half: np.ndarray) -> np.ndarray:
+    """:meth:`BoxWorld.grippers_hit_any` of one batch of rows: grippers ``gi`` (r,) against
+    the worlds ``gr`` (r,) whose boxes are ``centres`` (Q, H, 3), ``rotations`` (Q, H, 3, 3)
+    and half extents ``half`` (Q, H, 3) (negative: padding). ``ref`` (N, 3) each gripper's
+    first part's centre; ``g_half`` (G, 3) its parts' half extents. Returns (r,) bool."""
+    out = np.zeros(len(gi), dtype=bool)
+    rg = posed.rotations[gi]  # (r, 3, 3): columns are the gripper's axes
+    # The world boxes in each row's gripper frame (origin at the first part's centre),
+    # component-major: rel[i][j] = G_i . B_j, (r, H) each; d[i], (r, H).
+    rel_all = np.einsum("rki,rhkj->ijrh", rg, rotations[gr])
+    d_all = np.einsum("rki,rhk->irh", rg, centres[gr] - ref[gi][:, None])
+    b_all = np.moveaxis(half[gr], 2, 0)  # (3, r, H)
+    local = np.einsum("rki,rgk->rgi", rg, posed.centres[gi] - ref[gi][:, None])  # (r, G, 3)
+    live = np.arange(len(gi))
+    order = _PART_ORDER if len(g_half) == len(_PART_ORDER) else range(len(g_half))
+    for p in order:
+        if not len(live):
+            break
+        a = g_half[p]
+        rel = rel_all[:, :, live]
+        ab = np.abs(rel) + _SAT_EPS
+        b = b_all[:, live]
+        t = d_all[:, live] - local[live, p].T[:, :, None]
+        sep = b[0] < 0  # padding
+        for i in _AX:
+            sep |= np.abs(t[i]) > a[i] + b[0] * ab[i, 0] + b[1] * ab[i, 1] + b[2] * ab[i, 2]
+        for j in _AX:
+            proj = t[0] * rel[0, j] + t[1] * rel[1, j] + t[2] * rel[2, j]
+            sep |= np.abs(proj) > a[0] * ab[0, j] + a[1] * ab[1, j] + a[2] * ab[2, j] + b[j]
+        for i in _AX:
+            i1, i2 = (i + 1) % 3, (i + 2) % 3
+            for j in _AX:
+                j1, j2 = (j + 1) % 3, (j + 2) % 3
+                proj = t[i2] * rel[i1, j] - t[i1] * rel[i2, j]
+                radius = (a[i1] * ab[i2, j] + a[i2] * ab[i1, j] + b[j1] * ab[i, j2]
+                          + b[j2] * ab[i, j1])  # fmt: skip
+                sep |= np.abs(proj) > radius
+        hit = (~sep).any(axis=1)
+        out[live[hit]] = True
+        live = live[~hit]
+    return out
 
 
 def _check_rigid(transform: np.ndarray, what: str) -> np.ndarray:
@@ -403,6 +453,54 @@ class BoxWorld:
             posed.centres, posed.rotations[:, None], posed.extents + 2.0 * float(margin)
         )
         return per_part.any(axis=1)
+
+    @staticmethod
+    def grippers_hit_any(posed: PosedBoxes, grasps: np.ndarray, worlds: Sequence[BoxWorld],
+                         groups: np.ndarray) -> np.ndarray:
+        """(R,) bool: whether the gripper ``posed[grasps[r]]`` touches any box of the box
+        world ``worlds[groups[r]]`` (a plan's presentations each have their own receiver
+        hands): ``posed_hits(...).any(axis=1)`` for every row in one batch.
+
+        posed : the grippers posed in the worlds' frame; grasps, groups : (R,) int.
+
+        Every part of a gripper shares its rotation, so each world box is expressed once per
+        row in the gripper's frame, where the gripper's parts are axis-aligned; the
+        separating-axis test then runs part by part over (row, box) arrays, and a row
+        found touching is not tested with the next parts. A row whose gripper's bounding
+        sphere misses its world's is not tested.
+        """
+        grasps = np.asarray(grasps, dtype=np.int64)
+        groups = np.asarray(groups, dtype=np.int64)
+        out = np.zeros(len(grasps), dtype=bool)
+        h = max((len(w) for w in worlds), default=0)
+        if h == 0 or not len(grasps):
+            return out
+        q = len(worlds)
+        centres = np.zeros((q, h, 3))
+        rotations = np.broadcast_to(np.eye(3), (q, h, 3, 3)).copy()
+        half = np.full((q, h, 3), -1.0)  # padding: a box of negative size touches nothing
+        for g, w in enumerate(worlds):
+            m = len(w)
+            centres[g, :m], rotations[g, :m], half[g, :m] = (w.centres, w.rotations,
+                                                             0.5 * w.extents)  # fmt: skip
+        # Bounding spheres of each world and of each gripper (about its first part's centre).
+        valid = half[..., 0] >= 0
+        mid = np.array([w.centres.mean(axis=0) if len(w) else np.zeros(3) for w in worlds])
+        w_rad = np.where(valid, np.linalg.norm(centres - mid[:, None], axis=2)
+                         + np.linalg.norm(half, axis=2), 0.0).max(axis=1)  # fmt: skip
+        ref = posed.centres[:, 0]  # (N, 3)
+        g_half = 0.5 * posed.extents  # (G, 3)
+        g_rad = float((np.linalg.norm(posed.centres - ref[:, None], axis=2)
+                       + np.linalg.norm(g_half, axis=1)).max())  # fmt: skip
+        rows = np.flatnonzero(np.linalg.norm(ref[grasps] - mid[groups], axis=1)
+                              <= g_rad + w_rad[groups] + _SAT_EPS)
+        if not len(rows):
+            return out
+        for s in range(0, len(rows), _ROWS_CHUNK):  # small batches stay in the CPU's cache
+            chunk = rows[s : s + _ROWS_CHUNK]
+            out[chunk] = _grippers_hit_any(posed, ref, g_half, grasps[chunk], groups[chunk],
+                                           centres, rotations, half)
+        return out
 
     def moved(self, transform: np.ndarray) -> BoxWorld:
         """The same boxes in another frame: ``transform`` (4, 4) maps W to that frame."""

@@ -39,7 +39,10 @@ import numpy as np
 
 from handover.geometry.gripper import Box
 
-__all__ = ["HumanHand", "PINCH_MAX"]
+__all__ = ["HumanHand", "PINCH_MAX", "BOX_NAMES"]
+
+BOX_NAMES = ("palm", "fingers", "thumb", "fingertips")
+"""The hand's boxes, in the order :meth:`HumanHand.boxes` gives them."""
 
 PINCH_MAX = 0.015
 """m: a section thinner than this is pinched between thumb and fingertips, not wrapped."""
@@ -146,20 +149,49 @@ class HumanHand:
         if not (np.isfinite(t) and t > 0 and np.isfinite(d) and d > 0):
             raise ValueError(f"thickness and depth must be positive numbers, got {thickness}, "
                              f"{depth}")
-        frame = self.frame(site, axis, approach)
+        self.frame(site, axis, approach)  # the inputs checked, with their own messages
+        extents, poses, valid = self.boxes_many(np.asarray(site, dtype=float)[None],
+                                                np.asarray(axis, dtype=float)[None],
+                                                np.asarray(approach, dtype=float)[None],
+                                                np.array([t]), np.array([d]), cupped)
+        return [(name, extents[0, b], poses[0, b]) for b, name in enumerate(BOX_NAMES)
+                if valid[0, b]]
+
+    def boxes_many(self, site: np.ndarray, axis: np.ndarray, approach: np.ndarray,
+                   thickness: np.ndarray, depth: np.ndarray, cupped: bool = False
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`boxes` of n hands at once: ``site``, ``axis``, ``approach`` (n, 3) and
+        ``thickness``, ``depth`` (n,) m (inputs not checked: :meth:`boxes` checks one).
+        Returns extents (n, 4, 3) m, poses (n, 4, 4, 4) and valid (n, 4) bool, the boxes in
+        :data:`BOX_NAMES` order (``fingertips`` valid where the fingers reach over)."""
+        site, axis, approach = (np.asarray(v, dtype=float).reshape(-1, 3)
+                                for v in (site, axis, approach))
+        t = np.asarray(thickness, dtype=float).reshape(-1)
+        d = np.asarray(depth, dtype=float).reshape(-1)
+        n = len(site)
+        x = axis / np.linalg.norm(axis, axis=1, keepdims=True)
+        z = approach / np.linalg.norm(approach, axis=1, keepdims=True)
+        z = z - np.sum(z * x, axis=1, keepdims=True) * x
+        z = z / np.linalg.norm(z, axis=1, keepdims=True)
+        frame = np.tile(np.eye(4), (n, 1, 1))
+        frame[:, :3, 0], frame[:, :3, 1], frame[:, :3, 2] = x, np.cross(z, x), z
+        frame[:, :3, 3] = site
         ft, gw, reach = self.finger_thickness, self.grip_width, self.finger_length
         z_lo = -d / 2.0
-        local: list[tuple[str, tuple, tuple]] = [
-            ("palm", (0.0, 0.0, -(d + self.palm[2]) / 2.0), self.palm)]
-        z_side = min(z_lo + reach, d / 2.0 + ft if cupped else d / 2.0)
-        side = (gw, ft, z_side - z_lo)
-        local.append(("fingers", (0.0, (t + ft) / 2.0, (z_lo + z_side) / 2.0), side))
-        local.append(("thumb", (0.0, -(t + ft) / 2.0, (z_lo + z_side) / 2.0), side))
-        if reach >= d + ft and not cupped:
-            local.append(("fingertips", (0.0, 0.0, (d + ft) / 2.0), (gw, t + 2 * ft, ft)))
-        out: list[Box] = []
-        for name, centre, extents in local:
-            offset = np.eye(4)
-            offset[:3, 3] = centre
-            out.append((name, np.array(extents, dtype=float), frame @ offset))
-        return out
+        z_side = np.minimum(z_lo + reach, d / 2.0 + ft if cupped else d / 2.0)
+        zero = np.zeros(n)
+        centres = np.stack([
+            np.stack([zero, zero, -(d + self.palm[2]) / 2.0], axis=1),
+            np.stack([zero, (t + ft) / 2.0, (z_lo + z_side) / 2.0], axis=1),
+            np.stack([zero, -(t + ft) / 2.0, (z_lo + z_side) / 2.0], axis=1),
+            np.stack([zero, zero, (d + ft) / 2.0], axis=1),
+        ], axis=1)  # (n, 4, 3) in the hand frame
+        side = np.stack([np.full(n, gw), np.full(n, ft), z_side - z_lo], axis=1)
+        extents = np.stack([np.broadcast_to(np.asarray(self.palm, dtype=float), (n, 3)), side,
+                            side, np.stack([np.full(n, gw), t + 2 * ft, np.full(n, ft)],
+                                           axis=1)], axis=1)  # fmt: skip
+        poses = np.repeat(frame[:, None], 4, axis=1)
+        poses[:, :, :3, 3] = np.einsum("nij,nbj->nbi", frame[:, :3, :3], centres) + site[:, None]
+        valid = np.ones((n, 4), dtype=bool)
+        valid[:, 3] = (reach >= d + ft) & (not cupped)
+        return extents, poses, valid

@@ -287,6 +287,12 @@ TABLE = ("table", np.array([1.0, 1.0, 0.03]), _moved([0, 0, 0.685]))
 WALL = ("wall", np.array([0.02, 1.0, 1.0]), _moved([0.4, 0, 0.8]))
 
 
+def _pose_from(rot, p):
+    out = np.eye(4)
+    out[:3, :3], out[:3, 3] = rot, p
+    return out
+
+
 def _from_above(x, z):
     """Gripper coming down (a = -z), closing along y, grasp origin at (x, 0, z)."""
     return _pose([-1, 0, 0], [0, 1, 0], [0, 0, -1], [x, 0, z])
@@ -319,6 +325,32 @@ def test_empty_world_and_bad_boxes():
         BoxWorld([("flat", [1.0, 1.0, 0.0], np.eye(4))])
     with pytest.raises(ValueError, match="triple"):
         BoxWorld([("nothing",)])
+
+
+def test_many_worlds_in_one_batch_agree_with_each_world_alone():
+    # Hand-sized boxes scattered round the origin, a different world per group (one empty),
+    # and grippers at random poses and openings near them: grippers_hit_any must give, row
+    # by row, what each world's own posed_hits gives (the reference is the plain
+    # separating-axis test over every part and box).
+    rng = np.random.default_rng(7)
+    worlds = []
+    for size in (4, 3, 0, 4, 1):
+        boxes = [(f"b{i}", rng.uniform(0.01, 0.1, 3),
+                  _pose_from(Rotation.random(random_state=rng).as_matrix(),
+                             rng.uniform(-0.08, 0.08, 3))) for i in range(size)]
+        worlds.append(BoxWorld(boxes))
+    n = 3000
+    poses = np.stack([_pose_from(Rotation.random(random_state=rng).as_matrix(),
+                                 rng.uniform(-0.15, 0.15, 3)) for _ in range(n)])
+    posed = G.posed_boxes(poses, rng.uniform(0.0, G.max_opening, n))
+    grasps = rng.integers(0, n, 4000)
+    groups = rng.integers(0, len(worlds), 4000)
+    got = BoxWorld.grippers_hit_any(posed, grasps, worlds, groups)
+    want = np.array([bool(len(worlds[g])) and bool(worlds[g].posed_hits(posed._replace(
+        centres=posed.centres[[i]], rotations=posed.rotations[[i]])).any())
+        for i, g in zip(grasps, groups, strict=True)])
+    assert 0.1 < want.mean() < 0.9  # both answers are well represented
+    assert_array_equal(got, want)
 
 
 # ------------------------------------------------------------------ two grippers
