@@ -24,6 +24,7 @@ a turn about its approach ``a`` (``swapped``), whichever the arm reaches.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -301,8 +302,25 @@ def wrist_failures(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
 
 def target_groups(names) -> tuple[str, ...]:
     """The targets' names grouped as the traces say them: ``scene:<id>`` as they are, a
-    body's parts as the body (``body:receiver:torso`` -> ``body:receiver``), in order."""
-    return tuple(dict.fromkeys(":".join(n.split(":")[:2]) for n in names))
+    body's parts as the body (``body:receiver:torso`` -> ``body:receiver``); the scene
+    first, then the receiver, then the robot, each in order."""
+    groups = dict.fromkeys(":".join(n.split(":")[:2]) for n in names)
+    rank = {"scene": 0, "body:receiver": 1, "body:robot": 2}
+    return tuple(sorted(groups, key=lambda g: rank.get(g.split(":")[0], rank.get(g, 3))))
+
+
+_HIT = re.compile(r" hits? (\S+)")
+
+
+def link_tally(failures: list[str]) -> dict[str, int]:
+    """What the arms' links hit in failures of exact checks and wrist screens (clauses of
+    :meth:`ArmCheck.failure`, :func:`wrist_failures` and the pair checks): target -> how
+    many failures name it, most first."""
+    tally: dict[str, int] = {}
+    for clause in failures:
+        for target in dict.fromkeys(_HIT.findall(clause)):
+            tally[target] = tally.get(target, 0) + 1
+    return dict(sorted(tally.items(), key=lambda kv: (-kv[1], kv[0])))
 
 
 def pair_contacts(ctx: PlanContext, stage: str, a: tuple[ArmCheck, int],
@@ -576,11 +594,27 @@ def reach_reason(ctx: PlanContext, attempt) -> str | None:
     """For an infeasible attempt whose reason names an active hard ``reach`` rule: which arm
     cannot reach what, on a row that rule rejected (one it alone rejected, if any), e.g.
     "reach (arm_reaches), grasp 12: the left arm cannot reach 0.52, 0.31, 0.05 with approach
-    (0.00, 0.00, -1.00) at pick-up; the right arm ..."; None otherwise."""
+    (0.00, 0.00, -1.00) at pick-up; the right arm ..."; led, when exact checks failed because
+    the arms' links hit something, by what they hit and how often ("reach (arm_reaches): the
+    arms' links hit body:robot:torso in 23 checks, scene:table in 1 check; ..."); None
+    otherwise."""
     decision, reason = attempt.decision, attempt.reason or ""
     if decision is None or attempt.graph is None or ctx.arms is None:
         return None
     reach = next((c.id for c in decision.hard if c.rule.kind == "reach"), None)
+    tally = link_tally(attempt.extra.get("arm_failures", []))
+    if tally and reach is not None and reach in reason:
+        hits = ", ".join(f"{t} in {n} {'check' if n == 1 else 'checks'}"
+                         for t, n in list(tally.items())[:4])
+        links = f"reach ({reach}): the arms' links hit {hits}"
+        maps = _map_reason(ctx, attempt, reach)
+        return f"{links}; {maps}" if maps else links
+    return _map_reason(ctx, attempt, reach)
+
+
+def _map_reason(ctx: PlanContext, attempt, reach: str | None) -> str | None:
+    """:func:`reach_reason` for the rows the maps rejected."""
+    decision, reason = attempt.decision, attempt.reason or ""
     if attempt.extra.get("first_feasible") == 0 and reach in attempt.extra.get(
             "first_rejected_by", {}):  # H2G2: no first grasp can be picked up
         first = attempt.phase.but(pickup=True, receiver_present=False)
