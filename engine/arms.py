@@ -13,10 +13,16 @@ through is read from its :class:`~handover.engine.attempt.Phase` (:func:`stages`
 Two steps, as MoveIt Grasps and Simox do. :func:`screen` looks every row up in each arm's
 reachability map (vectorised over the rows; the ``reach`` rule over all rows). :func:`confirm`
 runs exact inverse kinematics (seeded restarts, the same for every target, so a row's answer
-does not depend on the rows asked with it) for the few rows that decide the plan, memoised
-in the context so the trace and the result read the configurations the planner judged.
-:func:`choose_row` walks a mode's ranking (score, then the grasp's world pose: the same
-physical grasp wins whatever frame the object's mesh is written in) until an arm holds a row.
+does not depend on the rows asked with it) for the few rows that decide the plan, and tests
+the arm's links there against the world (:func:`link_targets`: the table, the obstacles, the
+receiver's body, the robot's own body), trying other answers where they touch something
+(MoveIt's IK with a collision callback); memoised in the context so the trace and the result
+read the configurations the planner judged. :func:`wrist_failures` screens rows by the links
+fixed to the grasp frame, which need no inverse kinematics. :func:`choose_row` walks a mode's
+ranking (score, then the grasp's world pose: the same physical grasp wins whatever frame the
+object's mesh is written in) until an arm holds a row. Where both arms hold the object at
+once, :func:`pair_contacts` tests one arm's links against the other's
+(:mod:`handover.engine.armpairs`).
 
 The two fingers of a parallel-jaw gripper are alike: a grasp is held as given or turned half
 a turn about its approach ``a`` (``swapped``), whichever the arm reaches.
