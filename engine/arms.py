@@ -263,15 +263,16 @@ def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
     (:class:`~handover.geometry.bodies.Body`, world, names as :class:`~handover.engine.world.
     World`'s): the scene's table (down to the floor) and obstacles, the receiver's body (at
     the handover without the arms that take the object: they reach for it, and their hands
-    are the collision rules' concern) and the robot's own body but the link the arm is
-    mounted on. Memoised in the context (one world per query)."""
+    are the collision rules' concern) and the robot's own body but what the arm's links
+    always touch (:meth:`~handover.engine.robot.RobotArms.spared`: its mount). Memoised in
+    the context (one world per query)."""
     memo = ctx.memo.setdefault("arm_link_targets", {})
     receiving = tuple(phase.hands.receiving) if stage == "handover" else ()
     key = (side, receiving)
     if key not in memo:
         body = ctx.world.without_receiving_arms(receiving)
-        mount = f"body:robot:{ctx.arms.arm(side).mount}"
-        memo[key] = body.subset([name != mount for name in body.names])
+        spared = {f"body:robot:{name}" for name in ctx.arms.spared(side)}
+        memo[key] = body.subset([name not in spared for name in body.names])
     return memo[key]
 
 

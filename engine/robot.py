@@ -69,6 +69,10 @@ reachable poses; 5 restarts 3 %, 20 restarts 0.3 %)."""
 _MAPS: dict[tuple, ReachMap] = {}
 
 SEED_LIBRARY = 4096
+
+SPARED_SAMPLES = 256
+"""Configurations per arm that find the robot body's primitives its links always touch
+(:meth:`RobotArms.spared`)."""
 """Configurations per arm whose grasp poses seed inverse kinematics (the nearest first)."""
 
 CORE = 1
@@ -123,6 +127,7 @@ class RobotArms:
     map_params: dict = field(default_factory=dict)
     _library: dict = field(default_factory=dict, repr=False)
     _distal: dict = field(default_factory=dict, repr=False)
+    _spared: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def load(
@@ -379,7 +384,8 @@ class RobotArms:
         for body in bodies:
             targets = targets + body_targets(body)
         if own_body and len(self.body):
-            own = self.body.subset([name != arm.mount for name in self.body.names])
+            spared = set(self.spared(side))
+            own = self.body.subset([name not in spared for name in self.body.names])
             targets = targets + body_targets(own)
         links = arm.shapes.links
         hits = world_hits(arm.shapes, poses, targets, margin=margin)  # (n, L, K)
@@ -395,6 +401,21 @@ class RobotArms:
                 row.extend((links[j], o.shapes.links[k])
                            for k, j in zip(*np.nonzero(found.T), strict=True))
         return out
+
+    def spared(self, side: str) -> tuple[str, ...]:
+        """The names of the robot body's primitives the arm's links are never tested against:
+        the link the arm is mounted on, and any its links touch at every one of
+        :data:`SPARED_SAMPLES` configurations drawn within its limits (seeded): the shoulder
+        it turns in, whatever a robot's YAML ``body`` calls it (as MoveIt's setup assistant
+        disables the pairs always in collision)."""
+        if side not in self._spared:
+            arm = self.arm(side)
+            q = arm.kin.random_configurations(SPARED_SAMPLES, np.random.default_rng(0))
+            targets = body_targets(self.body)
+            hits = world_hits(arm.shapes, self.link_poses(side, q), targets).any(axis=1)
+            always = [targets.names[k] for k in np.flatnonzero(hits.all(axis=0))]
+            self._spared[side] = tuple(dict.fromkeys([arm.mount, *always]))
+        return self._spared[side]
 
     def distal(self, side: str) -> tuple[LinkShapes, np.ndarray]:
         """The arm's links rigidly attached to its grasp frame (those the last joint carries:
@@ -447,7 +468,7 @@ class RobotArms:
         """For each configuration q (n, dof) of the arm on ``side``, the names of what its
         links touch (target order, each once): ``boxes`` ``(name, extents (3,), pose (4,
         4))`` in the world (a table, obstacles), the primitives of ``bodies`` (world; a
-        receiver), the robot's own body (``own_body``; not the arm's mount link) and, with
+        receiver), the robot's own body (``own_body``; not :meth:`spared`) and, with
         ``other = (side, q_other (n, dof))``, the other arm's links at the same moments.
         margin : m, grows the arm's links. Which link touches what: :meth:`contacts`."""
         found = self.contacts(side, q, boxes=boxes, bodies=bodies, other=other,

@@ -256,3 +256,29 @@ def test_the_trace_says_what_the_links_were_checked_against(links_kb):
     (e,) = [e for e in single["trace"] if e["rule"] == "arm_reaches"]
     assert e["links"] == ("clear of scene:table, body:receiver, body:robot at pick-up and at "
                           "the handover")
+
+
+def test_the_shoulders_an_arm_turns_in_are_spared_whatever_the_body_calls_them(
+        tmp_path, builtin_urdf):
+    # The robot's YAML body names its shoulder mounts unlike the URDF's links: the arm's first
+    # link always touches its mount, which is found by sampling, not by name; the torso and
+    # the head still count.
+    root = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    robot = root / "robots" / "idro.yaml"
+    text = robot.read_text()
+    assert "{id: left_link0," in text and "{id: right_link0," in text
+    robot.write_text(text.replace("{id: left_link0,", "{id: left_shoulder,")
+                     .replace("{id: right_link0,", "{id: right_shoulder,"), encoding="utf-8")
+    plan = Planner(kb=load_kb(root)).plan("knife")
+    r = plan.to_dict()
+    assert r["outcome"] == "handover", r["reason"]
+    assert link_hits(root, builtin_urdf, r, "table") == []
+    arms = plan.context.arms
+    assert arms.spared("left") == ("left_link0", "left_shoulder")
+    assert arms.spared("right") == ("right_link0", "right_shoulder")
+    # Any configuration still hits the torso when it goes through it.
+    q = arms.arm("left").kin.random_configurations(400, np.random.default_rng(3))
+    hits = arms.collisions("left", q)
+    assert any("torso" in row for row in hits)
+    assert not any("left_shoulder" in row for row in hits)
