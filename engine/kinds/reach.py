@@ -25,8 +25,8 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
 
 FEATURES.setdefault("reach", (10.0, "grasp x presentation",
-                              "an arm reaches the grasp at each stage (map; exact IK for the "
-                              "chosen grasps)"))  # fmt: skip
+                              "an arm reaches the grasp at each stage (map; exact IK, its "
+                              "links clear, for the chosen grasps)"))  # fmt: skip
 
 
 @register
@@ -39,7 +39,8 @@ class ReachRule(RuleBase):
     kind: Literal["reach"] = "reach"
 
     colour = (200, 120, 0)
-    summary = "an arm reaches the grasp at pick-up, midair and handover (map, then IK)"
+    summary = ("an arm reaches the grasp at pick-up, midair and handover (map, then IK with "
+               "its links clear)")
     example = {}
 
     def features(self) -> list[str]:
