@@ -2,7 +2,11 @@
 picks the object up and holds it at the midair pose, the other takes it there and hands it
 over) and H2G1's pair (the left arm the left grasp, the right arm the right one, the lifting
 arm at pick-up too), confirmed by exact inverse kinematics on the pairs that decide the plan
-(:mod:`handover.engine.arms`)."""
+(:mod:`handover.engine.arms`: each arm's links clear of the world). Where both arms hold the
+object at the same moment (H2G2's midair regrasp, H2G1's handover, and its pick-up when both
+arms lift) their links must not touch each other either (:func:`~handover.engine.arms.
+pair_contacts`): a pair whose arms collide is passed over, its failure naming the links
+("the left arm's left_link6 hits other_arm:right_link6 at the midair regrasp")."""
 
 from __future__ import annotations
 
@@ -10,7 +14,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.arms import CONFIRM_LIMIT, confirm, preferred_sides, screen
+from handover.engine.arms import (
+    CONFIRM_LIMIT,
+    STAGE_WORDS,
+    confirm,
+    hit_words,
+    pair_contacts,
+    preferred_sides,
+    screen,
+    wrist_failures,
+)
 
 if TYPE_CHECKING:
     from handover.engine.attempt import Phase
@@ -55,6 +68,10 @@ def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.n
             _, core1 = screen(ctx, held1, partners, np.full(len(partners), k))
             _, mapped1 = screen(ctx, held1, partners, np.full(len(partners), k), whole=True)
             deep = core1[:, 0].all(axis=1)
+            wrist2 = wrist_failures(ctx, second.but(arm=side2), side2, gi2, pk2)[0]
+            if wrist2 is not None:  # its wrist hits something: no inverse kinematics
+                failures.append(f"grasp {i2}: {wrist2}")
+                continue
             tried += 1
             c2 = confirm(ctx, second.but(arm=side2), side2, gi2, pk2)[0]
             if not c2.ok:
@@ -62,19 +79,33 @@ def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.n
                 continue
             here = 0
             held = mapped1[:, 0].all(axis=1)
-            for f in np.concatenate([partners[deep], partners[held & ~deep]]):
+            ordered = np.concatenate([partners[deep], partners[held & ~deep]])
+            wrists = wrist_failures(ctx, held1, side1, ordered, np.full(len(ordered), k))
+            for f, wrist1 in zip(ordered, wrists, strict=True):
                 if (side1, int(f)) in skip:
+                    continue
+                if wrist1 is not None:
+                    if len(failures) < limit:
+                        failures.append(f"grasp {int(f)}: {wrist1}")
+                    if wrist1.endswith(STAGE_WORDS["pickup"]):
+                        skip.add((side1, int(f)))
                     continue
                 if here >= FIRST_TRIES or tried >= limit:
                     break
                 here += 1
                 tried += 1
                 c1 = confirm(ctx, held1, side1, np.array([f]), pk2)[0]
-                if c1.ok:
-                    return (int(m), int(f), side1, side2), failures
-                failures.append(f"grasp {int(f)}: {c1.failure()}")
-                if not c1.reached[0]:
-                    skip.add((side1, int(f)))
+                if not c1.ok:
+                    failures.append(f"grasp {int(f)}: {c1.failure()}")
+                    if not c1.held[0]:
+                        skip.add((side1, int(f)))
+                    continue
+                touch = pair_contacts(ctx, "midair", (c1, int(f)), (c2, i2), k,
+                                      second.hands.key)
+                if touch:
+                    failures.append(_pair_failure(side1, (int(f), i2), touch, "midair"))
+                    continue
+                return (int(m), int(f), side1, side2), failures
     return None, failures
 
 
@@ -84,7 +115,8 @@ def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
     """H2G1's best pair (``pairs``: (score, left grasp, right grasp, presentation, ...) best
     first) whose arms hold it exactly: the left arm its left grasp and the right arm its right
     grasp at the handover, and the lifting arm (both when ``both_pick``) at pick-up too,
-    among the hands whose gripper is free at pick-up (``picks``: grasp -> bool). Returns
+    among the hands whose gripper is free at pick-up (``picks``: grasp -> bool), the two arms'
+    links clear of each other at the handover (and at pick-up when both lift). Returns
     (the pair or None, the lifting hands, failures met); at most ``limit`` exact checks, a
     grasp an arm failed to hold in a presentation not tried again."""
     limit = CONFIRM_LIMIT if limit is None else limit
@@ -99,29 +131,57 @@ def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
             break
         held = {}
         for side, i in (("left", il), ("right", ir)):
+            at = phase.but(pickup=False, arm=side)
+            wrist = wrist_failures(ctx, at, side, np.array([i]), np.array([k]))[0]
+            if wrist is not None:  # its wrist hits something: no inverse kinematics
+                failures.append(f"grasp {i}: {wrist}")
+                failed.add((side, i, k))
+                break
             checks += 1
-            c = confirm(ctx, phase.but(pickup=False, arm=side), side, np.array([i]),
-                        np.array([k]))[0]
+            c = confirm(ctx, at, side, np.array([i]), np.array([k]))[0]
             if not c.ok:
                 failures.append(f"grasp {i}: {c.failure()}")
                 failed.add((side, i, k))
                 break
-            held[side] = i
+            held[side] = (c, i)
         if len(held) < 2:
             continue
-        lifts = []
-        for side, i in held.items():
+        touch = pair_contacts(ctx, "handover", held["left"], held["right"], k, phase.hands.key)
+        if touch:
+            failures.append(_pair_failure("left", (il, ir), touch, "handover"))
+            continue
+        lifts, lifted = [], {}
+        for side, (_, i) in held.items():
             if not picks[i]:
                 continue
-            c = confirm(ctx, phase.but(pickup=True, arm=side), side, np.array([i]),
-                        np.array([k]))[0]
+            lift = phase.but(pickup=True, arm=side)
+            wrist = wrist_failures(ctx, lift, side, np.array([i]), np.array([k]))[0]
+            if wrist is not None:
+                failures.append(f"grasp {i}: {wrist}")
+                continue
+            c = confirm(ctx, lift, side, np.array([i]), np.array([k]))[0]
             if c.ok:
                 lifts.append(side)
+                lifted[side] = (c, i)
             else:
                 failures.append(f"grasp {i}: {c.failure()}")
-        if (both_pick and len(lifts) == 2) or (not both_pick and lifts):
-            return pair, lifts if both_pick else lifts[:1], failures
+        if both_pick and len(lifts) == 2:
+            touch = pair_contacts(ctx, "pickup", lifted["left"], lifted["right"], k,
+                                  phase.hands.key)
+            if touch:
+                failures.append(_pair_failure("left", (il, ir), touch, "pickup"))
+                continue
+            return pair, lifts, failures
+        if not both_pick and lifts:
+            return pair, lifts[:1], failures
     return None, [], failures
+
+
+def _pair_failure(side: str, grasps: tuple[int, int], touch, stage: str) -> str:
+    """"grasps 3 and 7: the left arm's left_link6 hits other_arm:right_link6 at the
+    handover"."""
+    return (f"grasps {grasps[0]} and {grasps[1]}: the {side} arm's {hit_words(touch)} "
+            f"{STAGE_WORDS[stage]}")
 
 
 def side_reaches(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,

@@ -13,10 +13,16 @@ through is read from its :class:`~handover.engine.attempt.Phase` (:func:`stages`
 Two steps, as MoveIt Grasps and Simox do. :func:`screen` looks every row up in each arm's
 reachability map (vectorised over the rows; the ``reach`` rule over all rows). :func:`confirm`
 runs exact inverse kinematics (seeded restarts, the same for every target, so a row's answer
-does not depend on the rows asked with it) for the few rows that decide the plan, memoised
-in the context so the trace and the result read the configurations the planner judged.
-:func:`choose_row` walks a mode's ranking (score, then the grasp's world pose: the same
-physical grasp wins whatever frame the object's mesh is written in) until an arm holds a row.
+does not depend on the rows asked with it) for the few rows that decide the plan, and tests
+the arm's links there against the world (:func:`link_targets`: the table, the obstacles, the
+receiver's body, the robot's own body), trying other answers where they touch something
+(MoveIt's IK with a collision callback); memoised in the context so the trace and the result
+read the configurations the planner judged. :func:`wrist_failures` screens rows by the links
+fixed to the grasp frame, which need no inverse kinematics. :func:`choose_row` walks a mode's
+ranking (score, then the grasp's world pose: the same physical grasp wins whatever frame the
+object's mesh is written in) until an arm holds a row. Where both arms hold the object at
+once, :func:`pair_contacts` tests one arm's links against the other's
+(:mod:`handover.engine.armpairs`).
 
 The two fingers of a parallel-jaw gripper are alike: a grasp is held as given or turned half
 a turn about its approach ``a`` (``swapped``), whichever the arm reaches.
@@ -24,6 +30,7 @@ a turn about its approach ``a`` (``swapped``), whichever the arm reaches.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -38,6 +45,13 @@ __all__ = [
     "STAGES",
     "CONFIRM_LIMIT",
     "ArmCheck",
+    "LINK_STARTS",
+    "hit_words",
+    "link_targets",
+    "target_groups",
+    "wrist_failures",
+    "pair_contacts",
+    "links_words",
     "reach_rule",
     "stages",
     "stage_poses",
@@ -67,6 +81,18 @@ FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])
 FLIP_WITHIN = 0.01
 """m: a stage whose inverse kinematics ended nearer than this to the position is tried with
 the fingers swapped."""
+LINK_STARTS = 8
+"""Other inverse-kinematics answers tried for a stage reached with the arm's links touching
+something (as planned, then with the fingers swapped): from this many of the seed library's
+configurations nearest the pose, those whose own links are clear first
+(:meth:`~handover.engine.robot.RobotArms.solve_each`)."""
+LINK_POOL = 32
+"""The nearest configurations of the seed library :data:`LINK_STARTS` are chosen among."""
+ROW_WINDOW = 16
+""":func:`choose_row` looks at up to ``limit`` x this many rows of a ranking, in chunks of
+:data:`ROW_CHUNK`: the maps and :func:`wrist_failures` screen them (vectorised), exact
+inverse kinematics runs on at most ``limit`` (row, arm) pairs."""
+ROW_CHUNK = 32
 
 
 def reach_rule(cg: ConstraintGraph, ctx: PlanContext) -> CompiledRule | None:
@@ -169,13 +195,17 @@ def preferred_sides(ctx: PlanContext, phase: Phase, grasp: int,
 
 @dataclass(frozen=True)
 class ArmCheck:
-    """One arm holding one row through its stages, checked by exact inverse kinematics.
+    """One arm holding one row through its stages, checked by exact inverse kinematics and
+    its links' collisions.
 
     side : the arm. stages : the stages, in time order. poses : (T, 4, 4) world gripper poses
     (the grasp as planned). q : (T, dof) joint values (rad; m for prismatic joints) within the
     limits (the closest attempt where IK failed). reached : (T,) bool, within 0.1 mm and
     1 mrad. swapped : (T,) bool, held turned half a turn about ``a`` (fingers swapped).
-    position_error : (T,) m. rotation_error : (T,) rad.
+    position_error : (T,) m. rotation_error : (T,) rad. hits : per stage, the ``(link,
+    target)`` pairs the arm's links touch at ``q`` (:func:`link_targets`; checked where the
+    stage was reached, empty elsewhere). against : what the links were checked against
+    (``scene:table``, ``scene:<obstacle>``, ``body:receiver``, ``body:robot``).
     """
 
     side: str
@@ -186,20 +216,159 @@ class ArmCheck:
     swapped: np.ndarray
     position_error: np.ndarray
     rotation_error: np.ndarray
+    hits: tuple[tuple[tuple[str, str], ...], ...] = ()
+    against: tuple[str, ...] = ()
+
+    @property
+    def held(self) -> np.ndarray:
+        """(T,) bool: the stage is reached and the links there touch nothing."""
+        clear = np.array([not h for h in self.hits], dtype=bool) if self.hits \
+            else np.ones(len(self.stages), dtype=bool)
+        return self.reached & clear
 
     @property
     def ok(self) -> bool:
-        return bool(self.reached.all())
+        return bool(self.held.all())
 
     def failure(self) -> str | None:
-        """What the arm cannot do, in one clause, or None."""
+        """What the arm cannot do, in one clause, or None: the first stage it does not reach
+        ("the left arm cannot reach x, y, z with approach (...) at pick-up within its joint
+        limits ...") or whose links touch something ("the left arm's left_link6 hits
+        scene:table at pick-up")."""
         for t, stage in enumerate(self.stages):
             if not self.reached[t]:
                 return (f"the {self.side} arm cannot reach {pose_words(self.poses[t])} "
                         f"{STAGE_WORDS[stage]} within its joint limits (inverse kinematics "
                         f"ends {1e3 * self.position_error[t]:.0f} mm, "
                         f"{np.degrees(self.rotation_error[t]):.0f} deg off)")
+            if self.hits and self.hits[t]:
+                return f"the {self.side} arm's {hit_words(self.hits[t])} {STAGE_WORDS[stage]}"
         return None
+
+
+def hit_words(pairs) -> str:
+    """``(link, target)`` pairs in words, by target: "left_link6, left_link7 hit scene:table
+    and left_link5 hits body:robot:torso" (at most three targets, then "and more")."""
+    by_target: dict[str, list[str]] = {}
+    for link, target in pairs:
+        by_target.setdefault(target, []).append(link)
+    said = [f"{', '.join(links)} {'hit' if len(links) > 1 else 'hits'} {target}"
+            for target, links in list(by_target.items())[:3]]
+    more = " and more" if len(by_target) > 3 else ""
+    return " and ".join(said) + more
+
+
+def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
+    """What the links of the arm on ``side`` must not touch at ``stage``
+    (:class:`~handover.geometry.bodies.Body`, world, names as :class:`~handover.engine.world.
+    World`'s): the scene's table (down to the floor) and obstacles, the receiver's body (at
+    the handover without the arms that take the object: they reach for it, and their hands
+    are the collision rules' concern) and the robot's own body but what the arm's links
+    always touch (:meth:`~handover.engine.robot.RobotArms.spared`: its mount). Memoised in
+    the context (one world per query)."""
+    memo = ctx.memo.setdefault("arm_link_targets", {})
+    receiving = tuple(phase.hands.receiving) if stage == "handover" else ()
+    key = (side, receiving)
+    if key not in memo:
+        body = ctx.world.without_receiving_arms(receiving)
+        spared = {f"body:robot:{name}" for name in ctx.arms.spared(side)}
+        memo[key] = body.subset([name not in spared for name in body.names])
+    return memo[key]
+
+
+def wrist_failures(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
+                   pk: np.ndarray) -> list[str | None]:
+    """A screen before inverse kinematics: per row ``(gi, pk)`` ((R,) int), the clause
+    :meth:`ArmCheck.failure` would give when the arm's links rigidly attached to the grasp
+    frame (:meth:`~handover.engine.robot.RobotArms.distal`: its last link and flange) touch
+    :func:`link_targets` at a stage of ``phase`` ("the right arm's right_link7 hits
+    body:robot:torso at pick-up"), None where they are clear at every stage. Exact for
+    those links: any configuration holding the row puts them there. Memoised per (arm,
+    row, stages, hands)."""
+    gi = np.asarray(gi, dtype=np.int64).reshape(-1)
+    pk = np.asarray(pk, dtype=np.int64).reshape(-1)
+    memo = ctx.memo.setdefault("arm_wrists", {})
+    names = stages(phase)
+    keys = [(side, int(i), int(k) if names != ("pickup",) else -1, names, phase.hands.key)
+            for i, k in zip(gi, pk, strict=True)]
+    todo = [r for r, key in enumerate(keys) if key not in memo]
+    if todo:
+        rows = np.array(todo)
+        poses = stage_poses(ctx, phase, gi[rows], pk[rows])
+        said: list[str | None] = [None] * len(rows)
+        for stage in names:
+            found = ctx.arms.distal_contacts(side, poses[stage],
+                                             bodies=[link_targets(ctx, phase, side, stage)])
+            for r, f in enumerate(found):
+                if f and said[r] is None:
+                    said[r] = f"the {side} arm's {hit_words(f)} {STAGE_WORDS[stage]}"
+        for r, words in zip(todo, said, strict=True):
+            memo[keys[r]] = words
+    return [memo[key] for key in keys]
+
+
+def target_groups(names) -> tuple[str, ...]:
+    """The targets' names grouped as the traces say them: ``scene:<id>`` as they are, a
+    body's parts as the body (``body:receiver:torso`` -> ``body:receiver``); the scene
+    first, then the receiver, then the robot, each in order."""
+    groups = dict.fromkeys(":".join(n.split(":")[:2]) for n in names)
+    rank = {"scene": 0, "body:receiver": 1, "body:robot": 2}
+    return tuple(sorted(groups, key=lambda g: rank.get(g.split(":")[0], rank.get(g, 3))))
+
+
+_HIT = re.compile(r" hits? (\S+)")
+
+
+def link_tally(failures: list[str]) -> dict[str, int]:
+    """What the arms' links hit in failures of exact checks and wrist screens (clauses of
+    :meth:`ArmCheck.failure`, :func:`wrist_failures` and the pair checks): target -> how
+    many failures name it, most first."""
+    tally: dict[str, int] = {}
+    for clause in failures:
+        for target in dict.fromkeys(_HIT.findall(clause)):
+            tally[target] = tally.get(target, 0) + 1
+    return dict(sorted(tally.items(), key=lambda kv: (-kv[1], kv[0])))
+
+
+def pair_contacts(ctx: PlanContext, stage: str, a: tuple[ArmCheck, int],
+                  b: tuple[ArmCheck, int], presentation: int,
+                  hands_key) -> tuple[tuple[str, str], ...]:
+    """Where both arms hold the object at ``stage`` (H2G2's midair regrasp, H2G1's handover
+    and its pick-up by both arms): ``(link of a, "other_arm:<link of b>")`` pairs of arm a's
+    links touching arm b's, each arm at its check's configuration there (``a``, ``b``:
+    (check, grasp)). Memoised in the context both ways, so the trace of either grasp says
+    the pair was checked (:func:`links_words`)."""
+    memo = ctx.memo.setdefault("arm_pairs", {})
+    (ca, ia), (cb, ib) = a, b
+    key = (ca.side, ia, cb.side, ib, presentation, hands_key, stage)
+    if key not in memo:
+        qa, qb = ca.q[ca.stages.index(stage)], cb.q[cb.stages.index(stage)]
+        found = ctx.arms.contacts(ca.side, qa, other=(cb.side, qb), own_body=False)[0]
+        memo[key] = tuple((la, f"other_arm:{lb}") for la, lb in found)
+        memo[(cb.side, ib, ca.side, ia, presentation, hands_key, stage)] = tuple(
+            (lb, f"other_arm:{la}") for la, lb in found)
+    return memo[key]
+
+
+def links_words(ctx: PlanContext, phase: Phase, check: ArmCheck, grasp: int,
+                presentation: int) -> str:
+    """What a held grasp's arm links were found clear of, for its trace: "clear of
+    scene:table, body:receiver, body:robot at pick-up and at the midair regrasp; of the
+    right arm's links at the midair regrasp" (the other arm where a mode checked the pair:
+    :func:`pair_contacts`)."""
+    words = (f"clear of {', '.join(check.against) or 'nothing'} "
+             f"{' and '.join(STAGE_WORDS[s] for s in check.stages)}")
+    other = getattr(phase, "other_grasp", None)
+    if other is None:
+        return words
+    memo = ctx.memo.get("arm_pairs", {})
+    for side in ctx.arms.sides:
+        said = [s for s in check.stages if memo.get(
+            (check.side, grasp, side, other, presentation, phase.hands.key, s)) == ()]
+        if side != check.side and said:
+            words += (f"; of the {side} arm's links "
+                      f"{' and '.join(STAGE_WORDS[s] for s in said)}")
+    return words
 
 
 def pose_words(pose: np.ndarray) -> str:
@@ -214,7 +383,11 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
     """Exact checks of rows ``(gi, pk)`` ((R,) int) held by the arm ``side`` through the
     stages of ``phase``: IK per stage from the nearest of the arm's sampled poses, with
     restarts (:meth:`~handover.engine.robot.RobotArms.solve`); a stage not reached as planned
-    is tried with the fingers swapped. Memoised per (arm, row, stages, hands)."""
+    is tried with the fingers swapped. At each stage reached, the arm's links are tested
+    against :func:`link_targets`; where they touch something, up to :data:`LINK_STARTS`
+    other answers (as planned, then with the fingers swapped) are tried and the first whose
+    links are clear is kept (:func:`_clear_links`). A stage not held ends the row's checks.
+    Memoised per (arm, row, stages, hands) in the context."""
     from handover.engine.robot import IK_RESTARTS
 
     arms = ctx.arms
@@ -235,13 +408,17 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
         swapped = np.zeros((n, len(names)), dtype=bool)
         pos_err = np.full((n, len(names)), np.inf)
         rot_err = np.full((n, len(names)), np.inf)
+        hits: list[list[tuple]] = [[() for _ in names] for _ in range(n)]
+        against: tuple[str, ...] = ()
         for t, stage in enumerate(names):
             # From the nearest sampled poses (with restarts), as planned, then with the
             # fingers swapped for the rows whose position was reached but not the rotation
             # (the same position: the swap only turns the wrist). A row an earlier stage
-            # failed is not pursued.
+            # did not hold (not reached, or its links touching something) is not pursued.
+            pursued = ok[:, :t].all(axis=1) & np.array(
+                [not any(h[:t]) for h in hits], dtype=bool)
             for flip in (False, True):
-                todo_r = np.flatnonzero(~ok[:, t] & ok[:, :t].all(axis=1)
+                todo_r = np.flatnonzero(~ok[:, t] & pursued
                                         & (~flip | (pos_err[:, t] < FLIP_WITHIN)))
                 if not len(todo_r):
                     break
@@ -254,11 +431,55 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
                 rot_err[take, t] = sol.rotation_error[better]
                 ok[take, t] = sol.ok[better]
                 swapped[take, t] = flip
+            body = link_targets(ctx, phase, side, stage)
+            against += target_groups(body.names)
+            _clear_links(arms, side, body, poses[stage], np.flatnonzero(ok[:, t] & pursued),
+                         (q[:, t], swapped[:, t], pos_err[:, t], rot_err[:, t]),
+                         hits, t)  # fmt: skip
+        against = tuple(dict.fromkeys(against))
         for r, u in enumerate(todo):
             memo[unique[u]] = ArmCheck(side, names, np.stack([poses[s][r] for s in names])
                                        if names else np.zeros((0, 4, 4)), q[r], ok[r],
-                                       swapped[r], pos_err[r], rot_err[r])  # fmt: skip
+                                       swapped[r], pos_err[r], rot_err[r],
+                                       tuple(tuple(h) for h in hits[r]), against)  # fmt: skip
     return [memo[key] for key in keys]
+
+
+def _clear_links(arms, side: str, body, poses: np.ndarray, rows: np.ndarray,
+                 stage: tuple[np.ndarray, ...], hits: list[list[tuple]], t: int) -> None:
+    """At one stage: test the links of the arm at the reached ``rows`` against ``body``;
+    for those touching something, take the first of :data:`LINK_STARTS` other answers (as
+    planned, then with the fingers swapped) whose links are clear, updating ``stage`` (q
+    (n, dof), swapped (n,), position and rotation errors (n,), views of the stage's
+    column) in place; ``hits[r][t]`` records what row r's links still touch."""
+    if not len(rows):
+        return
+    q, swapped, pos_err, rot_err = stage
+    found = arms.contacts(side, q[rows], bodies=[body], own_body=False)
+    bad = np.array([r for r, f in zip(rows, found, strict=True) if f], dtype=np.int64)
+    for r, f in zip(rows, found, strict=True):
+        hits[r][t] = tuple(f)
+    if not len(bad):
+        return
+    targets = np.concatenate([poses[bad], poses[bad] @ FLIP])  # (2b, 4, 4)
+    sol = arms.solve_each(side, targets, LINK_STARTS, avoid=[body], pool=LINK_POOL)
+    good = np.argwhere(sol.ok)  # (g, 2): target, start
+    clear = np.zeros(sol.ok.shape, dtype=bool)
+    if len(good):
+        touch = arms.contacts(side, sol.q[good[:, 0], good[:, 1]], bodies=[body],
+                              own_body=False)  # fmt: skip
+        clear[good[:, 0], good[:, 1]] = [not f for f in touch]
+    b = len(bad)
+    for j, r in enumerate(bad):
+        options = np.concatenate([clear[j], clear[b + j]])  # as planned, then swapped
+        if not options.any():
+            continue
+        pick = int(np.argmax(options))
+        flip, s = divmod(pick, clear.shape[1])
+        row = flip * b + j
+        q[r], swapped[r] = sol.q[row, s], bool(flip)
+        pos_err[r], rot_err[r] = sol.position_error[row, s], sol.rotation_error[row, s]
+        hits[r][t] = ()
 
 
 def confirm_row(ctx: PlanContext, phase: Phase, grasp: int, presentation: int,
@@ -266,8 +487,8 @@ def confirm_row(ctx: PlanContext, phase: Phase, grasp: int, presentation: int,
                 ) -> tuple[ArmCheck | None, list[str]]:
     """The check of the first arm (nearest first, among those whose map holds the row:
     ``mapped`` (S,) bool over ``ctx.arms.sides``, or every arm) that holds one row exactly,
-    and the failures met. ``skip`` : (side, grasp) pairs known not to pick the grasp up;
-    a new such failure is added to it."""
+    and the failures met (one per exact check). ``skip`` : (side, grasp) pairs known not to
+    pick the grasp up; a new such failure is added to it."""
     sides = ctx.arms.sides
     failures: list[str] = []
     for side in preferred_sides(ctx, phase, grasp, presentation):
@@ -279,7 +500,7 @@ def confirm_row(ctx: PlanContext, phase: Phase, grasp: int, presentation: int,
         if check.ok:
             return check, failures
         failures.append(f"grasp {grasp}: {check.failure()}")
-        if skip is not None and check.stages[:1] == ("pickup",) and not check.reached[0]:
+        if skip is not None and check.stages[:1] == ("pickup",) and not check.held[0]:
             skip.add((side, grasp))
     return None, failures
 
@@ -308,23 +529,38 @@ def choose_row(ctx: PlanContext, phase: Phase, decision, ranking: np.ndarray,
     """The best row of ``ranking`` (indices into the decision's rows) that an arm holds
     exactly, with its check and the failures met; ties of score go by the world pose
     (:func:`world_order`); each row's arms nearest first among those whose whole map holds
-    it. At most ``limit`` (row, arm) checks; (None, None, failures)."""
+    it and whose wrist is clear (:func:`wrist_failures`). At most ``limit`` exact (row, arm)
+    checks among the first ``limit`` x :data:`ROW_WINDOW` rows; (None, None, failures)."""
     limit = CONFIRM_LIMIT if limit is None else limit
     gi, pk = decision.gi, decision.pk
-    order = world_order(ctx, phase, ranking, gi, pk, decision.score)
-    _, mapped = screen(ctx, phase, gi[order[:limit]], pk[order[:limit]], whole=True)
-    mapped = mapped.all(axis=2)
+    sides = ctx.arms.sides
+    order = world_order(ctx, phase, ranking, gi, pk, decision.score)[:limit * ROW_WINDOW]
     failures: list[str] = []
+    said: set[str] = set()
     skip: set = set()
     tried = 0
-    for n, row in enumerate(order[:limit]):
-        if tried >= limit:
-            break
-        tried += int(mapped[n].sum())
-        check, said = confirm_row(ctx, phase, int(gi[row]), int(pk[row]), mapped[n], skip)
-        failures += said
-        if check is not None:
-            return int(row), check, failures
+    for start in range(0, len(order), ROW_CHUNK):
+        chunk = order[start:start + ROW_CHUNK]
+        _, mapped = screen(ctx, phase, gi[chunk], pk[chunk], whole=True)
+        mapped = mapped.all(axis=2)  # (C, S)
+        wrists = {side: wrist_failures(ctx, phase, side, gi[chunk], pk[chunk])
+                  for side in sides}  # fmt: skip
+        for n, row in enumerate(chunk):
+            if tried >= limit:
+                return None, None, failures
+            for s, side in enumerate(sides):
+                words = wrists[side][n]
+                if mapped[n, s] and words is not None:
+                    mapped[n, s] = False
+                    clause = f"grasp {int(gi[row])}: {words}"
+                    if clause not in said and len(said) < limit:
+                        said.add(clause)
+                        failures.append(clause)
+            check, met = confirm_row(ctx, phase, int(gi[row]), int(pk[row]), mapped[n], skip)
+            tried += len(met) + (check is not None)
+            failures += met
+            if check is not None:
+                return int(row), check, failures
     return None, None, failures
 
 
@@ -365,11 +601,27 @@ def reach_reason(ctx: PlanContext, attempt) -> str | None:
     """For an infeasible attempt whose reason names an active hard ``reach`` rule: which arm
     cannot reach what, on a row that rule rejected (one it alone rejected, if any), e.g.
     "reach (arm_reaches), grasp 12: the left arm cannot reach 0.52, 0.31, 0.05 with approach
-    (0.00, 0.00, -1.00) at pick-up; the right arm ..."; None otherwise."""
+    (0.00, 0.00, -1.00) at pick-up; the right arm ..."; led, when exact checks failed because
+    the arms' links hit something, by what they hit and how often ("reach (arm_reaches): the
+    arms' links hit body:robot:torso in 23 checks, scene:table in 1 check; ..."); None
+    otherwise."""
     decision, reason = attempt.decision, attempt.reason or ""
     if decision is None or attempt.graph is None or ctx.arms is None:
         return None
     reach = next((c.id for c in decision.hard if c.rule.kind == "reach"), None)
+    tally = link_tally(attempt.extra.get("arm_failures", []))
+    if tally and reach is not None and reach in reason:
+        hits = ", ".join(f"{t} in {n} {'check' if n == 1 else 'checks'}"
+                         for t, n in list(tally.items())[:4])
+        links = f"reach ({reach}): the arms' links hit {hits}"
+        maps = _map_reason(ctx, attempt, reach)
+        return f"{links}; {maps}" if maps else links
+    return _map_reason(ctx, attempt, reach)
+
+
+def _map_reason(ctx: PlanContext, attempt, reach: str | None) -> str | None:
+    """:func:`reach_reason` for the rows the maps rejected."""
+    decision, reason = attempt.decision, attempt.reason or ""
     if attempt.extra.get("first_feasible") == 0 and reach in attempt.extra.get(
             "first_rejected_by", {}):  # H2G2: no first grasp can be picked up
         first = attempt.phase.but(pickup=True, receiver_present=False)

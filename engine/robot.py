@@ -24,7 +24,10 @@ radians (metres for prismatic joints).
   does not depend on the other targets of the batch).
 - :meth:`RobotArms.collisions` names what an arm's links touch at configurations: world boxes,
   bodies (the receiver's), the robot's own body (except the link the arm is mounted on) and
-  the other arm.
+  the other arm; :meth:`RobotArms.contacts` says which link touches what, and
+  :meth:`RobotArms.solve_each` gives several answers per pose (starts whose links clear given
+  bodies first), for a plan that wants one whose links clear the world
+  (:mod:`handover.engine.arms`).
 
 Errors in the robot's files are :class:`~handover.engine.errors.KBError` at the YAML node,
 with the URDF's own file:line in the message (:func:`handover.engine.robotload.check_robot`,
@@ -48,7 +51,7 @@ from handover.geometry.armcollision import Targets, arms_hits, world_hits
 from handover.geometry.bodies import Body
 from handover.geometry.frames import invert_transform
 from handover.geometry.reach import ReachMap
-from handover.geometry.urdf import RobotModel, RobotModelError
+from handover.geometry.urdf import LinkShapes, RobotModel, RobotModelError
 
 if TYPE_CHECKING:
     from handover.engine.graspdb import GraspDB
@@ -66,6 +69,10 @@ reachable poses; 5 restarts 3 %, 20 restarts 0.3 %)."""
 _MAPS: dict[tuple, ReachMap] = {}
 
 SEED_LIBRARY = 4096
+
+SPARED_SAMPLES = 256
+"""Configurations per arm that find the robot body's primitives its links always touch
+(:meth:`RobotArms.spared`)."""
 """Configurations per arm whose grasp poses seed inverse kinematics (the nearest first)."""
 
 CORE = 1
@@ -119,6 +126,8 @@ class RobotArms:
     reach_dir: Path | None = None
     map_params: dict = field(default_factory=dict)
     _library: dict = field(default_factory=dict, repr=False)
+    _distal: dict = field(default_factory=dict, repr=False)
+    _spared: dict = field(default_factory=dict, repr=False)
 
     @classmethod
     def load(
@@ -295,6 +304,43 @@ class RobotArms:
         result = arm.kin.ik_from(targets, self._nearest(side, targets, restarts + 1))
         return Solution(result.q, result.success, result.position_error, result.rotation_error)
 
+    def solve_each(
+        self,
+        side: str,
+        poses_world: np.ndarray,
+        count: int,
+        *,
+        avoid: Sequence[Body] = (),
+        pool: int = 32,
+    ) -> Solution:
+        """Several inverse-kinematics answers per pose, for a caller that wants one whose
+        links clear something: ``q`` (m, count, dof), ``ok``, ``position_error``,
+        ``rotation_error`` (m, count), each pose solved from each of ``count`` starts on its
+        own. The starts: among the ``pool`` configurations of the seed library whose grasp
+        poses lie nearest the pose (as :meth:`solve`), those whose links touch none of
+        ``avoid`` (bodies, world) first, nearest first. Deterministic; a pose's answers depend
+        on it alone."""
+        arm = self.arm(side)
+        targets = self._to_base(arm, poses_world)
+        m, dof = len(targets), arm.dof
+        pool = min(max(count, pool), SEED_LIBRARY)
+        starts = self._nearest(side, targets, pool)  # (m, pool, dof)
+        if avoid and m:
+            obstacles = Targets()
+            for body in avoid:
+                obstacles = obstacles + body_targets(body)
+            touch = world_hits(arm.shapes, self.link_poses(side, starts.reshape(-1, dof)),
+                               obstacles).any(axis=(1, 2)).reshape(m, pool)  # fmt: skip
+            order = np.argsort(touch, axis=1, kind="stable")  # clear ones first
+            starts = np.take_along_axis(starts, order[:, :, None], axis=1)
+        starts = starts[:, :count]
+        count = starts.shape[1]
+        result = arm.kin.ik_from(np.repeat(targets, count, axis=0),
+                                 starts.reshape(-1, 1, dof))  # fmt: skip
+        return Solution(result.q.reshape(m, count, dof), result.success.reshape(m, count),
+                        result.position_error.reshape(m, count),
+                        result.rotation_error.reshape(m, count))
+
     def _nearest(self, side: str, targets: np.ndarray, count: int) -> np.ndarray:
         """(m, count, dof) starts for targets (m, 4, 4), base frame: the configurations of the
         arm's seed library (:data:`SEED_LIBRARY` drawn within the limits, seed 0) whose grasp
@@ -316,6 +362,98 @@ class RobotArms:
 
     # ------------------------------------------------------------------ collisions
 
+    def contacts(
+        self,
+        side: str,
+        q: np.ndarray,
+        *,
+        boxes: Sequence[tuple[str, np.ndarray, np.ndarray]] = (),
+        bodies: Sequence[Body] = (),
+        other: tuple[str, np.ndarray] | None = None,
+        own_body: bool = True,
+        margin: float = 0.0,
+    ) -> list[list[tuple[str, str]]]:
+        """For each configuration q (n, dof) of the arm on ``side``, which of its links touches
+        what: ``(link, target)`` pairs, targets in order (``boxes``, then ``bodies``' names,
+        then the robot's own body, then the other arm's links), links in chain order within a
+        target. Targets as :meth:`collisions`; the other arm's are named after its links."""
+        arm = self.arm(side)
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        poses = self.link_poses(side, q)
+        targets = Targets.from_boxes(list(boxes)) if boxes else Targets()
+        for body in bodies:
+            targets = targets + body_targets(body)
+        if own_body and len(self.body):
+            spared = set(self.spared(side))
+            own = self.body.subset([name not in spared for name in self.body.names])
+            targets = targets + body_targets(own)
+        links = arm.shapes.links
+        hits = world_hits(arm.shapes, poses, targets, margin=margin)  # (n, L, K)
+        out = [[(links[j], targets.names[k]) for k, j in zip(*np.nonzero(row.T), strict=True)]
+               for row in hits]  # fmt: skip
+        if other is not None:
+            other_side, q_other = other
+            o = self.arm(other_side)
+            q_other = np.atleast_2d(np.asarray(q_other, dtype=float))
+            touch = arms_hits(arm.shapes, poses, o.shapes, self.link_poses(other_side, q_other),
+                              margin=margin)  # (n, L, Lb)  # fmt: skip
+            for row, found in zip(out, touch, strict=True):
+                row.extend((links[j], o.shapes.links[k])
+                           for k, j in zip(*np.nonzero(found.T), strict=True))
+        return out
+
+    def spared(self, side: str) -> tuple[str, ...]:
+        """The names of the robot body's primitives the arm's links are never tested against:
+        the link the arm is mounted on, and any its links touch at every one of
+        :data:`SPARED_SAMPLES` configurations drawn within its limits (seeded): the shoulder
+        it turns in, whatever a robot's YAML ``body`` calls it (as MoveIt's setup assistant
+        disables the pairs always in collision)."""
+        if side not in self._spared:
+            arm = self.arm(side)
+            q = arm.kin.random_configurations(SPARED_SAMPLES, np.random.default_rng(0))
+            targets = body_targets(self.body)
+            hits = world_hits(arm.shapes, self.link_poses(side, q), targets).any(axis=1)
+            always = [targets.names[k] for k in np.flatnonzero(hits.all(axis=0))]
+            self._spared[side] = tuple(dict.fromkeys([arm.mount, *always]))
+        return self._spared[side]
+
+    def distal(self, side: str) -> tuple[LinkShapes, np.ndarray]:
+        """The arm's links rigidly attached to its grasp frame (those the last joint carries:
+        a wrist's last link, the flange) as their own :class:`LinkShapes`, and their poses
+        (L', 4, 4) in the grasp frame: where they are follows from a grasp pose alone, with no
+        inverse kinematics (:meth:`distal_contacts`)."""
+        if side not in self._distal:
+            arm = self.arm(side)
+            chain, shapes = arm.chain, arm.shapes
+            keep = np.flatnonzero(np.asarray(chain.link_joint) == arm.dof - 1)
+            index = np.full(len(shapes.links), -1, dtype=np.intp)
+            index[keep] = np.arange(len(keep))
+            caps = np.flatnonzero(index[shapes.cap_link] >= 0)
+            boxes = np.flatnonzero(index[shapes.box_link] >= 0)
+            sub = LinkShapes(tuple(shapes.links[k] for k in keep),
+                             index[shapes.cap_link[caps]], shapes.cap_a[caps],
+                             shapes.cap_b[caps], shapes.cap_radius[caps],
+                             index[shapes.box_link[boxes]], shapes.box_pose[boxes],
+                             shapes.box_extents[boxes])  # fmt: skip
+            to_joint = invert_transform(chain.tip_offset @ arm.tcp)
+            self._distal[side] = (sub, to_joint @ np.asarray(chain.link_offsets)[keep])
+        return self._distal[side]
+
+    def distal_contacts(self, side: str, poses_world: np.ndarray, *,
+                        bodies: Sequence[Body] = ()) -> list[list[tuple[str, str]]]:
+        """For grasp poses (n, 4, 4), world, m, which of the arm's :meth:`distal` links touch
+        which primitive of ``bodies``: ``(link, target)`` pairs per pose, as
+        :meth:`contacts` would find them at any configuration reaching the pose."""
+        shapes, rel = self.distal(side)
+        poses = np.asarray(poses_world, dtype=float).reshape(-1, 4, 4)
+        targets = Targets()
+        for body in bodies:
+            targets = targets + body_targets(body)
+        hits = world_hits(shapes, poses[:, None] @ rel[None], targets)  # (n, L', K)
+        return [[(shapes.links[j], targets.names[k]) for k, j in zip(*np.nonzero(row.T),
+                                                                     strict=True)]
+                for row in hits]  # fmt: skip
+
     def collisions(
         self,
         side: str,
@@ -330,29 +468,12 @@ class RobotArms:
         """For each configuration q (n, dof) of the arm on ``side``, the names of what its
         links touch (target order, each once): ``boxes`` ``(name, extents (3,), pose (4,
         4))`` in the world (a table, obstacles), the primitives of ``bodies`` (world; a
-        receiver), the robot's own body (``own_body``; not the arm's mount link) and, with
+        receiver), the robot's own body (``own_body``; not :meth:`spared`) and, with
         ``other = (side, q_other (n, dof))``, the other arm's links at the same moments.
-        margin : m, grows the arm's links."""
-        arm = self.arm(side)
-        q = np.atleast_2d(np.asarray(q, dtype=float))
-        poses = self.link_poses(side, q)
-        targets = Targets.from_boxes(list(boxes)) if boxes else Targets()
-        for body in bodies:
-            targets = targets + body_targets(body)
-        if own_body and len(self.body):
-            own = self.body.subset([name != arm.mount for name in self.body.names])
-            targets = targets + body_targets(own)
-        hits = world_hits(arm.shapes, poses, targets, margin=margin).any(axis=1)  # (n, K)
-        names = [[targets.names[j] for j in np.flatnonzero(row)] for row in hits]
-        if other is not None:
-            other_side, q_other = other
-            o = self.arm(other_side)
-            q_other = np.atleast_2d(np.asarray(q_other, dtype=float))
-            touch = arms_hits(arm.shapes, poses, o.shapes, self.link_poses(other_side, q_other),
-                              margin=margin).any(axis=1)  # (n, Lb)  # fmt: skip
-            for row, found in zip(names, touch, strict=True):
-                row.extend(o.shapes.links[j] for j in np.flatnonzero(found))
-        return [list(dict.fromkeys(row)) for row in names]
+        margin : m, grows the arm's links. Which link touches what: :meth:`contacts`."""
+        found = self.contacts(side, q, boxes=boxes, bodies=bodies, other=other,
+                              own_body=own_body, margin=margin)
+        return [list(dict.fromkeys(target for _, target in row)) for row in found]
 
     # ------------------------------------------------------------------ the result's field
 

@@ -4,9 +4,12 @@ the object: at pick-up, at H2G2's midair regrasp and at the handover
 
 Over every row the arms' reachability maps screen the gripper poses: a row passes when one
 arm's map holds all of its stages. A grasp whose arm is decided (the chosen grasps: the
-phase names the arm) is judged by exact inverse kinematics instead, and its trace entry
-gives the arm and the joint values. A robot without arms (no URDF) makes the rule not
-applicable.
+phase names the arm) is judged by exact inverse kinematics instead, with the arm's links at
+those configurations tested against the table, the obstacles, the receiver's body and the
+robot's own body (and, where both arms hold the object at once, the other arm: the modes'
+pair choice, :mod:`handover.engine.armpairs`); its trace entry gives the arm, the joint
+values and what the links were found clear of. A robot without arms (no URDF) makes the
+rule not applicable.
 """
 
 from __future__ import annotations
@@ -22,20 +25,22 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
 
 FEATURES.setdefault("reach", (10.0, "grasp x presentation",
-                              "an arm reaches the grasp at each stage (map; exact IK for the "
-                              "chosen grasps)"))  # fmt: skip
+                              "an arm reaches the grasp at each stage (map; exact IK, its "
+                              "links clear, for the chosen grasps)"))  # fmt: skip
 
 
 @register
 class ReachRule(RuleBase):
     """No fields of its own: the stages come from the attempt (pick-up when the grasp takes
     the object off the table, the midair regrasp in H2G2, the handover when the receiver
-    takes it). Measured: the fraction of those stages the best arm reaches (1: every one)."""
+    takes it). Measured: the fraction of those stages the best arm reaches (1: every one);
+    with the arm decided, the fraction it reaches with its links clear."""
 
     kind: Literal["reach"] = "reach"
 
     colour = (200, 120, 0)
-    summary = "an arm reaches the grasp at pick-up, midair and handover (map, then IK)"
+    summary = ("an arm reaches the grasp at pick-up, midair and handover (map, then IK with "
+               "its links clear)")
     example = {}
 
     def features(self) -> list[str]:
@@ -59,7 +64,13 @@ class ReachRule(RuleBase):
 
     def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
                  pk: np.ndarray) -> Outcome:
-        from handover.engine.arms import STAGE_WORDS, confirm, screen
+        from handover.engine.arms import (
+            STAGE_WORDS,
+            confirm,
+            link_targets,
+            screen,
+            target_groups,
+        )
 
         names = self._stages(phase)
         where = ", ".join(STAGE_WORDS[s] for s in names) or "no stage"
@@ -69,9 +80,12 @@ class ReachRule(RuleBase):
             return Outcome(ok, np.ones(len(gi)), ok.astype(float), ">= 1", "fraction of stages")
         if side is not None:  # the arm is decided: exact inverse kinematics
             checks = confirm(ctx, phase, side, gi, pk)
-            measured = np.array([c.reached.mean() for c in checks]) if checks \
+            measured = np.array([c.held.mean() for c in checks]) if checks \
                 else np.zeros(0)
-            how = f"the {side} arm {where}, inverse kinematics within its joint limits"
+            against = target_groups([n for s in names
+                                     for n in link_targets(ctx, phase, side, s).names])
+            how = (f"the {side} arm {where}, inverse kinematics within its joint limits, "
+                   f"its links clear of {', '.join(against) or 'nothing'}")
         else:
             sides, mapped = screen(ctx, phase, gi, pk)  # (R, S, T)
             measured = mapped.mean(axis=2).max(axis=1) if len(sides) else np.zeros(len(gi))
@@ -80,7 +94,7 @@ class ReachRule(RuleBase):
         return Outcome(ok, measured, ok.astype(float), f">= 1 ({how})", "fraction of stages")
 
     def detail(self, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
-        from handover.engine.arms import arm_record, confirm, reach_words
+        from handover.engine.arms import arm_record, confirm, links_words, reach_words
 
         if ctx.arms is None or not self._stages(phase):
             return {}
@@ -93,4 +107,6 @@ class ReachRule(RuleBase):
         failure = check.failure()
         if failure:
             out["cannot"] = failure
+        else:
+            out["links"] = links_words(ctx, phase, check, grasp, presentation)
         return out
