@@ -57,10 +57,10 @@ def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
     first = ("the receiver's grasp site at the best location (soft location rules) "
              "where every hard location rule passes and nothing is hit: ")
     moved = attempt.extra.get("relocated")
-    if moved and k in moved["presentations"]:  # H2G2: the arms could not hold it there
+    if moved and k in moved["presentations"]:  # the arms could not hold it there
         first = (f"the receiver's grasp site at the next best location (soft location rules) "
                  f"where every hard location rule passes and nothing is hit, after "
-                 f"{moved['locations_tried']} better one(s) where H2G2 found no plan "
+                 f"{moved['locations_tried']} better one(s) where {attempt.mode} found no plan "
                  f"({moved['why']}): ")
     return {
         "position": point,

@@ -32,14 +32,14 @@ import numpy as np
 
 from handover.engine.armpairs import choose_pair_h2g1, side_reaches
 from handover.engine.arms import reach_rule
-from handover.engine.attempt import Attempt, Chosen, Phase
+from handover.engine.attempt import Attempt, Chosen, Hands, Phase
 from handover.engine.compiler import ConstraintGraph, compile
 from handover.engine.evaluate import evaluate
 from handover.engine.explain import infeasible_reason
 from handover.engine.features import collision_scene
 from handover.engine.hands import hands_for
 from handover.engine.kinds.torque import load_shares, pair_lever
-from handover.engine.modes.common import register
+from handover.engine.modes.common import register, relocated
 
 if TYPE_CHECKING:
     from handover.engine.context import PlanContext
@@ -101,16 +101,25 @@ def _overloaded(ctx: PlanContext, cg: ConstraintGraph, gl: np.ndarray, gr: np.nd
 
 @register("H2G1", hands=2)
 def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
-    """Plan a two-handed handover; see the module docstring."""
+    """Plan a two-handed handover; see the module docstring. When the arms hold none of the
+    best pairs where the location rules offer the object, the presentations that had pairs
+    move to their next best locations (:func:`~handover.engine.modes.common.relocated`)."""
+    cg = compile(kb, ctx, "H2G1")
+    count, count_why = receiver_hand_count(cg)
+    extra = {"receiver_hands": count, "receiver_hands_why": count_why}
+    return relocated(_plan(ctx, cg, hands_for(cg, ctx, count), extra),
+                     lambda avoid: hands_for(cg, ctx, count, avoid=avoid),
+                     lambda hands: _plan(ctx, cg, hands, extra))
+
+
+def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict) -> Attempt:
+    """H2G1 with the receiver's ``hands`` where they are (see :func:`plan_h2g1`)."""
     from handover.geometry.collision import grippers_collide
 
-    cg = compile(kb, ctx, "H2G1")
-    hands, hands_why = receiver_hand_count(cg)
     # Rows are judged at the presentation; pick-up is a property of the pair (below).
-    phase = Phase("H2G1", hands=hands_for(cg, ctx, hands), pickup=False,
-                  receiver_present=True)
+    phase = Phase("H2G1", hands=hands, pickup=False, receiver_present=True)
     decision = evaluate(cg, ctx, phase)
-    extra = {"receiver_hands": hands, "receiver_hands_why": hands_why}
+    extra = dict(extra)
     facts = ctx.facts
     if facts.mass / 2.0 > facts.payload:
         return Attempt("H2G1", False,

@@ -15,7 +15,6 @@ itself, grasps it there with its second hand, and hands it over with the second 
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -27,7 +26,7 @@ from handover.engine.compiler import CompiledRule, compile
 from handover.engine.evaluate import evaluate, evaluate_rule
 from handover.engine.explain import infeasible_reason
 from handover.engine.hands import hands_for
-from handover.engine.modes.common import hand_at, register
+from handover.engine.modes.common import hand_at, register, relocated
 
 if TYPE_CHECKING:
     from handover.engine.context import PlanContext
@@ -39,9 +38,6 @@ FIRST_NOTE = "applies to the handover grasp only (function and etiquette)"
 
 # How many of the best second grasps are paired with first grasps.
 SECOND_POOL = 64
-# How many times the presentations whose grasps no pair of arms holds move to their next
-# best handover location before H2G2 gives up.
-RELOCATIONS = 6
 
 
 def first_rules(hard: list[CompiledRule]) -> list[CompiledRule]:
@@ -123,48 +119,13 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     """Plan a midair regrasp; see the module docstring. When no pair of arms holds the
     grasps at the locations the location rules prefer, the presentations that had grasps
     move to their next best locations (every hard location rule still holding) and H2G2 is
-    planned again, up to :data:`RELOCATIONS` times; ``extra["relocated"]`` says which
+    planned again, up to :data:`~handover.engine.modes.common.RELOCATIONS` times
+    (:func:`~handover.engine.modes.common.relocated`); ``extra["relocated"]`` says which
     presentations moved."""
     cg = compile(kb, ctx, "H2G2")
-    hands = hands_for(cg, ctx)
-    attempt = _plan(ctx, cg, hands)
-    if attempt.feasible or "arm_failures" not in attempt.extra:
-        return attempt
-    # No pair of arms holds the grasps where the location rules offer the object best:
-    # offer the presentations that had grasps at their next best locations (every hard
-    # location rule still holding), a few times over.
-    avoid: set[int] = set()
-    tried = attempt
-    missed: list[str] = []  # why each location tried found no plan, in a few words
-    for _ in range(RELOCATIONS):
-        if tried.decision is None or not len(tried.decision.ranking()):
-            break
-        ranked = tried.decision.pk[tried.decision.ranking()]
-        used = tried.phase.hands.location[np.unique(ranked)]
-        if set(int(v) for v in used) <= avoid:
-            break
-        avoid |= {int(v) for v in used}
-        missed.append(_short(tried.reason))
-        moved = hands_for(cg, ctx, avoid=tuple(avoid))
-        if np.array_equal(moved.location, tried.phase.hands.location):
-            break
-        tried = _plan(ctx, cg, moved)
-        if tried.feasible:
-            k = [int(v) for v in np.flatnonzero(moved.location != hands.location)]
-            return replace(tried, extra=tried.extra | {"relocated": {
-                "presentations": k, "locations_tried": len(avoid),
-                "why": "; ".join(dict.fromkeys(missed))}})
-    if tried is attempt:  # no other location was tried
-        return attempt
-    elsewhere = "; ".join(dict.fromkeys([*missed[1:], _short(tried.reason)]))
-    return replace(attempt, reason=f"{attempt.reason}; nor at the next best locations "
-                   f"({elsewhere})", extra=attempt.extra | {"relocations_tried": len(avoid)})
-
-
-def _short(reason: str | None) -> str:
-    """An H2G2 reason's first clause ("no pair of arms holds ... (arm_reaches)")."""
-    parts = (reason or "no plan").split(": ")
-    return parts[1] if len(parts) > 1 else parts[0]
+    return relocated(_plan(ctx, cg, hands_for(cg, ctx)),
+                     lambda avoid: hands_for(cg, ctx, avoid=avoid),
+                     lambda hands: _plan(ctx, cg, hands))
 
 
 def _plan(ctx: PlanContext, cg, hands) -> Attempt:

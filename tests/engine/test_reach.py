@@ -165,9 +165,9 @@ def test_when_the_next_locations_fail_too_the_reason_says_what_each_lacked(monke
     # Allowed one move only, the seated adult's knife goes to the next best place, 6 cm
     # nearer the robot, where the midair pose hits the robot's torso: H2G2 is infeasible and
     # its reason says both why (the arms at the first place, the torso at the next).
-    from handover.engine.modes import h2g2
+    from handover.engine.modes import common
 
-    monkeypatch.setattr(h2g2, "RELOCATIONS", 1)
+    monkeypatch.setattr(common, "RELOCATIONS", 1)
     r = Planner().plan("knife", receiver="seated_adult", mode="h2g2").to_dict()
     assert r["outcome"] != "handover"
     reason = next(m["reason"] for m in r["modes_tried"] if m["mode"] == "H2G2")
