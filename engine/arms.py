@@ -6,6 +6,8 @@ A grasp is held at up to three gripper poses in the world (m), its *stages*:
 - ``pickup``: the object at its initial pose, ``ctx.initial @ G``;
 - ``midair``: H2G2's regrasp pose, the handover pose :data:`MIDAIR_BACKOFF` nearer the robot;
 - ``handover``: the object at its presentation's location, ``hands.poses[k] @ G``;
+- ``place`` (instead of the others after pick-up, when the object is set down on the
+  table): the object where it rests, ``hands.poses[k] @ G`` of the placement's phase;
 
 where ``G`` is the candidate's gripper pose in the object frame. Which stages a grasp goes
 through is read from its :class:`~handover.engine.attempt.Phase` (:func:`stages`).
@@ -70,7 +72,7 @@ __all__ = [
 
 STAGES = ("pickup", "midair", "handover")
 STAGE_WORDS = {"pickup": "at pick-up", "midair": "at the midair regrasp",
-               "handover": "at the handover"}
+               "handover": "at the handover", "place": "where it is set down"}
 MIDAIR_BACKOFF = 0.2
 """m: H2G2's midair pose is the handover pose moved this far back toward the robot (here,
 where the arms judge it, and :func:`handover.engine.modes.h2g2.midair_pose`)."""
@@ -107,6 +109,8 @@ def stages(phase: Phase) -> tuple[str, ...]:
     """The stages a grasp judged in ``phase`` is held at, in time order: pick-up when it
     takes the object off the table, the midair regrasp in H2G2, the handover when the
     receiver's hands are there."""
+    if phase.mode == "place":  # set down on the table: picked up, then placed
+        return ("pickup", "place")
     on = (phase.pickup, phase.mode == "H2G2", phase.receiver_present)
     return tuple(s for s, yes in zip(STAGES, on, strict=True) if yes)
 

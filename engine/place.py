@@ -27,9 +27,11 @@ on the scene's table, within the receiver's reach, the way a careful person woul
 4. **The robot's grasp.** Every grasp candidate is judged in each placed pose by the rules
    that concern the robot's grasp (:data:`PLACE_KINDS`: its contacts, quality, torque, its
    approach from the robot's side or above, nothing in an opening, and ``collision``: at
-   pick-up, and at the placement against the table, obstacles and bodies). The rules about
-   the receiver's hand and the mode are not judged (the receiver takes the object off the
-   table). The best row wins; the orientations are tried in rounds
+   pick-up, and at the placement against the table, obstacles and bodies; ``reach``: with
+   arms, an arm holds it at pick-up and where it is set down, the maps screening every row
+   and inverse kinematics confirming the best, :func:`handover.engine.arms.choose_row`).
+   The rules about the receiver's hand and the mode are not judged (the receiver takes the
+   object off the table). The best row an arm holds wins; the orientations are tried in rounds
    (:data:`ROUNDS`), best first, so a plan costs a few orientations, not all of them.
 
 One gripper sets the object down, so the object must not weigh more than one hand's payload.
@@ -66,13 +68,14 @@ ROUNDS = (8, 32)
 """Orientations judged per round (best first), then all the rest."""
 POSITION_BATCHES = (4, 16)
 """Positions per orientation tested for collisions per round, then all the rest."""
-PLACE_KINDS = ("axis", "contact", "quality", "torque", "keep_out", "approach", "collision")
+PLACE_KINDS = ("axis", "contact", "quality", "torque", "keep_out", "approach", "collision",
+               "reach")
 """Rule kinds judged for a placement (``contact`` only for the giver)."""
 PLACE_MEASURES = ("receiver_reach", "robot_reach", "lateral")
 """Location measures judged for where the object is set down."""
 NOT_JUDGED = "not judged when the object is set down on the table"
 _GRASP_MEMO = ("poses", "gripper_boxes", "gripper_spheres", "collision_scene",
-               "keep_out_gripper", "interior", "world", "locations")
+               "keep_out_gripper", "interior", "world", "locations", "arms")
 """Memoised values of the context that depend on the grasps only, shared with the
 placement's context (the rest depend on the orientations)."""
 
@@ -299,18 +302,18 @@ def _oriented(ctx: PlanContext, judged: list[CompiledRule], rotations: np.ndarra
 
 
 def _chosen(cg: ConstraintGraph, judged: list[CompiledRule], because: list[CompiledRule],
-            rctx: PlanContext, phase: Phase, decision, site: dict | None, tip_deg: float,
-            com: np.ndarray, considered: dict) -> PlacementPlan:
-    """The placement of the best row of ``decision`` (over ``rctx``'s orientations, in
-    ``phase``): its attempt with the trace of its grasp, its pose and record. ``site``: the
-    receiver's site on it (object frame), completed here with its world position."""
+            rctx: PlanContext, phase: Phase, decision, row: int, site: dict | None,
+            tip_deg: float, com: np.ndarray, considered: dict) -> PlacementPlan:
+    """The placement of row ``row`` of ``decision`` (over ``rctx``'s orientations, in
+    ``phase``, whose ``arm`` holds it when the robot has arms): its attempt with the trace of
+    its grasp, its pose and record. ``site``: the receiver's site on it (object frame),
+    completed here with its world position."""
     from handover.engine.evaluate import trace_row
     from handover.engine.modes.common import hand_at
 
-    row = int(decision.ranking()[0])
     i, k = int(decision.gi[row]), int(decision.pk[row])
     pose = phase.hands.poses[k]
-    hand = hand_at(pose, rctx.candidates.centre[i], rctx.situation.robot.hands)
+    hand = phase.arm or hand_at(pose, rctx.candidates.centre[i], rctx.situation.robot.hands)
     trace = trace_row(cg, rctx, phase, i, k, rules=judged, note=NOT_JUDGED)
     causes = {c.id for c in because}
     for e in trace:
@@ -338,6 +341,7 @@ def _chosen(cg: ConstraintGraph, judged: list[CompiledRule], because: list[Compi
 def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> PlacementPlan:
     """Plan setting the object down (see the module docstring) because the rules
     ``because`` (compiled, each naming ``fallback: place``) forbid handing it over."""
+    from handover.engine.arms import CONFIRM_LIMIT, choose_row, reach_rule
     from handover.engine.compiler import compile
     from handover.engine.evaluate import evaluate
     from handover.engine.explain import infeasible_reason
@@ -410,13 +414,22 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
             continue
         considered |= {"placed_orientations": placed_any, "rows": int(decision.n_rows),
                        "kept": int(decision.kept.sum())}
-        m = sel[decision.pk[int(ranking[0])]]
+        row = int(ranking[0])
+        if reach_rule(cg, ctx) is not None:  # the best row an arm holds exactly, and that arm
+            row, check, failures = choose_row(rctx, phase, decision, ranking)
+            if row is None:
+                last_reason = (f"no arm holds any of the best {min(len(ranking), CONFIRM_LIMIT)} "
+                               f"grasps ({reach_rule(cg, ctx).id}): "
+                               + ("; ".join(failures[:3]) or "no arm's map holds them"))
+                continue
+            phase = phase.but(arm=check.side)
+        m = sel[decision.pk[row]]
         site = None
         if sites.valid[m]:
             site = {"hand": s.receiver.dominant_hand, "position": sites.site[m],
                     "part": ctx.part_mesh.part_names[int(sites.part[m])], "model": []}
-        return _chosen(cg, judged, because, rctx, phase, decision, site, float(tips[rest_of[m]]),
-                       com, considered)
+        return _chosen(cg, judged, because, rctx, phase, decision, row, site,
+                       float(tips[rest_of[m]]), com, considered)
     reason = last_reason or "no orientation could be placed"
     if placed_any == 0:
         reason = f"nowhere on the table top: {reason}"

@@ -55,7 +55,7 @@ Entities (see ``ENTITY_*``)::
     world/handover/grippers           Boxes3D: the chosen gripper(s) (stage 4)
     world/regrasp, .../object,        H2G2: the object and grippers at pick, midair,
     .../grippers                      handover (stages 5-7)
-    world/robot/arms/{pickup,midair,handover}/{capsules,boxes,chain}
+    world/robot/arms/{pickup,midair,handover,place}/{capsules,boxes,chain}
                                       Capsules3D, Boxes3D, LineStrips3D: the arms holding the
                                       chosen grasps, posed by forward kinematics of the
                                       result's joint values (robots with arms): at pick-up and
@@ -186,7 +186,8 @@ def _log_body(rec, entity: str, primitives: list[dict], colour: tuple[int, int, 
 def arm_primitives(arms: RobotArms, grasps: list[dict],
                    stage: str) -> tuple[list[dict], list[tuple], list[dict]]:
     """The arms holding ``grasps`` (result records with ``arm`` and ``joints``) at ``stage``
-    (``pickup``, ``midair``, ``handover``), posed by forward kinematics of their joint values:
+    (``pickup``, ``midair``, ``handover``, ``place``), posed by forward kinematics of their
+    joint values:
     the links' collision shapes as body primitives (capsules ``{name, shape, p0, p1,
     radius}``, boxes ``{name, shape, extents, pose}``, world, m; named by link), their colours
     (:data:`ARM_COLOURS`, by arm), and one chain per arm ``{"side", "points" (P, 3)}``: the
@@ -513,7 +514,7 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
         _log_grippers(rec, ctx, "world/initial/grippers", pick_grasps,
                       [OUTCOME_COLOURS["chosen"]] * len(pick_grasps))  # fmt: skip
         if arms is not None:
-            for stage in ("pickup", "handover"):
+            for stage in ("pickup", "handover", "place"):  # place: where it is set down
                 _log_arms(rec, arms, result.robot_grasps, stage)
         if result.human_grasps:
             rec.log("world/receiver/sites", rr.Points3D(

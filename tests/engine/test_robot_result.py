@@ -116,8 +116,9 @@ def assert_same_pose(a: np.ndarray, b: np.ndarray, what: str) -> None:
 def stage_poses(result: dict, grasp: dict) -> dict[str, np.ndarray]:
     """Where the plan says the gripper is at each stage (world)."""
     pose = np.asarray(grasp["pose"])
-    out = {"pickup": np.asarray(result["initial_pose"]) @ pose,
-           "handover": np.asarray(grasp["pose_world"])}
+    out = {"pickup": np.asarray(result["initial_pose"]) @ pose}
+    # Handed over, or set down on the table: where it rests.
+    out["place" if grasp.get("stage") == "place" else "handover"] = np.asarray(grasp["pose_world"])
     if result.get("regrasp"):
         out["midair"] = np.asarray(result["regrasp"]["midair_pose"]) @ pose
     return out
@@ -213,21 +214,30 @@ def test_two_armed_h2g1_gives_both_arms_joints(capsys):
             if stage == "handover"} == {"left", "right"}
 
 
-def test_infeasible_and_placed_plans_still_name_the_robot(capsys, moved_kb):
-    """The block describes the robot whatever the outcome; a placement's grasp has no arm
-    or joints (placements do not check the arms)."""
+def test_infeasible_and_placed_plans_still_name_the_robot(capsys, moved_kb, tmp_path):
+    """The block describes the robot whatever the outcome; a placement's grasp names the arm
+    that sets the object down and its joints at pick-up and where it is set down."""
     handed = plan_json(capsys, "--kb", str(moved_kb), "plan", "knife")
     r = plan_json(capsys, "--kb", str(moved_kb), "plan", "knife", "--mode", "h2g1",
                   code=EXIT_INFEASIBLE)  # fmt: skip
     assert r["outcome"] == "infeasible" and r["robot_grasps"] == []
     assert r["robot"] == handed["robot"]
+    rrd = tmp_path / "placed.rrd"
     r = plan_json(capsys, "--kb", str(moved_kb), "plan", "lead_cube", "--culture", "weights",
-                  "--receiver", "seated_adult")  # near enough the table to set it down
+                  "--receiver", "seated_adult", "--rrd", str(rrd))  # near enough the table
     assert r["outcome"] == "place", r["reason"]
     assert r["robot"] == handed["robot"]
     (grasp,) = r["robot_grasps"]
-    assert "arm" not in grasp and "joints" not in grasp
-    assert "arm" not in r["placement"]["robot_grasp"]
+    assert set(grasp["joints"]) == {"pickup", "place"}
+    assert check_grasps_by_fk(moved_kb, r) == [(grasp["arm"], "pickup"), (grasp["arm"], "place")]
+    assert r["placement"]["robot_grasp"]["arm"] == grasp["arm"]
+    reach = [e for e in r["placement"]["rules"] if e["rule"] == "arm_reaches"]
+    assert reach and reach[0]["status"] == "pass"
+    assert "where it is set down" in str(reach[0]["threshold"])
+    from handover.engine.recording import read_recording
+
+    entities = {e["path"]: e["stages"] for e in read_recording(rrd)["entities"]}
+    assert entities["world/robot/arms/place/capsules"] == [4]
 
 
 def test_a_robot_without_arms_gives_robot_null(capsys, armless_kb):
@@ -314,3 +324,51 @@ def test_the_facade_exposes_the_robot_and_each_grasp_s_arm_and_joints(capsys):
     reached = robot.base_pose @ urdf.get_transform(arm.tip_link, urdf.base_link) @ arm.tcp
     target = g.pose_world @ (FLIP if "handover" in g.fingers_swapped else np.eye(4))
     assert_same_pose(reached, target, "the facade's handover")
+
+
+LONG_TABLE = """\
+id: long_table
+name: A long table, the receiver seated at its far end
+why: Where the receiver can take the object, no arm of the robot reaches.
+support:
+  position: [1.0, 0.0, 0.75]
+  size: [1.6, 0.8]
+  thickness: 0.03
+receiver:
+  position: [2.0, 0.0, 0.0]
+  facing: [-1.0, 0.0, 0.0]
+object:
+  position: [0.4, 0.0]
+"""
+
+
+def test_a_placement_no_arm_can_make_is_not_planned(capsys, tmp_path):
+    """The robot's quick horizontal screen (`reach`) is stretched to 1.8 m, so only its
+    arms can tell that the far end of a long table is out of their reach: the cube is set
+    down near the seated receiver by a robot without arms, but with the arms the plan is
+    infeasible and the reason names the reach rule and an arm."""
+    root = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    (root / "objects" / "lead_cube.yaml").write_text(WEIGHT, encoding="utf-8")
+    (root / "etiquette" / "weights.yaml").write_text(WEIGHTS, encoding="utf-8")
+    (root / "scenes" / "long_table.yaml").write_text(LONG_TABLE, encoding="utf-8")
+    path = root / "robots" / "idro.yaml"
+    spec = yaml.safe_load(path.read_text(encoding="utf-8"))
+    armless = {k: v for k, v in spec.items() if k not in ("urdf", "base_pose", "arms")}
+    spec["reach"] = armless["reach"] = 1.8
+    armless["id"] = "floating"
+    path.write_text(yaml.safe_dump(spec, sort_keys=False), encoding="utf-8")
+    (root / "robots" / "floating.yaml").write_text(yaml.safe_dump(armless, sort_keys=False),
+                                                   encoding="utf-8")
+    query = ("--kb", str(root), "plan", "lead_cube", "--culture", "weights", "--receiver",
+             "seated_adult", "--scene", "long_table")
+    r = plan_json(capsys, *query, "--robot", "floating")
+    assert r["outcome"] == "place", r["reason"]
+    # Where it was set down: beyond the arms' stretch, computed from the URDF's links (the
+    # shoulders at 1.15 m, 0.316 + 0.384 + 0.088 + 0.107 + 0.11 m to the grasp frame).
+    spot = np.asarray(r["placement"]["position"])
+    assert np.hypot(spot[0], abs(spot[1]) - 0.17) > 0.316 + 0.384 + 0.088 + 0.107 + 0.11
+    r = plan_json(capsys, *query, code=EXIT_INFEASIBLE)
+    assert r["outcome"] == "infeasible"
+    handing, _, placing = r["reason"].partition("setting it down instead")
+    assert "arm cannot reach" in handing and "arm_reaches" in placing, r["reason"]
