@@ -188,7 +188,7 @@ def _cli_plan(capsys, *args: str) -> tuple[int, dict]:
     return code, json.loads(out)
 
 
-@pytest.mark.parametrize("obj", ["mug", "book"])
+@pytest.mark.parametrize("obj", ["mug", "bottle"])
 def test_the_readme_s_formal_culture_gives_two_hands(capsys, kb_copy, obj):
     code, r = _cli_plan(capsys, obj, "--culture", "formal", "--kb", str(kb_copy))
     assert code == 0 and r["mode"] == "H2G1", r["modes_tried"]

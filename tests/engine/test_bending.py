@@ -205,22 +205,24 @@ def test_a_strict_rule_does_not_bend_and_the_reason_names_it(planner):
     assert all(t["mode"] == "H2G1" or "not tried" in t["reason"] for t in r["modes_tried"])
 
 
-def test_a_book_to_a_korean_elder_still_gets_two_hands(planner):
-    """Where two hands fit (the built-in book, both arms reaching), the preference holds and
-    nothing is relaxed; where they do not (a paperback whose best pairs no pair of arms
-    holds), it bends only with a warning that names the rule and what made H2G1 infeasible."""
-    r = planner.plan("book", receiver="elder", culture="korean").to_dict()
+def test_a_bottle_to_a_korean_elder_still_gets_two_hands_and_a_book_bends(planner):
+    """Where two hands fit (the built-in bottle, both arms reaching), the preference holds and
+    nothing is relaxed; where they do not (the book lying flat: the arms' links hit the table
+    or the torso for every pair of grasps, and the paperback), it bends only with a warning
+    that names the rule and what made H2G1 infeasible."""
+    r = planner.plan("bottle", receiver="elder", culture="korean").to_dict()
     assert r["feasible"] and r["mode"] == "H2G1", r["modes_tried"]
     assert {g["hand"] for g in r["robot_grasps"]} == {"left", "right"}
     assert not any("relaxed" in w for w in r["warnings"])
     assert "two_hands_for_elders" in r["mode_reason"]
-    p = planner.plan("paperback", receiver="elder", culture="korean").to_dict()
-    assert p["feasible"], p["reason"]
-    if p["mode"] != "H2G1":
-        h2g1 = next(t for t in p["modes_tried"] if t["mode"] == "H2G1")
-        assert not h2g1["feasible"]
-        (warning,) = [w for w in p["warnings"] if "relaxed" in w]
-        assert "two_hands_for_elders" in warning and "H2G1" in warning
+    for obj in ("book", "paperback"):
+        p = planner.plan(obj, receiver="elder", culture="korean").to_dict()
+        assert p["feasible"], p["reason"]
+        if p["mode"] != "H2G1":
+            h2g1 = next(t for t in p["modes_tried"] if t["mode"] == "H2G1")
+            assert not h2g1["feasible"]
+            (warning,) = [w for w in p["warnings"] if "relaxed" in w]
+            assert "two_hands_for_elders" in warning and "H2G1" in warning
 
 
 def test_an_adult_is_not_concerned(planner):

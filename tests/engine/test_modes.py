@@ -117,10 +117,10 @@ def test_an_object_no_mode_can_hand_over_exits_4_with_every_modes_reason(capsys,
     assert all(tried.values())
 
 
-def test_a_book_for_a_korean_elder_is_lifted_by_one_hand_and_given_with_two(capsys):
-    """The book lies on the table with only its near edge free: one hand lifts it, the other
-    joins it for the two-handed presentation; it stays upright and readable."""
-    r = plan(capsys, "book", "--receiver", "elder", "--culture", "korean")
+def test_a_bottle_for_a_korean_elder_is_lifted_by_one_hand_and_given_with_two(capsys):
+    """The bottle stands on the table: one hand lifts it, the other joins it for the
+    two-handed presentation; it stays upright."""
+    r = plan(capsys, "bottle", "--receiver", "elder", "--culture", "korean")
     assert r["feasible"] and r["mode"] == "H2G1"
     assert len(r["candidates"]["pickup_hands"]) == 1
     axes = r["presentation"]["axes_world"]
