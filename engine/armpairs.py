@@ -14,16 +14,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.arms import (
-    CONFIRM_LIMIT,
-    STAGE_WORDS,
-    confirm,
-    hit_words,
-    pair_contacts,
-    preferred_sides,
-    screen,
-    wrist_failures,
-)
+from handover.engine.armlinks import hit_words, pair_contacts, wrist_failures
+from handover.engine.arms import CONFIRM_LIMIT, confirm, preferred_sides, screen
+from handover.engine.armstages import STAGE_WORDS
 
 if TYPE_CHECKING:
     from handover.engine.attempt import Phase

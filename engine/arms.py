@@ -1,29 +1,22 @@
 """The robot's arms in a plan: which arm holds a grasp, whether it reaches the grasp's poses,
 and the joint configurations the result gives.
 
-A grasp is held at up to three gripper poses in the world (m), its *stages*:
-
-- ``pickup``: the object at its initial pose, ``ctx.initial @ G``;
-- ``midair``: H2G2's regrasp pose, the handover pose :data:`MIDAIR_BACKOFF` nearer the robot;
-- ``handover``: the object at its presentation's location, ``hands.poses[k] @ G``;
-- ``place`` (instead of the others after pick-up, when the object is set down on the
-  table): the object where it rests, ``hands.poses[k] @ G`` of the placement's phase;
-
-where ``G`` is the candidate's gripper pose in the object frame. Which stages a grasp goes
-through is read from its :class:`~handover.engine.attempt.Phase` (:func:`stages`).
+A grasp is held at up to three gripper poses in the world, its stages (pick-up, H2G2's midair
+regrasp, the handover, or where it is set down: :mod:`handover.engine.armstages`).
 
 Two steps, as MoveIt Grasps and Simox do. :func:`screen` looks every row up in each arm's
 reachability map (vectorised over the rows; the ``reach`` rule over all rows). :func:`confirm`
 runs exact inverse kinematics (seeded restarts, the same for every target, so a row's answer
 does not depend on the rows asked with it) for the few rows that decide the plan, and tests
-the arm's links there against the world (:func:`link_targets`: the table, the obstacles, the
-receiver's body, the robot's own body), trying other answers where they touch something
-(MoveIt's IK with a collision callback); memoised in the context so the trace and the result
-read the configurations the planner judged. :func:`wrist_failures` screens rows by the links
-fixed to the grasp frame, which need no inverse kinematics. :func:`choose_row` walks a mode's
-ranking (score, then the grasp's world pose: the same physical grasp wins whatever frame the
-object's mesh is written in) until an arm holds a row. Where both arms hold the object at
-once, :func:`pair_contacts` tests one arm's links against the other's
+the arm's links there against the world (:func:`~handover.engine.armlinks.link_targets`: the
+table, the obstacles, the receiver's body, the robot's own body), trying other answers where
+they touch something (MoveIt's IK with a collision callback); memoised in the context so the
+trace and the result read the configurations the planner judged.
+:func:`~handover.engine.armlinks.wrist_failures` screens rows by the links fixed to the grasp
+frame, which need no inverse kinematics. :func:`choose_row` walks a mode's ranking (score,
+then the grasp's world pose: the same physical grasp wins whatever frame the object's mesh is
+written in) until an arm holds a row. Where both arms hold the object at once,
+:func:`~handover.engine.armlinks.pair_contacts` tests one arm's links against the other's
 (:mod:`handover.engine.armpairs`).
 
 The two fingers of a parallel-jaw gripper are alike: a grasp is held as given or turned half
@@ -32,11 +25,28 @@ a turn about its approach ``a`` (``swapped``), whichever the arm reaches.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from handover.engine.armlinks import (
+    clear_links,
+    hit_words,
+    link_tally,
+    link_targets,
+    target_groups,
+    wrist_failures,
+)
+from handover.engine.armstages import (
+    FLIP,
+    STAGE_WORDS,
+    objects_at,
+    pose_words,
+    screened_stages,
+    stage_poses,
+    stages,
+)
 
 if TYPE_CHECKING:
     from handover.engine.attempt import Phase
@@ -44,58 +54,33 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
 
 __all__ = [
-    "STAGES",
     "CONFIRM_LIMIT",
     "ArmCheck",
-    "LINK_STARTS",
-    "hit_words",
-    "link_targets",
-    "target_groups",
-    "wrist_failures",
-    "pair_contacts",
-    "links_words",
     "reach_rule",
-    "stages",
-    "stage_poses",
     "screen",
     "preferred_sides",
     "confirm",
     "confirm_row",
     "choose_row",
     "world_order",
-    "pose_words",
     "arm_record",
     "reach_words",
     "reach_reason",
-    "screened_stages",
 ]
 
-STAGES = ("pickup", "midair", "handover")
-STAGE_WORDS = {"pickup": "at pick-up", "midair": "at the midair regrasp",
-               "handover": "at the handover", "place": "where it is set down"}
-MIDAIR_BACKOFF = 0.2
-"""m: H2G2's midair pose is the handover pose moved this far back toward the robot (here,
-where the arms judge it, and :func:`handover.engine.modes.h2g2.midair_pose`)."""
 CONFIRM_LIMIT = 24
 """(row, arm) pairs a mode checks by exact inverse kinematics before it gives up."""
-FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])
-"""Half a turn about the approach ``a``: the same grasp with the fingers swapped."""
+
 FLIP_WITHIN = 0.01
 """m: a stage whose inverse kinematics ended nearer than this to the position is tried with
 the fingers swapped."""
-LINK_STARTS = 8
-"""Other inverse-kinematics answers tried for a stage reached with the arm's links touching
-something (as planned, then with the fingers swapped): from this many of the seed library's
-configurations nearest the pose, those whose own links are clear first
-(:meth:`~handover.engine.robot.RobotArms.solve_each`)."""
-LINK_POOL = 32
-"""The nearest configurations of the seed library :data:`LINK_STARTS` are chosen among."""
+
 ROW_WINDOW = 16
 """:func:`choose_row` looks at up to ``limit`` x this many rows of a ranking, in chunks of
 :data:`ROW_CHUNK`: the maps and :func:`wrist_failures` screen them (vectorised), exact
 inverse kinematics runs on at most ``limit`` (row, arm) pairs."""
-ROW_CHUNK = 32
 
+ROW_CHUNK = 32
 
 def reach_rule(cg: ConstraintGraph, ctx: PlanContext) -> CompiledRule | None:
     """The active hard ``reach`` rule of ``cg`` when the robot has arms (then the modes choose
@@ -103,46 +88,6 @@ def reach_rule(cg: ConstraintGraph, ctx: PlanContext) -> CompiledRule | None:
     if ctx.arms is None:
         return None
     return next((c for c in cg.hard if c.rule.kind == "reach"), None)
-
-
-def stages(phase: Phase) -> tuple[str, ...]:
-    """The stages a grasp judged in ``phase`` is held at, in time order: pick-up when it
-    takes the object off the table, the midair regrasp in H2G2, the handover when the
-    receiver's hands are there."""
-    if phase.mode == "place":  # set down on the table: picked up, then placed
-        return ("pickup", "place")
-    on = (phase.pickup, phase.mode == "H2G2", phase.receiver_present)
-    return tuple(s for s, yes in zip(STAGES, on, strict=True) if yes)
-
-
-def screened_stages(phase: Phase) -> tuple[str, ...]:
-    """The stages :func:`screen` judges: :func:`stages`, except for H2G2's first grasp before
-    its pair is chosen (no arm yet): its midair pose depends on the second grasp's
-    presentation, so only pick-up is screened there; the pair's check judges the rest."""
-    names = stages(phase)
-    if getattr(phase, "arm", None) is None and phase.mode == "H2G2" and not \
-            phase.receiver_present:
-        return tuple(s for s in names if s != "midair")
-    return names
-
-
-def _objects(ctx: PlanContext, phase: Phase, stage: str, pk: np.ndarray) -> np.ndarray:
-    """(R, 4, 4) object -> world at ``stage`` for presentations pk."""
-    if stage == "pickup":
-        return np.broadcast_to(ctx.initial, (len(pk), 4, 4))
-    poses = phase.hands.poses[pk]
-    if stage == "midair":
-        poses = poses.copy()
-        poses[:, :3, 3] -= MIDAIR_BACKOFF * np.asarray(ctx.situation.toward, dtype=float)
-    return poses
-
-
-def stage_poses(ctx: PlanContext, phase: Phase, gi: np.ndarray,
-                pk: np.ndarray) -> dict[str, np.ndarray]:
-    """Stage -> (R, 4, 4) world gripper poses of rows ``(gi, pk)`` (both (R,) int)."""
-    grips = ctx.gripper_poses()[gi]
-    return {s: _objects(ctx, phase, s, pk) @ grips for s in stages(phase)}
-
 
 def screen(ctx: PlanContext, phase: Phase, gi: np.ndarray, pk: np.ndarray,
            whole: bool = False) -> tuple[tuple[str, ...], np.ndarray]:
@@ -165,7 +110,7 @@ def screen(ctx: PlanContext, phase: Phase, gi: np.ndarray, pk: np.ndarray,
             points = grips[grasps, :3, 3] @ rot.T + pos
             approach = grips[grasps, :3, 2] @ rot.T
         else:
-            objects = _objects(ctx, phase, stage, np.arange(ctx.k))
+            objects = objects_at(ctx, phase, stage, np.arange(ctx.k))
             rot = objects[pk, :3, :3]
             points = np.einsum("rij,rj->ri", rot, grips[gi, :3, 3]) + objects[pk, :3, 3]
             approach = np.einsum("rij,rj->ri", rot, grips[gi, :3, 2])
@@ -174,7 +119,6 @@ def screen(ctx: PlanContext, phase: Phase, gi: np.ndarray, pk: np.ndarray,
             hit = arms.reachable_at(side, points, approach, core=not whole)
             out[:, s, t] = hit if back is None else hit[back]
     return sides, out
-
 
 def preferred_sides(ctx: PlanContext, phase: Phase, grasp: int,
                     presentation: int) -> tuple[str, ...]:
@@ -195,7 +139,6 @@ def preferred_sides(ctx: PlanContext, phase: Phase, grasp: int,
     first = next(iter(poses.values()))[0, :3, 3]
     dist = [round(float(np.linalg.norm(first - memo[s])), 9) for s in arms.sides]
     return tuple(arms.sides[j] for j in np.argsort(dist, kind="stable"))
-
 
 @dataclass(frozen=True)
 class ArmCheck:
@@ -248,139 +191,6 @@ class ArmCheck:
             if self.hits and self.hits[t]:
                 return f"the {self.side} arm's {hit_words(self.hits[t])} {STAGE_WORDS[stage]}"
         return None
-
-
-def hit_words(pairs) -> str:
-    """``(link, target)`` pairs in words, by target: "left_link6, left_link7 hit scene:table
-    and left_link5 hits body:robot:torso" (at most three targets, then "and more")."""
-    by_target: dict[str, list[str]] = {}
-    for link, target in pairs:
-        by_target.setdefault(target, []).append(link)
-    said = [f"{', '.join(links)} {'hit' if len(links) > 1 else 'hits'} {target}"
-            for target, links in list(by_target.items())[:3]]
-    more = " and more" if len(by_target) > 3 else ""
-    return " and ".join(said) + more
-
-
-def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
-    """What the links of the arm on ``side`` must not touch at ``stage``
-    (:class:`~handover.geometry.bodies.Body`, world, names as :class:`~handover.engine.world.
-    World`'s): the scene's table (down to the floor) and obstacles, the receiver's body (at
-    the handover without the arms that take the object: they reach for it, and their hands
-    are the collision rules' concern) and the robot's own body but what the arm's links
-    always touch (:meth:`~handover.engine.robot.RobotArms.spared`: its mount). Memoised in
-    the context (one world per query)."""
-    memo = ctx.memo.setdefault("arm_link_targets", {})
-    receiving = tuple(phase.hands.receiving) if stage == "handover" else ()
-    key = (side, receiving)
-    if key not in memo:
-        body = ctx.world.without_receiving_arms(receiving)
-        spared = {f"body:robot:{name}" for name in ctx.arms.spared(side)}
-        memo[key] = body.subset([name not in spared for name in body.names])
-    return memo[key]
-
-
-def wrist_failures(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
-                   pk: np.ndarray) -> list[str | None]:
-    """A screen before inverse kinematics: per row ``(gi, pk)`` ((R,) int), the clause
-    :meth:`ArmCheck.failure` would give when the arm's links rigidly attached to the grasp
-    frame (:meth:`~handover.engine.robot.RobotArms.distal`: its last link and flange) touch
-    :func:`link_targets` at a stage of ``phase`` ("the right arm's right_link7 hits
-    body:robot:torso at pick-up"), None where they are clear at every stage. Exact for
-    those links: any configuration holding the row puts them there. Memoised per (arm,
-    row, stages, hands)."""
-    gi = np.asarray(gi, dtype=np.int64).reshape(-1)
-    pk = np.asarray(pk, dtype=np.int64).reshape(-1)
-    memo = ctx.memo.setdefault("arm_wrists", {})
-    names = stages(phase)
-    keys = [(side, int(i), int(k) if names != ("pickup",) else -1, names, phase.hands.key)
-            for i, k in zip(gi, pk, strict=True)]
-    todo = [r for r, key in enumerate(keys) if key not in memo]
-    if todo:
-        rows = np.array(todo)
-        poses = stage_poses(ctx, phase, gi[rows], pk[rows])
-        said: list[str | None] = [None] * len(rows)
-        for stage in names:
-            found = ctx.arms.distal_contacts(side, poses[stage],
-                                             bodies=[link_targets(ctx, phase, side, stage)])
-            for r, f in enumerate(found):
-                if f and said[r] is None:
-                    said[r] = f"the {side} arm's {hit_words(f)} {STAGE_WORDS[stage]}"
-        for r, words in zip(todo, said, strict=True):
-            memo[keys[r]] = words
-    return [memo[key] for key in keys]
-
-
-def target_groups(names) -> tuple[str, ...]:
-    """The targets' names grouped as the traces say them: ``scene:<id>`` as they are, a
-    body's parts as the body (``body:receiver:torso`` -> ``body:receiver``); the scene
-    first, then the receiver, then the robot, each in order."""
-    groups = dict.fromkeys(":".join(n.split(":")[:2]) for n in names)
-    rank = {"scene": 0, "body:receiver": 1, "body:robot": 2}
-    return tuple(sorted(groups, key=lambda g: rank.get(g.split(":")[0], rank.get(g, 3))))
-
-
-_HIT = re.compile(r" hits? (\S+)")
-
-
-def link_tally(failures: list[str]) -> dict[str, int]:
-    """What the arms' links hit in failures of exact checks and wrist screens (clauses of
-    :meth:`ArmCheck.failure`, :func:`wrist_failures` and the pair checks): target -> how
-    many failures name it, most first."""
-    tally: dict[str, int] = {}
-    for clause in failures:
-        for target in dict.fromkeys(_HIT.findall(clause)):
-            tally[target] = tally.get(target, 0) + 1
-    return dict(sorted(tally.items(), key=lambda kv: (-kv[1], kv[0])))
-
-
-def pair_contacts(ctx: PlanContext, stage: str, a: tuple[ArmCheck, int],
-                  b: tuple[ArmCheck, int], presentation: int,
-                  hands_key) -> tuple[tuple[str, str], ...]:
-    """Where both arms hold the object at ``stage`` (H2G2's midair regrasp, H2G1's handover
-    and its pick-up by both arms): ``(link of a, "other_arm:<link of b>")`` pairs of arm a's
-    links touching arm b's, each arm at its check's configuration there (``a``, ``b``:
-    (check, grasp)). Memoised in the context both ways, so the trace of either grasp says
-    the pair was checked (:func:`links_words`)."""
-    memo = ctx.memo.setdefault("arm_pairs", {})
-    (ca, ia), (cb, ib) = a, b
-    key = (ca.side, ia, cb.side, ib, presentation, hands_key, stage)
-    if key not in memo:
-        qa, qb = ca.q[ca.stages.index(stage)], cb.q[cb.stages.index(stage)]
-        found = ctx.arms.contacts(ca.side, qa, other=(cb.side, qb), own_body=False)[0]
-        memo[key] = tuple((la, f"other_arm:{lb}") for la, lb in found)
-        memo[(cb.side, ib, ca.side, ia, presentation, hands_key, stage)] = tuple(
-            (lb, f"other_arm:{la}") for la, lb in found)
-    return memo[key]
-
-
-def links_words(ctx: PlanContext, phase: Phase, check: ArmCheck, grasp: int,
-                presentation: int) -> str:
-    """What a held grasp's arm links were found clear of, for its trace: "clear of
-    scene:table, body:receiver, body:robot at pick-up and at the midair regrasp; of the
-    right arm's links at the midair regrasp" (the other arm where a mode checked the pair:
-    :func:`pair_contacts`)."""
-    words = (f"clear of {', '.join(check.against) or 'nothing'} "
-             f"{' and '.join(STAGE_WORDS[s] for s in check.stages)}")
-    other = getattr(phase, "other_grasp", None)
-    if other is None:
-        return words
-    memo = ctx.memo.get("arm_pairs", {})
-    for side in ctx.arms.sides:
-        said = [s for s in check.stages if memo.get(
-            (check.side, grasp, side, other, presentation, phase.hands.key, s)) == ()]
-        if side != check.side and said:
-            words += (f"; of the {side} arm's links "
-                      f"{' and '.join(STAGE_WORDS[s] for s in said)}")
-    return words
-
-
-def pose_words(pose: np.ndarray) -> str:
-    """'x, y, z with approach (ax, ay, az)' of a gripper pose (4, 4), world, m."""
-    p, a = np.round(pose[:3, 3], 2) + 0.0, np.round(pose[:3, 2], 2) + 0.0  # no "-0.00"
-    return (f"{p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f} with approach "
-            f"({a[0]:.2f}, {a[1]:.2f}, {a[2]:.2f})")
-
 
 def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
             pk: np.ndarray) -> list[ArmCheck]:
@@ -437,7 +247,7 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
                 swapped[take, t] = flip
             body = link_targets(ctx, phase, side, stage)
             against += target_groups(body.names)
-            _clear_links(arms, side, body, poses[stage], np.flatnonzero(ok[:, t] & pursued),
+            clear_links(arms, side, body, poses[stage], np.flatnonzero(ok[:, t] & pursued),
                          (q[:, t], swapped[:, t], pos_err[:, t], rot_err[:, t]),
                          hits, t)  # fmt: skip
         against = tuple(dict.fromkeys(against))
@@ -447,44 +257,6 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
                                        swapped[r], pos_err[r], rot_err[r],
                                        tuple(tuple(h) for h in hits[r]), against)  # fmt: skip
     return [memo[key] for key in keys]
-
-
-def _clear_links(arms, side: str, body, poses: np.ndarray, rows: np.ndarray,
-                 stage: tuple[np.ndarray, ...], hits: list[list[tuple]], t: int) -> None:
-    """At one stage: test the links of the arm at the reached ``rows`` against ``body``;
-    for those touching something, take the first of :data:`LINK_STARTS` other answers (as
-    planned, then with the fingers swapped) whose links are clear, updating ``stage`` (q
-    (n, dof), swapped (n,), position and rotation errors (n,), views of the stage's
-    column) in place; ``hits[r][t]`` records what row r's links still touch."""
-    if not len(rows):
-        return
-    q, swapped, pos_err, rot_err = stage
-    found = arms.contacts(side, q[rows], bodies=[body], own_body=False)
-    bad = np.array([r for r, f in zip(rows, found, strict=True) if f], dtype=np.int64)
-    for r, f in zip(rows, found, strict=True):
-        hits[r][t] = tuple(f)
-    if not len(bad):
-        return
-    targets = np.concatenate([poses[bad], poses[bad] @ FLIP])  # (2b, 4, 4)
-    sol = arms.solve_each(side, targets, LINK_STARTS, avoid=[body], pool=LINK_POOL)
-    good = np.argwhere(sol.ok)  # (g, 2): target, start
-    clear = np.zeros(sol.ok.shape, dtype=bool)
-    if len(good):
-        touch = arms.contacts(side, sol.q[good[:, 0], good[:, 1]], bodies=[body],
-                              own_body=False)  # fmt: skip
-        clear[good[:, 0], good[:, 1]] = [not f for f in touch]
-    b = len(bad)
-    for j, r in enumerate(bad):
-        options = np.concatenate([clear[j], clear[b + j]])  # as planned, then swapped
-        if not options.any():
-            continue
-        pick = int(np.argmax(options))
-        flip, s = divmod(pick, clear.shape[1])
-        row = flip * b + j
-        q[r], swapped[r] = sol.q[row, s], bool(flip)
-        pos_err[r], rot_err[r] = sol.position_error[row, s], sol.rotation_error[row, s]
-        hits[r][t] = ()
-
 
 def confirm_row(ctx: PlanContext, phase: Phase, grasp: int, presentation: int,
                 mapped: np.ndarray | None = None, skip: set | None = None
@@ -508,7 +280,6 @@ def confirm_row(ctx: PlanContext, phase: Phase, grasp: int, presentation: int,
             skip.add((side, grasp))
     return None, failures
 
-
 def world_order(ctx: PlanContext, phase: Phase, rows: np.ndarray, gi: np.ndarray,
                 pk: np.ndarray, score: np.ndarray) -> np.ndarray:
     """``rows`` (indices into gi, pk, score) best first: score descending, then the gripper's
@@ -526,7 +297,6 @@ def world_order(ctx: PlanContext, phase: Phase, rows: np.ndarray, gi: np.ndarray
     key = np.round(np.hstack([poses[:, :3, 3], poses[:, :3, 2], o * sign[:, None]]), 9) + 0.0
     order = np.lexsort((*key.T[::-1], -np.round(score[rows], 12)))
     return rows[order]
-
 
 def choose_row(ctx: PlanContext, phase: Phase, decision, ranking: np.ndarray,
                limit: int | None = None) -> tuple[int | None, ArmCheck | None, list[str]]:
@@ -567,7 +337,6 @@ def choose_row(ctx: PlanContext, phase: Phase, decision, ranking: np.ndarray,
                 return int(row), check, failures
     return None, None, failures
 
-
 def arm_record(ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
     """``{"arm", "joints": {stage: {joint: rad}}, "swapped": [stages]}`` of a chosen grasp
     whose phase names its arm; ``{}`` without one."""
@@ -582,7 +351,6 @@ def arm_record(ctx: PlanContext, phase: Phase, grasp: int, presentation: int) ->
     if flipped:
         out["fingers_swapped"] = flipped
     return out
-
 
 def reach_words(ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> str:
     """Why no arm's map holds one row: for each arm, the first stage it cannot reach and the
@@ -599,7 +367,6 @@ def reach_words(ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -
             said.append(f"the {side} arm cannot reach {pose_words(poses[stage][0])} "
                         f"{STAGE_WORDS[stage]}")
     return "; ".join(said)
-
 
 def reach_reason(ctx: PlanContext, attempt) -> str | None:
     """For an infeasible attempt whose reason names an active hard ``reach`` rule: which arm
@@ -621,7 +388,6 @@ def reach_reason(ctx: PlanContext, attempt) -> str | None:
         maps = _map_reason(ctx, attempt, reach)
         return f"{links}; {maps}" if maps else links
     return _map_reason(ctx, attempt, reach)
-
 
 def _map_reason(ctx: PlanContext, attempt, reach: str | None) -> str | None:
     """:func:`reach_reason` for the rows the maps rejected."""

@@ -1,5 +1,7 @@
 """The robot's arms, from its KB document and URDF: kinematics, reachability, inverse
 kinematics and collisions, in the world frame.
+Longer than 500 lines: one class, the arms in the world, whose methods share each arm's base
+transform, chain and tool frame (a split would pass them back and forth).
 
 :func:`robot_arms` (or :meth:`RobotArms.load`) turns a :class:`~handover.engine.robotspec.
 RobotSpec` with ``arms`` into a :class:`RobotArms`: per arm (``left``/``right``) an

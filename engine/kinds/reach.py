@@ -58,19 +58,15 @@ class ReachRule(RuleBase):
         return None
 
     def _stages(self, phase: Phase) -> tuple[str, ...]:
-        from handover.engine.arms import screened_stages, stages
+        from handover.engine.armstages import screened_stages, stages
 
         return stages(phase) if getattr(phase, "arm", None) else screened_stages(phase)
 
     def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
                  pk: np.ndarray) -> Outcome:
-        from handover.engine.arms import (
-            STAGE_WORDS,
-            confirm,
-            link_targets,
-            screen,
-            target_groups,
-        )
+        from handover.engine.armlinks import link_targets, target_groups
+        from handover.engine.arms import confirm, screen
+        from handover.engine.armstages import STAGE_WORDS
 
         names = self._stages(phase)
         where = ", ".join(STAGE_WORDS[s] for s in names) or "no stage"
@@ -94,7 +90,8 @@ class ReachRule(RuleBase):
         return Outcome(ok, measured, ok.astype(float), f">= 1 ({how})", "fraction of stages")
 
     def detail(self, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
-        from handover.engine.arms import arm_record, confirm, links_words, reach_words
+        from handover.engine.armlinks import links_words
+        from handover.engine.arms import arm_record, confirm, reach_words
 
         if ctx.arms is None or not self._stages(phase):
             return {}

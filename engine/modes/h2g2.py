@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.armpairs import choose_pair_h2g2
-from handover.engine.arms import MIDAIR_BACKOFF, reach_rule
+from handover.engine.arms import reach_rule
+from handover.engine.armstages import MIDAIR_BACKOFF
 from handover.engine.attempt import Attempt, Chosen, Phase
 from handover.engine.compiler import CompiledRule, compile
 from handover.engine.evaluate import evaluate, evaluate_rule

@@ -23,7 +23,8 @@ from handover.engine.errors import UsageError
 from handover.engine.evaluate import Decision
 from handover.engine.kinds import KINDS
 from handover.engine.receiver_sites import ReceiverRegion, ReceiverSites
-from handover.engine.record import ARM_COLOURS, write_recording
+from handover.engine.record import write_recording
+from handover.engine.recordbodies import ARM_COLOURS
 from handover.engine.recording import read_recording
 from handover.engine.recordstages import (
     CLASS_ALIVE,

@@ -1,0 +1,186 @@
+"""The arms' links in a plan: what they must not touch (:func:`link_targets`), the screen of
+the links fixed to the grasp frame before inverse kinematics (:func:`wrist_failures`), other
+inverse-kinematics answers where the links touch something (:func:`clear_links`), the two
+arms against each other (:func:`pair_contacts`), and the words the traces and reasons say
+(:func:`hit_words`, :func:`links_words`, :func:`link_tally`). Used by
+:mod:`handover.engine.arms` and :mod:`handover.engine.armpairs`.
+"""
+
+from __future__ import annotations
+
+import re
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from handover.engine.armstages import FLIP, STAGE_WORDS, stage_poses, stages
+
+if TYPE_CHECKING:
+    from handover.engine.arms import ArmCheck
+    from handover.engine.attempt import Phase
+    from handover.engine.context import PlanContext
+
+__all__ = ["LINK_STARTS", "LINK_POOL", "hit_words", "link_targets", "wrist_failures",
+           "target_groups", "link_tally", "pair_contacts", "links_words", "clear_links"]
+
+LINK_STARTS = 8
+"""Other inverse-kinematics answers tried for a stage reached with the arm's links touching
+something (as planned, then with the fingers swapped): from this many of the seed library's
+configurations nearest the pose, those whose own links are clear first
+(:meth:`~handover.engine.robot.RobotArms.solve_each`)."""
+
+LINK_POOL = 32
+"""The nearest configurations of the seed library :data:`LINK_STARTS` are chosen among."""
+
+def hit_words(pairs) -> str:
+    """``(link, target)`` pairs in words, by target: "left_link6, left_link7 hit scene:table
+    and left_link5 hits body:robot:torso" (at most three targets, then "and more")."""
+    by_target: dict[str, list[str]] = {}
+    for link, target in pairs:
+        by_target.setdefault(target, []).append(link)
+    said = [f"{', '.join(links)} {'hit' if len(links) > 1 else 'hits'} {target}"
+            for target, links in list(by_target.items())[:3]]
+    more = " and more" if len(by_target) > 3 else ""
+    return " and ".join(said) + more
+
+def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
+    """What the links of the arm on ``side`` must not touch at ``stage``
+    (:class:`~handover.geometry.bodies.Body`, world, names as :class:`~handover.engine.world.
+    World`'s): the scene's table (down to the floor) and obstacles, the receiver's body (at
+    the handover without the arms that take the object: they reach for it, and their hands
+    are the collision rules' concern) and the robot's own body but what the arm's links
+    always touch (:meth:`~handover.engine.robot.RobotArms.spared`: its mount). Memoised in
+    the context (one world per query)."""
+    memo = ctx.memo.setdefault("arm_link_targets", {})
+    receiving = tuple(phase.hands.receiving) if stage == "handover" else ()
+    key = (side, receiving)
+    if key not in memo:
+        body = ctx.world.without_receiving_arms(receiving)
+        spared = {f"body:robot:{name}" for name in ctx.arms.spared(side)}
+        memo[key] = body.subset([name not in spared for name in body.names])
+    return memo[key]
+
+def wrist_failures(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
+                   pk: np.ndarray) -> list[str | None]:
+    """A screen before inverse kinematics: per row ``(gi, pk)`` ((R,) int), the clause
+    :meth:`ArmCheck.failure` would give when the arm's links rigidly attached to the grasp
+    frame (:meth:`~handover.engine.robot.RobotArms.distal`: its last link and flange) touch
+    :func:`link_targets` at a stage of ``phase`` ("the right arm's right_link7 hits
+    body:robot:torso at pick-up"), None where they are clear at every stage. Exact for
+    those links: any configuration holding the row puts them there. Memoised per (arm,
+    row, stages, hands)."""
+    gi = np.asarray(gi, dtype=np.int64).reshape(-1)
+    pk = np.asarray(pk, dtype=np.int64).reshape(-1)
+    memo = ctx.memo.setdefault("arm_wrists", {})
+    names = stages(phase)
+    keys = [(side, int(i), int(k) if names != ("pickup",) else -1, names, phase.hands.key)
+            for i, k in zip(gi, pk, strict=True)]
+    todo = [r for r, key in enumerate(keys) if key not in memo]
+    if todo:
+        rows = np.array(todo)
+        poses = stage_poses(ctx, phase, gi[rows], pk[rows])
+        said: list[str | None] = [None] * len(rows)
+        for stage in names:
+            found = ctx.arms.distal_contacts(side, poses[stage],
+                                             bodies=[link_targets(ctx, phase, side, stage)])
+            for r, f in enumerate(found):
+                if f and said[r] is None:
+                    said[r] = f"the {side} arm's {hit_words(f)} {STAGE_WORDS[stage]}"
+        for r, words in zip(todo, said, strict=True):
+            memo[keys[r]] = words
+    return [memo[key] for key in keys]
+
+def target_groups(names) -> tuple[str, ...]:
+    """The targets' names grouped as the traces say them: ``scene:<id>`` as they are, a
+    body's parts as the body (``body:receiver:torso`` -> ``body:receiver``); the scene
+    first, then the receiver, then the robot, each in order."""
+    groups = dict.fromkeys(":".join(n.split(":")[:2]) for n in names)
+    rank = {"scene": 0, "body:receiver": 1, "body:robot": 2}
+    return tuple(sorted(groups, key=lambda g: rank.get(g.split(":")[0], rank.get(g, 3))))
+
+_HIT = re.compile(r" hits? (\S+)")
+
+def link_tally(failures: list[str]) -> dict[str, int]:
+    """What the arms' links hit in failures of exact checks and wrist screens (clauses of
+    :meth:`ArmCheck.failure`, :func:`wrist_failures` and the pair checks): target -> how
+    many failures name it, most first."""
+    tally: dict[str, int] = {}
+    for clause in failures:
+        for target in dict.fromkeys(_HIT.findall(clause)):
+            tally[target] = tally.get(target, 0) + 1
+    return dict(sorted(tally.items(), key=lambda kv: (-kv[1], kv[0])))
+
+def pair_contacts(ctx: PlanContext, stage: str, a: tuple[ArmCheck, int],
+                  b: tuple[ArmCheck, int], presentation: int,
+                  hands_key) -> tuple[tuple[str, str], ...]:
+    """Where both arms hold the object at ``stage`` (H2G2's midair regrasp, H2G1's handover
+    and its pick-up by both arms): ``(link of a, "other_arm:<link of b>")`` pairs of arm a's
+    links touching arm b's, each arm at its check's configuration there (``a``, ``b``:
+    (check, grasp)). Memoised in the context both ways, so the trace of either grasp says
+    the pair was checked (:func:`links_words`)."""
+    memo = ctx.memo.setdefault("arm_pairs", {})
+    (ca, ia), (cb, ib) = a, b
+    key = (ca.side, ia, cb.side, ib, presentation, hands_key, stage)
+    if key not in memo:
+        qa, qb = ca.q[ca.stages.index(stage)], cb.q[cb.stages.index(stage)]
+        found = ctx.arms.contacts(ca.side, qa, other=(cb.side, qb), own_body=False)[0]
+        memo[key] = tuple((la, f"other_arm:{lb}") for la, lb in found)
+        memo[(cb.side, ib, ca.side, ia, presentation, hands_key, stage)] = tuple(
+            (lb, f"other_arm:{la}") for la, lb in found)
+    return memo[key]
+
+def links_words(ctx: PlanContext, phase: Phase, check: ArmCheck, grasp: int,
+                presentation: int) -> str:
+    """What a held grasp's arm links were found clear of, for its trace: "clear of
+    scene:table, body:receiver, body:robot at pick-up and at the midair regrasp; of the
+    right arm's links at the midair regrasp" (the other arm where a mode checked the pair:
+    :func:`pair_contacts`)."""
+    words = (f"clear of {', '.join(check.against) or 'nothing'} "
+             f"{' and '.join(STAGE_WORDS[s] for s in check.stages)}")
+    other = getattr(phase, "other_grasp", None)
+    if other is None:
+        return words
+    memo = ctx.memo.get("arm_pairs", {})
+    for side in ctx.arms.sides:
+        said = [s for s in check.stages if memo.get(
+            (check.side, grasp, side, other, presentation, phase.hands.key, s)) == ()]
+        if side != check.side and said:
+            words += (f"; of the {side} arm's links "
+                      f"{' and '.join(STAGE_WORDS[s] for s in said)}")
+    return words
+
+def clear_links(arms, side: str, body, poses: np.ndarray, rows: np.ndarray,
+                 stage: tuple[np.ndarray, ...], hits: list[list[tuple]], t: int) -> None:
+    """At one stage: test the links of the arm at the reached ``rows`` against ``body``;
+    for those touching something, take the first of :data:`LINK_STARTS` other answers (as
+    planned, then with the fingers swapped) whose links are clear, updating ``stage`` (q
+    (n, dof), swapped (n,), position and rotation errors (n,), views of the stage's
+    column) in place; ``hits[r][t]`` records what row r's links still touch."""
+    if not len(rows):
+        return
+    q, swapped, pos_err, rot_err = stage
+    found = arms.contacts(side, q[rows], bodies=[body], own_body=False)
+    bad = np.array([r for r, f in zip(rows, found, strict=True) if f], dtype=np.int64)
+    for r, f in zip(rows, found, strict=True):
+        hits[r][t] = tuple(f)
+    if not len(bad):
+        return
+    targets = np.concatenate([poses[bad], poses[bad] @ FLIP])  # (2b, 4, 4)
+    sol = arms.solve_each(side, targets, LINK_STARTS, avoid=[body], pool=LINK_POOL)
+    good = np.argwhere(sol.ok)  # (g, 2): target, start
+    clear = np.zeros(sol.ok.shape, dtype=bool)
+    if len(good):
+        touch = arms.contacts(side, sol.q[good[:, 0], good[:, 1]], bodies=[body],
+                              own_body=False)  # fmt: skip
+        clear[good[:, 0], good[:, 1]] = [not f for f in touch]
+    b = len(bad)
+    for j, r in enumerate(bad):
+        options = np.concatenate([clear[j], clear[b + j]])  # as planned, then swapped
+        if not options.any():
+            continue
+        pick = int(np.argmax(options))
+        flip, s = divmod(pick, clear.shape[1])
+        row = flip * b + j
+        q[r], swapped[r] = sol.q[row, s], bool(flip)
+        pos_err[r], rot_err[r] = sol.position_error[row, s], sol.rotation_error[row, s]
+        hits[r][t] = ()
