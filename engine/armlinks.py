@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.armstages import FLIP, STAGE_WORDS, stage_poses, stages
+from handover.engine.armstages import STAGE_WORDS, canonical_first, stage_poses, stages
 
 if TYPE_CHECKING:
     from handover.engine.arms import ArmCheck
@@ -25,7 +25,7 @@ __all__ = ["LINK_STARTS", "LINK_POOL", "hit_words", "link_targets", "wrist_failu
 
 LINK_STARTS = 8
 """Other inverse-kinematics answers tried for a stage reached with the arm's links touching
-something (as planned, then with the fingers swapped): from this many of the seed library's
+something (in the canonical finger order, then the other): from this many of the seed library's
 configurations nearest the pose, those whose own links are clear first
 (:meth:`~handover.engine.robot.RobotArms.solve_each`)."""
 
@@ -165,7 +165,8 @@ def clear_links(arms, side: str, body, poses: np.ndarray, rows: np.ndarray,
         hits[r][t] = tuple(f)
     if not len(bad):
         return
-    targets = np.concatenate([poses[bad], poses[bad] @ FLIP])  # (2b, 4, 4)
+    tries, turned = canonical_first(poses[bad])  # canonical finger order first, then the other
+    targets = np.concatenate([tries[0], tries[1]])  # (2b, 4, 4)
     sol = arms.solve_each(side, targets, LINK_STARTS, avoid=[body], pool=LINK_POOL)
     good = np.argwhere(sol.ok)  # (g, 2): target, start
     clear = np.zeros(sol.ok.shape, dtype=bool)
@@ -175,12 +176,12 @@ def clear_links(arms, side: str, body, poses: np.ndarray, rows: np.ndarray,
         clear[good[:, 0], good[:, 1]] = [not f for f in touch]
     b = len(bad)
     for j, r in enumerate(bad):
-        options = np.concatenate([clear[j], clear[b + j]])  # as planned, then swapped
+        options = np.concatenate([clear[j], clear[b + j]])  # canonical order, then the other
         if not options.any():
             continue
         pick = int(np.argmax(options))
         flip, s = divmod(pick, clear.shape[1])
         row = flip * b + j
-        q[r], swapped[r] = sol.q[row, s], bool(flip)
+        q[r], swapped[r] = sol.q[row, s], bool(turned[j] != bool(flip))
         pos_err[r], rot_err[r] = sol.position_error[row, s], sol.rotation_error[row, s]
         hits[r][t] = ()

@@ -39,8 +39,9 @@ from handover.engine.armlinks import (
     wrist_failures,
 )
 from handover.engine.armstages import (
-    FLIP,
     STAGE_WORDS,
+    canonical_first,
+    finger_sign,
     objects_at,
     pose_words,
     screened_stages,
@@ -196,10 +197,11 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
             pk: np.ndarray) -> list[ArmCheck]:
     """Exact checks of rows ``(gi, pk)`` ((R,) int) held by the arm ``side`` through the
     stages of ``phase``: IK per stage from the nearest of the arm's sampled poses, with
-    restarts (:meth:`~handover.engine.robot.RobotArms.solve`); a stage not reached as planned
-    is tried with the fingers swapped. At each stage reached, the arm's links are tested
+    restarts (:meth:`~handover.engine.robot.RobotArms.solve`), the grasp in its canonical
+    finger order first (:func:`~handover.engine.armstages.canonical_first`: the same in any
+    frame), then, where the position was reached but not the rotation, the other. At each stage reached, the arm's links are tested
     against :func:`link_targets`; where they touch something, up to :data:`LINK_STARTS`
-    other answers (as planned, then with the fingers swapped) are tried and the first whose
+    other answers (in the canonical finger order, then the other) are tried and the first whose
     links are clear is kept (:func:`_clear_links`). A stage not held ends the row's checks.
     Memoised per (arm, row, stages, hands) in the context."""
     from handover.engine.robot import IK_RESTARTS
@@ -225,26 +227,28 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
         hits: list[list[tuple]] = [[() for _ in names] for _ in range(n)]
         against: tuple[str, ...] = ()
         for t, stage in enumerate(names):
-            # From the nearest sampled poses (with restarts), as planned, then with the
+            # From the nearest sampled poses (with restarts), in one finger order, then the
             # fingers swapped for the rows whose position was reached but not the rotation
             # (the same position: the swap only turns the wrist). A row an earlier stage
             # did not hold (not reached, or its links touching something) is not pursued.
             pursued = ok[:, :t].all(axis=1) & np.array(
                 [not any(h[:t]) for h in hits], dtype=bool)
-            for flip in (False, True):
+            # The same physical grasp is met the same way in any frame: its canonical
+            # finger order first (canonical_first), then the other.
+            tries, turned = canonical_first(poses[stage])
+            for second in (False, True):
                 todo_r = np.flatnonzero(~ok[:, t] & pursued
-                                        & (~flip | (pos_err[:, t] < FLIP_WITHIN)))
+                                        & (~second | (pos_err[:, t] < FLIP_WITHIN)))
                 if not len(todo_r):
                     break
-                target = poses[stage][todo_r] @ FLIP if flip else poses[stage][todo_r]
-                sol = arms.solve(side, target, restarts=IK_RESTARTS)
+                sol = arms.solve(side, tries[int(second)][todo_r], restarts=IK_RESTARTS)
                 better = sol.ok | (sol.position_error < pos_err[todo_r, t])
                 take = todo_r[better]
                 q[take, t] = sol.q[better]
                 pos_err[take, t] = sol.position_error[better]
                 rot_err[take, t] = sol.rotation_error[better]
                 ok[take, t] = sol.ok[better]
-                swapped[take, t] = flip
+                swapped[take, t] = turned[take] != second
             body = link_targets(ctx, phase, side, stage)
             against += target_groups(body.names)
             clear_links(arms, side, body, poses[stage], np.flatnonzero(ok[:, t] & pursued),
@@ -291,10 +295,8 @@ def world_order(ctx: PlanContext, phase: Phase, rows: np.ndarray, gi: np.ndarray
     objects = phase.hands.poses[pk[rows]]
     grips = ctx.gripper_poses()[gi[rows]]
     poses = objects @ grips
-    o = poses[:, :3, 1]
-    first = np.argmax(np.abs(o) > 1e-6, axis=1)
-    sign = np.sign(o[np.arange(len(o)), first])
-    key = np.round(np.hstack([poses[:, :3, 3], poses[:, :3, 2], o * sign[:, None]]), 9) + 0.0
+    o = poses[:, :3, 1] * finger_sign(poses)[:, None]
+    key = np.round(np.hstack([poses[:, :3, 3], poses[:, :3, 2], o]), 9) + 0.0
     order = np.lexsort((*key.T[::-1], -np.round(score[rows], 12)))
     return rows[order]
 

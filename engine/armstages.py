@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
 
 __all__ = ["STAGES", "STAGE_WORDS", "MIDAIR_BACKOFF", "FLIP", "stages", "screened_stages",
-           "stage_poses", "pose_words", "objects_at"]
+           "stage_poses", "pose_words", "objects_at", "finger_sign", "canonical_first"]
 
 STAGES = ("pickup", "midair", "handover")
 
@@ -78,3 +78,27 @@ def pose_words(pose: np.ndarray) -> str:
     p, a = np.round(pose[:3, 3], 2) + 0.0, np.round(pose[:3, 2], 2) + 0.0  # no "-0.00"
     return (f"{p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f} with approach "
             f"({a[0]:.2f}, {a[1]:.2f}, {a[2]:.2f})")
+
+
+def finger_sign(poses: np.ndarray) -> np.ndarray:
+    """(n,) +-1: the sign of the first component (x, then y, then z) of each gripper pose's
+    closing direction ``o`` that is not ~0 (poses (n, 4, 4), world). The fingers are alike,
+    so a grasp and the same grasp turned half a turn about ``a`` (``pose @ FLIP``) are one
+    grasp; multiplying ``o`` by this sign names it the same way whatever frame the object's
+    mesh is written in."""
+    o = np.asarray(poses, dtype=float)[:, :3, 1]
+    first = np.argmax(np.abs(o) > 1e-6, axis=1)
+    return np.sign(o[np.arange(len(o)), first])
+
+
+def canonical_first(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The poses (n, 4, 4) to try first and second for each grasp: the one whose closing
+    direction has :func:`finger_sign` +1, then the other (``@ FLIP``); and (n,) bool, whether
+    the first is the pose as planned turned (fingers swapped). Inverse kinematics then meets
+    the same physical grasp the same way in any frame."""
+    poses = np.asarray(poses, dtype=float)
+    turned = finger_sign(poses) < 0
+    first = np.where(turned[:, None, None], poses @ FLIP, poses)
+    second = np.where(turned[:, None, None], poses, poses @ FLIP)
+    return np.stack([first, second]), turned
+
