@@ -197,12 +197,14 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
             pk: np.ndarray) -> list[ArmCheck]:
     """Exact checks of rows ``(gi, pk)`` ((R,) int) held by the arm ``side`` through the
     stages of ``phase``: IK per stage from the nearest of the arm's sampled poses, with
-    restarts (:meth:`~handover.engine.robot.RobotArms.solve`), the grasp in its canonical
-    finger order first (:func:`~handover.engine.armstages.canonical_first`: the same in any
-    frame), then, where the position was reached but not the rotation, the other. At each stage reached, the arm's links are tested
-    against :func:`link_targets`; where they touch something, up to :data:`LINK_STARTS`
-    other answers (in the canonical finger order, then the other) are tried and the first whose
-    links are clear is kept (:func:`_clear_links`). A stage not held ends the row's checks.
+    restarts (:meth:`~handover.engine.robot.RobotArms.solve`), the grasp in the finger order
+    nearer the arm's seed poses first (:func:`~handover.engine.armstages.canonical_first`:
+    the same in any frame), then, where the position was reached but not the rotation, the
+    other. At each stage reached, the arm's links are tested against
+    :func:`~handover.engine.armlinks.link_targets`; where they touch something, up to
+    :data:`~handover.engine.armlinks.LINK_STARTS` other answers (in one finger order, then
+    the other) are tried and the first whose links are clear is kept
+    (:func:`~handover.engine.armlinks.clear_links`). A stage not held ends the row's checks.
     Memoised per (arm, row, stages, hands) in the context."""
     from handover.engine.robot import IK_RESTARTS
 
@@ -233,9 +235,9 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
             # did not hold (not reached, or its links touching something) is not pursued.
             pursued = ok[:, :t].all(axis=1) & np.array(
                 [not any(h[:t]) for h in hits], dtype=bool)
-            # The same physical grasp is met the same way in any frame: its canonical
-            # finger order first (canonical_first), then the other.
-            tries, turned = canonical_first(poses[stage])
+            # The same physical grasp is met the same way in any frame: the finger order
+            # nearer the arm's seed poses first (canonical_first), then the other.
+            tries, turned = canonical_first(poses[stage], arms.seed_distance, side)
             for second in (False, True):
                 todo_r = np.flatnonzero(~ok[:, t] & pursued
                                         & (~second | (pos_err[:, t] < FLIP_WITHIN)))

@@ -91,13 +91,21 @@ def finger_sign(poses: np.ndarray) -> np.ndarray:
     return np.sign(o[np.arange(len(o)), first])
 
 
-def canonical_first(poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The poses (n, 4, 4) to try first and second for each grasp: the one whose closing
-    direction has :func:`finger_sign` +1, then the other (``@ FLIP``); and (n,) bool, whether
-    the first is the pose as planned turned (fingers swapped). Inverse kinematics then meets
-    the same physical grasp the same way in any frame."""
+def canonical_first(poses: np.ndarray, distance=None, side: str | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The poses (n, 4, 4) to try first and second for each grasp, and (n,) bool, whether the
+    first is the pose as planned turned half a turn about ``a`` (fingers swapped): with
+    ``distance(side, poses) -> (n,)`` (an arm's :meth:`~handover.engine.robot.RobotArms.
+    seed_distance`), the finger order nearer its seed poses first; on a tie (within 1e-9 m)
+    or without it, the one whose closing direction has :func:`finger_sign` +1. Either way a
+    property of the grasp in the world: inverse kinematics meets the same physical grasp the
+    same way in any frame."""
     poses = np.asarray(poses, dtype=float)
     turned = finger_sign(poses) < 0
+    if distance is not None and len(poses):
+        here = np.round(distance(side, poses), 9)
+        flipped = np.round(distance(side, poses @ FLIP), 9)
+        turned = np.where(here == flipped, turned, flipped < here)
     first = np.where(turned[:, None, None], poses @ FLIP, poses)
     second = np.where(turned[:, None, None], poses, poses @ FLIP)
     return np.stack([first, second]), turned

@@ -343,20 +343,35 @@ class RobotArms:
                         result.position_error.reshape(m, count),
                         result.rotation_error.reshape(m, count))
 
-    def _nearest(self, side: str, targets: np.ndarray, count: int) -> np.ndarray:
-        """(m, count, dof) starts for targets (m, 4, 4), base frame: the configurations of the
-        arm's seed library (:data:`SEED_LIBRARY` drawn within the limits, seed 0) whose grasp
-        poses lie nearest each target (metres of position plus 0.1 m per radian-like unit of
-        the rotations' Frobenius distance), nearest first."""
+    def _library_distances(self, side: str, targets: np.ndarray) -> np.ndarray:
+        """(m, L) distances from targets (m, 4, 4), base frame, to the grasp poses of the
+        arm's seed library (:data:`SEED_LIBRARY` configurations drawn within the limits, seed
+        0): metres of position plus 0.1 m per radian-like unit of the rotations' Frobenius
+        distance."""
         arm = self.arm(side)
         if side not in self._library:
             rng = np.random.default_rng(0)
             q = arm.kin.random_configurations(SEED_LIBRARY, rng)
             self._library[side] = (q, arm.kin.fk(q))
-        q, poses = self._library[side]
+        _, poses = self._library[side]
         d = np.linalg.norm(targets[:, None, :3, 3] - poses[None, :, :3, 3], axis=2)
         d += 0.1 * np.linalg.norm((targets[:, None, :3, :3] - poses[None, :, :3, :3])
                                   .reshape(len(targets), len(poses), 9), axis=2)
+        return d
+
+    def seed_distance(self, side: str, poses_world: np.ndarray) -> np.ndarray:
+        """(m,) how far each grasp pose (m, 4, 4), world, lies from the nearest pose of the
+        arm's seed library (:meth:`_library_distances`): the smaller, the likelier inverse
+        kinematics reaches it from there."""
+        arm = self.arm(side)
+        return self._library_distances(side, self._to_base(arm, poses_world)).min(axis=1)
+
+    def _nearest(self, side: str, targets: np.ndarray, count: int) -> np.ndarray:
+        """(m, count, dof) starts for targets (m, 4, 4), base frame: the configurations of the
+        arm's seed library whose grasp poses lie nearest each target
+        (:meth:`_library_distances`), nearest first."""
+        d = self._library_distances(side, targets)
+        q = self._library[side][0]
         count = min(count, len(q))
         near = np.argpartition(d, count - 1, axis=1)[:, :count]
         order = np.take_along_axis(d, near, axis=1).argsort(axis=1, kind="stable")

@@ -14,11 +14,19 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
     from handover.engine.loader import KB
 
-__all__ = ["PLANNERS", "HANDS_NEEDED", "RELOCATIONS", "register", "hand_at", "relocated"]
+__all__ = ["PLANNERS", "HANDS_NEEDED", "RELOCATIONS", "RETRY_CHECKS", "H2G1_RELOCATIONS",
+           "register", "hand_at", "relocated"]
 
 RELOCATIONS = 6
 """How many times the presentations whose grasps no arm (or pair of arms) holds move to their
 next best handover location before a two-handed mode gives up."""
+RETRY_CHECKS = 8
+"""Exact (arm, grasp) checks H2G1 spends at each next location (a third of
+:data:`~handover.engine.arms.CONFIRM_LIMIT`): where the best pairs fail at the preferred
+place, the others are tried more briefly."""
+H2G1_RELOCATIONS = 2
+"""How many next locations H2G1 tries (each costs a search of pairs, about 0.1 s: a book whose
+every pair puts a wrist in the table would cost 0.6 s with :data:`RELOCATIONS`)."""
 
 Planner = Callable[["KB", "PlanContext"], "Attempt"]
 PLANNERS: dict[str, Planner] = {}
@@ -48,13 +56,13 @@ def hand_at(pose: np.ndarray, centre: np.ndarray, hands=("left", "right")) -> st
 
 
 def relocated(attempt: Attempt, hands_at: Callable[[tuple[int, ...]], Hands],
-              plan_at: Callable[[Hands], Attempt]) -> Attempt:
+              plan_at: Callable[[Hands], Attempt], times: int | None = None) -> Attempt:
     """``attempt`` (planned at the locations the location rules prefer), or, when it failed
     because the arms hold none of its best grasps (``extra["arm_failures"]``), the first
     plan feasible with the presentations that had grasps offered at their next best
     locations (``hands_at(avoid)``: the receiver's hands with the candidate locations
     ``avoid`` tried last, every hard location rule still holding; ``plan_at(hands)``: the
-    mode planned there), at most :data:`RELOCATIONS` times. A relocated plan says so in
+    mode planned there), at most ``times`` (:data:`RELOCATIONS`) times. A relocated plan says so in
     ``extra["relocated"]`` (the presentations moved, the locations tried, why each failed);
     a failure adds what the next locations lacked to its reason."""
     if attempt.feasible or "arm_failures" not in attempt.extra:
@@ -63,7 +71,7 @@ def relocated(attempt: Attempt, hands_at: Callable[[tuple[int, ...]], Hands],
     avoid: set[int] = set()
     tried = attempt
     missed: list[str] = []  # why each location tried found no plan, in a few words
-    for _ in range(RELOCATIONS):
+    for _ in range(RELOCATIONS if times is None else times):
         if tried.decision is None or not len(tried.decision.ranking()):
             break
         ranked = tried.decision.pk[tried.decision.ranking()]

@@ -39,7 +39,12 @@ from handover.engine.explain import infeasible_reason
 from handover.engine.features import collision_scene
 from handover.engine.hands import hands_for
 from handover.engine.kinds.torque import load_shares, pair_lever
-from handover.engine.modes.common import register, relocated
+from handover.engine.modes.common import (
+    H2G1_RELOCATIONS,
+    RETRY_CHECKS,
+    register,
+    relocated,
+)
 
 if TYPE_CHECKING:
     from handover.engine.context import PlanContext
@@ -109,11 +114,15 @@ def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
     extra = {"receiver_hands": count, "receiver_hands_why": count_why}
     return relocated(_plan(ctx, cg, hands_for(cg, ctx, count), extra),
                      lambda avoid: hands_for(cg, ctx, count, avoid=avoid),
-                     lambda hands: _plan(ctx, cg, hands, extra))
+                     lambda hands: _plan(ctx, cg, hands, extra, RETRY_CHECKS),
+                     H2G1_RELOCATIONS)
 
 
-def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict) -> Attempt:
-    """H2G1 with the receiver's ``hands`` where they are (see :func:`plan_h2g1`)."""
+def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict,
+          checks: int | None = None) -> Attempt:
+    """H2G1 with the receiver's ``hands`` where they are (see :func:`plan_h2g1`); at most
+    ``checks`` exact (arm, grasp) checks of the pairs (default
+    :data:`~handover.engine.arms.CONFIRM_LIMIT`)."""
     from handover.geometry.collision import grippers_collide
 
     # Rows are judged at the presentation; pick-up is a property of the pair (below).
@@ -206,7 +215,8 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict) -> A
         found.sort(key=lambda p: -p[0])  # stable: presentations in order on a tie
         idx = np.unique([i for p in found for i in p[1:3]])
         free = dict(zip(idx.tolist(), (~collision_scene(ctx, idx)).tolist(), strict=True))
-        best, lifts, failures = choose_pair_h2g1(ctx, phase, found, free, both_pick)
+        best, lifts, failures = choose_pair_h2g1(ctx, phase, found, free, both_pick,
+                                                 limit=checks)
         if best is None:
             rule = reach_rule(cg, ctx).id
             said = "; ".join(failures[:3]) or "no arm's map holds the grasps of any pair"

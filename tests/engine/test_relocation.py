@@ -76,9 +76,9 @@ def test_h2g1_moves_the_handover_where_both_arms_hold_the_pair(capsys):
 def test_without_the_move_the_same_request_had_no_plan(capsys, monkeypatch):
     """The move is what makes it feasible: allowed none, the arms hold no pair and the
     reason says which arm could not reach what."""
-    from handover.engine.modes import common
+    from handover.engine.modes import h2g1
 
-    monkeypatch.setattr(common, "RELOCATIONS", 0)
+    monkeypatch.setattr(h2g1, "H2G1_RELOCATIONS", 0)
     code, r = _plan(capsys, "bottle", "--receiver", "child_10", "--mode", "h2g1")
     assert code == 4 and r["outcome"] == "infeasible"
     assert "arm cannot reach" in r["reason"] and "arm_reaches" in r["reason"]
