@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.armstages import STAGE_WORDS, canonical_first, stage_poses, stages
+from handover.engine.armstages import STAGE_WORDS, canonical_first, row_keys, stage_poses
 
 if TYPE_CHECKING:
     from handover.engine.arms import ArmCheck
@@ -69,12 +69,8 @@ def wrist_failures(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
     body:robot:torso at pick-up"), None where they are clear at every stage. Exact for
     those links: any configuration holding the row puts them there. Memoised per (arm,
     row, stages, hands)."""
-    gi = np.asarray(gi, dtype=np.int64).reshape(-1)
-    pk = np.asarray(pk, dtype=np.int64).reshape(-1)
+    gi, pk, names, keys = row_keys(side, phase, gi, pk)
     memo = ctx.memo.setdefault("arm_wrists", {})
-    names = stages(phase)
-    keys = [(side, int(i), int(k) if names != ("pickup",) else -1, names, phase.hands.key)
-            for i, k in zip(gi, pk, strict=True)]
     todo = [r for r, key in enumerate(keys) if key not in memo]
     if todo:
         rows = np.array(todo)

@@ -44,9 +44,9 @@ from handover.engine.armstages import (
     finger_sign,
     objects_at,
     pose_words,
+    row_keys,
     screened_stages,
     stage_poses,
-    stages,
 )
 
 if TYPE_CHECKING:
@@ -209,12 +209,8 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
     from handover.engine.robot import IK_RESTARTS
 
     arms = ctx.arms
-    gi = np.asarray(gi, dtype=np.int64).reshape(-1)
-    pk = np.asarray(pk, dtype=np.int64).reshape(-1)
+    gi, pk, names, keys = row_keys(side, phase, gi, pk)
     memo = ctx.memo.setdefault("arm_checks", {})
-    names = stages(phase)
-    keys = [(side, int(i), int(k) if names != ("pickup",) else -1, names, phase.hands.key)
-            for i, k in zip(gi, pk, strict=True)]
     todo = [r for r, key in enumerate(dict.fromkeys(keys)) if key not in memo]
     unique = list(dict.fromkeys(keys))
     if todo:

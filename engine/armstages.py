@@ -24,7 +24,7 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
 
 __all__ = ["STAGES", "STAGE_WORDS", "MIDAIR_BACKOFF", "FLIP", "stages", "screened_stages",
-           "stage_poses", "pose_words", "objects_at", "finger_sign", "canonical_first"]
+           "stage_poses", "pose_words", "objects_at", "finger_sign", "canonical_first", "row_keys"]
 
 STAGES = ("pickup", "midair", "handover")
 
@@ -109,4 +109,17 @@ def canonical_first(poses: np.ndarray, distance=None, side: str | None = None
     first = np.where(turned[:, None, None], poses @ FLIP, poses)
     second = np.where(turned[:, None, None], poses, poses @ FLIP)
     return np.stack([first, second]), turned
+
+
+def row_keys(side: str, phase: Phase, gi: np.ndarray, pk: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], list[tuple]]:
+    """Rows ``(gi, pk)`` as (R,) int arrays, the stages of ``phase`` and each row's memo key
+    for the arm on ``side``: (arm, grasp, presentation (-1 when only pick-up, where the
+    presentation does not matter), stages, the receiver's hands)."""
+    gi = np.asarray(gi, dtype=np.int64).reshape(-1)
+    pk = np.asarray(pk, dtype=np.int64).reshape(-1)
+    names = stages(phase)
+    keys = [(side, int(i), int(k) if names != ("pickup",) else -1, names, phase.hands.key)
+            for i, k in zip(gi, pk, strict=True)]
+    return gi, pk, names, keys
 
