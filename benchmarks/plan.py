@@ -3,13 +3,15 @@ generation and a full plan scale with mesh size (icospheres of 80 to 81,920 face
 
     .venv/bin/python benchmarks/plan.py [--runs 5] [--modes h1g1,h2g2,h2g1,auto]
         [--max-subdiv 6] [--profile OBJECT[:MODE]] [--skip-scaling] [--skip-objects]
-        [--skip-explain]
+        [--skip-explain] [--armless]
 
 cold: an empty database for every run (candidates generated, then stored); warm: the entry
 is there (candidates read). Times are medians of ``--runs`` runs in this process, after one
 untimed run (imports, first-call costs). Targets on the reference machine: a full H1G1 plan
 of every built-in object under 0.5 s cold and under 0.15 s warm (with the location search
-and the collision tests at the handover), the auto plans included.
+and the collision tests at the handover), the auto plans included; with the robot's arms
+(reachability maps cached, exact inverse kinematics and link checks on the deciding rows)
+under 0.2 s warm. ``--armless`` takes the arms off (a floating gripper per hand).
 
 explain: what explaining an infeasible attempt costs on top of planning it, per built-in
 object and forced mode (the worst mode shown): the exact decision table (the collision rules
@@ -83,11 +85,12 @@ def bench_objects(kb, modes: list[str], runs: int) -> None:
             print(f"{oid:<13} {mode:<5} {t_cold:7.3f} {t_warm:7.3f} {t_cold / t_warm:6.1f}x  "
                   f"{label:<6} {result.candidates.get('grasps', 0):>6}")  # fmt: skip
     if "auto" in modes:
+        warm_target = 0.2 if any(r.arms for r in kb.robots.values()) else 0.15
         ok_c = "met" if worst["cold"] < 0.5 else "MISSED"
-        ok_w = "met" if worst["warm"] < 0.15 else "MISSED"
+        ok_w = "met" if worst["warm"] < warm_target else "MISSED"
         print(
             f"slowest auto plan: cold {worst['cold']:.3f} s (target < 0.5 s: {ok_c}), "
-            f"warm {worst['warm']:.3f} s (target < 0.15 s: {ok_w})"
+            f"warm {worst['warm']:.3f} s (target < {warm_target} s: {ok_w})"
         )
 
 
@@ -196,6 +199,17 @@ def profile(kb, spec: str, top: int = 25) -> None:
     print(buf.getvalue())
 
 
+def armless(kb):
+    """The KB with every robot's arms taken off: a floating gripper per hand, as before the
+    arms (the warm target is then < 0.15 s; with the arms' reachability, inverse kinematics
+    and link checks, < 0.2 s)."""
+    import dataclasses
+
+    robots = {rid: r.model_copy(update={"urdf": None, "arms": {}})
+              for rid, r in kb.robots.items()}  # fmt: skip
+    return dataclasses.replace(kb, robots=robots)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=5)
@@ -205,8 +219,12 @@ def main() -> None:
     ap.add_argument("--skip-objects", action="store_true")
     ap.add_argument("--skip-scaling", action="store_true")
     ap.add_argument("--skip-explain", action="store_true")
+    ap.add_argument("--armless", action="store_true",
+                    help="the robots' arms taken off (a floating gripper per hand)")
     args = ap.parse_args()
     kb = load_kb()
+    if args.armless:
+        kb = armless(kb)
     if not args.skip_objects:
         bench_objects(kb, [m.strip() for m in args.modes.split(",") if m.strip()], args.runs)
     if not args.skip_explain:
