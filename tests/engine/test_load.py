@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+import yaml
 
 from handover import Planner
 from handover.engine.kinds.torque import load_shares, pair_lever
@@ -88,6 +89,23 @@ def planner(kb_root) -> Planner:
     return Planner(kb=kb_root)
 
 
+@pytest.fixture(scope="module")
+def floating(kb_root, tmp_path_factory) -> Planner:
+    """The same KB with the robot's arms taken off (a floating gripper per hand). The load
+    shares are a matter of the grasps and the weight: the shipped arms cannot hold these two
+    where the default scene puts them (the laptop overhangs the table edge 13 cm from the
+    robot's chest, the skillet's helper handle lies 5 cm from it; see
+    test_with_the_arms_the_skillet_is_refused_for_reach)."""
+    root = tmp_path_factory.mktemp("load_floating") / "kb"
+    shutil.copytree(kb_root, root)
+    path = root / "robots" / "idro.yaml"
+    spec = yaml.safe_load(path.read_text(encoding="utf-8"))
+    for key in ("urdf", "arms", "base_pose"):
+        spec.pop(key, None)
+    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
+    return Planner(kb=root)
+
+
 def world_point(pose, point) -> np.ndarray:
     pose = np.asarray(pose, dtype=float)
     return pose[:3, :3] @ np.asarray(point, dtype=float) + pose[:3, 3]
@@ -110,8 +128,8 @@ def torque_entries(r: dict) -> dict[str, dict]:
     return {e["hand"]: e for e in r["trace"] if e["rule"] == "torque_limit"}
 
 
-def test_a_laptop_is_handed_with_two_hands_each_carrying_about_half(planner):
-    r = planner.plan("laptop").to_dict()
+def test_a_laptop_is_handed_with_two_hands_each_carrying_about_half(floating):
+    r = floating.plan("laptop").to_dict()
     assert r["feasible"] and r["mode"] == "H2G1", r["modes_tried"]
     shares = shares_from_result(r, [0.0, 0.0, 0.0075])  # a box's centre of mass: its centre
     assert shares["left"] == pytest.approx(0.5, abs=0.15)
@@ -124,8 +142,8 @@ def test_a_laptop_is_handed_with_two_hands_each_carrying_about_half(planner):
         assert entries[hand]["load_kg"] <= 1.5  # within one hand's payload
 
 
-def test_a_skillet_is_held_at_its_two_handles_within_each_hand_s_payload(planner):
-    plan = planner.plan("skillet", culture="kitchen")
+def test_a_skillet_is_held_at_its_two_handles_within_each_hand_s_payload(floating):
+    plan = floating.plan("skillet", culture="kitchen")
     r = plan.to_dict()
     assert r["feasible"] and r["mode"] == "H2G1", r["reason"]
     parts = {g["hand"]: set(g["parts"]) for g in r["robot_grasps"]}
@@ -199,3 +217,14 @@ parts:
     assert "two_hands_if_wide" in tried["H1G1"]
     wide = [e for e in r["trace"] if e["rule"] == "two_hands_if_wide"]
     assert all(e["status"] != "not_applicable" for e in wide)
+
+
+def test_with_the_arms_the_skillet_is_refused_for_reach(planner):
+    """With the shipped arms, both must lift the 2.5 kg skillet (each hand carries 1.5 kg),
+    but its helper handle lies a hand's breadth from the robot's chest: no pair of arms
+    holds it, and the reason names the reach rule and what the links hit."""
+    r = planner.plan("skillet", culture="kitchen").to_dict()
+    assert r["outcome"] == "infeasible"
+    assert "arm_reaches" in r["reason"] and "two_hands_if_heavy" in r["reason"]
+    assert "hits" in r["reason"] or "cannot reach" in r["reason"]
+
