@@ -14,8 +14,8 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
     from handover.engine.loader import KB
 
-__all__ = ["PLANNERS", "HANDS_NEEDED", "RELOCATIONS", "RETRY_CHECKS", "H2G1_RELOCATIONS",
-           "register", "hand_at", "relocated"]
+__all__ = ["CATALOGUE", "PLANNERS", "HANDS_NEEDED", "RELOCATIONS", "RETRY_CHECKS",
+           "H2G1_RELOCATIONS", "register", "hand_at", "relocated"]
 
 RELOCATIONS = 6
 """How many times the presentations whose grasps no arm (or pair of arms) holds move to their
@@ -29,8 +29,11 @@ H2G1_RELOCATIONS = 2
 every pair puts a wrist in the table would cost 0.6 s with :data:`RELOCATIONS`)."""
 
 Planner = Callable[["KB", "PlanContext"], "Attempt"]
+CATALOGUE = ("H1G1", "H2G2", "H2G1")
+"""The modes in the order auto mode tries them (after a preferred mode and what it bends to):
+one hand, then the midair regrasp, then two hands (the seed's order of simplicity)."""
 PLANNERS: dict[str, Planner] = {}
-"""Mode name -> planner, in the order auto mode tries them (H1G1, H2G2, H2G1)."""
+"""Mode name -> planner, in :data:`CATALOGUE` order whatever order they register in."""
 HANDS_NEEDED: dict[str, int] = {}
 """Mode name -> how many robot hands it takes."""
 
@@ -41,6 +44,10 @@ def register(mode: str, hands: int = 1) -> Callable[[Planner], Planner]:
     def add(fn: Planner) -> Planner:
         PLANNERS[mode] = fn
         HANDS_NEEDED[mode] = hands
+        ranked = sorted(PLANNERS.items(), key=lambda kv: (
+            CATALOGUE.index(kv[0]) if kv[0] in CATALOGUE else len(CATALOGUE)))
+        PLANNERS.clear()
+        PLANNERS.update(ranked)
         return fn
 
     return add
