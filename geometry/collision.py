@@ -129,10 +129,11 @@ def _grippers_hit_any(posed: PosedBoxes, ref: np.ndarray, g_half: np.ndarray, gi
     rg = posed.rotations[gi]  # (r, 3, 3): columns are the gripper's axes
     # The world boxes in each row's gripper frame (origin at the first part's centre),
     # component-major: rel[i][j] = G_i . B_j, (r, H) each; d[i], (r, H).
-    rel_all = np.einsum("rki,rhkj->ijrh", rg, rotations[gr])
-    d_all = np.einsum("rki,rhk->irh", rg, centres[gr] - ref[gi][:, None])
+    rt = np.ascontiguousarray(rg.transpose(0, 2, 1))[:, None]  # (r, 1, 3, 3): G^T
+    rel_all = np.matmul(rt, rotations[gr]).transpose(2, 3, 0, 1)  # (3, 3, r, H)
+    d_all = np.matmul(rt, (centres[gr] - ref[gi][:, None])[..., None])[..., 0].transpose(2, 0, 1)
     b_all = np.moveaxis(half[gr], 2, 0)  # (3, r, H)
-    local = np.einsum("rki,rgk->rgi", rg, posed.centres[gi] - ref[gi][:, None])  # (r, G, 3)
+    local = np.matmul(rt, (posed.centres[gi] - ref[gi][:, None])[..., None])[..., 0]  # (r, G, 3)
     live = np.arange(len(gi))
     order = _PART_ORDER if len(g_half) == len(_PART_ORDER) else range(len(g_half))
     for p in order:
