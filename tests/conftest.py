@@ -122,18 +122,30 @@ def armless_kb(tmp_path: Path) -> Path:
     """The built-in KB copied with the robot's arms taken off (a floating gripper per hand)."""
     import shutil
 
-    import yaml
-
     from handover.engine.store import builtin_kb_dir
 
     root = tmp_path / "armless_kb"
     shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    return take_arms_off(root)
+
+
+def take_arms_off(root: Path) -> Path:
+    """The KB folder ``root`` with the shipped robot's arms taken off its YAML (a floating
+    gripper per hand); returns ``root``."""
+    import yaml
+
     path = root / "robots" / "idro.yaml"
     spec = yaml.safe_load(path.read_text(encoding="utf-8"))
     for key in ("urdf", "arms", "base_pose"):
         spec.pop(key, None)
     path.write_text(yaml.safe_dump(spec), encoding="utf-8")
     return root
+
+
+@pytest.fixture(scope="session")
+def arms_off():
+    """:func:`take_arms_off`, for tests that build their own KB folder."""
+    return take_arms_off
 
 
 @pytest.fixture(scope="session")

@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
-import yaml
 
 from handover import Planner
 from handover.engine.kinds.torque import load_shares, pair_lever
@@ -90,7 +89,7 @@ def planner(kb_root) -> Planner:
 
 
 @pytest.fixture(scope="module")
-def floating(kb_root, tmp_path_factory) -> Planner:
+def floating(kb_root, tmp_path_factory, arms_off) -> Planner:
     """The same KB with the robot's arms taken off (a floating gripper per hand). The load
     shares are a matter of the grasps and the weight: the shipped arms cannot hold these two
     where the default scene puts them (the laptop overhangs the table edge 13 cm from the
@@ -98,12 +97,7 @@ def floating(kb_root, tmp_path_factory) -> Planner:
     test_with_the_arms_the_skillet_is_refused_for_reach)."""
     root = tmp_path_factory.mktemp("load_floating") / "kb"
     shutil.copytree(kb_root, root)
-    path = root / "robots" / "idro.yaml"
-    spec = yaml.safe_load(path.read_text(encoding="utf-8"))
-    for key in ("urdf", "arms", "base_pose"):
-        spec.pop(key, None)
-    path.write_text(yaml.safe_dump(spec), encoding="utf-8")
-    return Planner(kb=root)
+    return Planner(kb=arms_off(root))
 
 
 def world_point(pose, point) -> np.ndarray:
