@@ -116,17 +116,6 @@ def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
     failures: list[str] = []
     failed: set[tuple[str, int, int]] = set()  # (arm, grasp, presentation) not held
     checks = 0
-    # The handover checks the loop below may make, in one batch of inverse kinematics (the
-    # grasps of the first pairs whose wrists are clear; confirm memoises them, and a row's
-    # answer does not depend on the rows asked with it).
-    for side, col in (("left", 1), ("right", 2)):
-        at = phase.but(pickup=False, arm=side)
-        rows = list(dict.fromkeys((p[col], p[3]) for p in pairs[:limit]))
-        if rows:
-            gi, pk = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
-            clear = np.array([w is None for w in wrist_failures(ctx, at, side, gi, pk)])
-            if clear.any():
-                confirm(ctx, at, side, gi[clear], pk[clear])
     for pair in pairs:
         il, ir, k = pair[1], pair[2], pair[3]
         if ("left", il, k) in failed or ("right", ir, k) in failed:
