@@ -140,6 +140,9 @@ def _grippers_hit_any(posed: PosedBoxes, ref: np.ndarray, g_half: np.ndarray, gi
         if not len(live):
             break
         a = g_half[p]
+        # The gripper's own axes first (the part is axis-aligned here: its box against each
+        # world box's bounding box in the gripper's frame); the other 12 axes only on the
+        # (row, box) pairs those leave touching, which are few.
         rel = rel_all[:, :, live]
         ab = np.abs(rel) + _SAT_EPS
         b = b_all[:, live]
@@ -147,9 +150,15 @@ def _grippers_hit_any(posed: PosedBoxes, ref: np.ndarray, g_half: np.ndarray, gi
         sep = b[0] < 0  # padding
         for i in _AX:
             sep |= np.abs(t[i]) > a[i] + b[0] * ab[i, 0] + b[1] * ab[i, 1] + b[2] * ab[i, 2]
+        rows, cols = np.nonzero(~sep)
+        if not len(rows):
+            continue
+        rel, ab = rel[:, :, rows, cols], ab[:, :, rows, cols]
+        b, t = b[:, rows, cols], t[:, rows, cols]
+        apart = np.zeros(len(rows), dtype=bool)
         for j in _AX:
             proj = t[0] * rel[0, j] + t[1] * rel[1, j] + t[2] * rel[2, j]
-            sep |= np.abs(proj) > a[0] * ab[0, j] + a[1] * ab[1, j] + a[2] * ab[2, j] + b[j]
+            apart |= np.abs(proj) > a[0] * ab[0, j] + a[1] * ab[1, j] + a[2] * ab[2, j] + b[j]
         for i in _AX:
             i1, i2 = (i + 1) % 3, (i + 2) % 3
             for j in _AX:
@@ -157,8 +166,9 @@ def _grippers_hit_any(posed: PosedBoxes, ref: np.ndarray, g_half: np.ndarray, gi
                 proj = t[i2] * rel[i1, j] - t[i1] * rel[i2, j]
                 radius = (a[i1] * ab[i2, j] + a[i2] * ab[i1, j] + b[j1] * ab[i, j2]
                           + b[j2] * ab[i, j1])  # fmt: skip
-                sep |= np.abs(proj) > radius
-        hit = (~sep).any(axis=1)
+                apart |= np.abs(proj) > radius
+        hit = np.zeros(len(live), dtype=bool)
+        hit[rows[~apart]] = True
         out[live[hit]] = True
         live = live[~hit]
     return out

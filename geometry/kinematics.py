@@ -39,9 +39,12 @@ _CHUNK = 4096
 # proportional to the error, down to _DAMPING_MIN x damping.
 _DAMPING_ERROR = 0.1
 _DAMPING_MIN = 0.1
-# Runs from given starts (ik_from, shared restarts): a run more than 1 cm off that gains less
-# than 10 % in this many iterations is stuck (on a joint limit, stretched out) and stops.
+# Runs from given starts (ik_from, shared restarts): a run more than 1 cm or 3 degrees off that
+# gains less than 10 % in this many iterations is stuck (on a joint limit, stretched out) and
+# stops.
 _PATIENCE = 10
+_STUCK_POSITION = 0.01  # m
+_STUCK_ROTATION = np.radians(3.0)  # rad
 
 
 @dataclass(frozen=True, eq=False)
@@ -389,8 +392,8 @@ class Kinematics:
                patience: int = 0, groups: np.ndarray | None = None):
         """One damped-least-squares run from q (k, dof) for each target; returns the final
         q (k, dof), position errors (k,) and rotation errors (k,). patience : when > 0, a
-        run still more than 1 cm off that gained less than 10 % in ``patience`` iterations
-        (stuck on a joint limit) stops there. groups : (k,) int, runs of the same target
+        run still more than 1 cm or 3 degrees off that gained less than 10 % in ``patience``
+        iterations (stuck on a joint limit) stops there. groups : (k,) int, runs of the same target
         (different starts): once one of them reaches it, the others stop."""
         k = len(q)
         q = q.copy()
@@ -417,7 +420,12 @@ class Kinematics:
                 done = done | solved[groups[active]]
             if patience and iteration % patience == 0:
                 cost = pe / pos_tol + re / rot_tol
-                done |= (pe > 0.01) & (cost > 0.9 * before[active])
+                far = (pe > _STUCK_POSITION) | (re > _STUCK_ROTATION)
+                # At its pace of the last `patience` iterations, would it still be 1 cm /
+                # 0.1 rad off when the iterations run out?
+                pace = np.minimum(cost / before[active], 1.0)
+                left = (iterations - iteration) / patience
+                done |= far & ((pace > 0.9) | (cost * pace**left > 100.0))
                 before[active] = cost
             if iteration == iterations or done.all():
                 break
