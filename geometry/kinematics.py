@@ -43,6 +43,7 @@ _DAMPING_MIN = 0.1
 # gains less than 10 % in this many iterations is stuck (on a joint limit, stretched out) and
 # stops.
 _PATIENCE = 10
+_EYE6 = np.eye(6)
 _STUCK_POSITION = 0.01  # m
 _STUCK_ROTATION = np.radians(3.0)  # rad
 
@@ -66,7 +67,7 @@ class IKResult:
 
 def rotation_angle(r_a: np.ndarray, r_b: np.ndarray) -> np.ndarray:
     """(...) rad: angle of the rotation taking frames ``r_a`` to ``r_b`` (both (..., 3, 3))."""
-    trace = np.einsum("...ij,...ij->...", np.asarray(r_a), np.asarray(r_b))
+    trace = (np.asarray(r_a) * np.asarray(r_b)).sum(axis=(-2, -1))
     return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
 
 
@@ -111,6 +112,7 @@ class Kinematics:
         self.dof = dof
         self.prismatic = np.array([k == "prismatic" for k in chain.kinds], dtype=bool)
         self.continuous = chain.continuous
+        self._any_continuous = bool(self.continuous.any())
         self.lower = chain.lower.copy()
         self.upper = chain.upper.copy()
         c = [_rot4(_z_to(a)) for a in chain.axes]
@@ -148,32 +150,46 @@ class Kinematics:
             raise RobotModelError("joint values must be finite")
         return q
 
-    def _frames(self, q: np.ndarray, dtype) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """Folded joint frames, component-major: for each joint the rotation (3, 3, n) as
-        ``[column, row, sample]`` and the origin (3, n). Column-major storage makes the
+    def _frames(self, q: np.ndarray, dtype) -> tuple[np.ndarray, np.ndarray]:
+        """Folded joint frames, component-major: the rotations (dof, 3, 3, n) as ``[joint,
+        column, row, sample]`` and the origins (dof, 3, n). Column-major storage makes the
         product with a constant rotation one (3, 3) x (3, 3n) matrix product."""
         n = q.shape[0]
-        a_rot = self._a_rot.astype(dtype)
-        a_t = self._a_t.astype(dtype)
+        a_rot_t, a_t = self._constants(dtype)
         qt = np.ascontiguousarray(q.T, dtype=dtype)
         cos, sin = np.cos(qt), np.sin(qt)
-        rots, origins = [], []
-        rot = np.repeat(a_rot[0].T[:, :, None], n, axis=2)
+        rots = np.empty((self.dof, 3, 3, n), dtype=dtype)
+        origins = np.empty((self.dof, 3, n), dtype=dtype)
+        rot = np.repeat(a_rot_t[0][:, :, None], n, axis=2)
         pos = np.repeat(a_t[0][:, None], n, axis=1)
         for i in range(self.dof):
             if i:
                 flat = rot.reshape(3, 3 * n)
                 pos = pos + (a_t[i] @ flat).reshape(3, n)
-                rot = (a_rot[i].T @ flat).reshape(3, 3, n)
+                rot = (a_rot_t[i] @ flat).reshape(3, 3, n)
+            out = rots[i]
             if self.prismatic[i]:
                 pos = pos + rot[2] * qt[i]
+                out[...] = rot
             else:
                 c, s = cos[i], sin[i]
                 x, y = rot[0], rot[1]
-                rot = np.stack([c * x + s * y, c * y - s * x, rot[2]])
-            rots.append(rot)
-            origins.append(pos)
+                out[0] = c * x + s * y
+                out[1] = c * y - s * x
+                out[2] = rot[2]
+            origins[i] = pos
+            rot = out
         return rots, origins
+
+    def _constants(self, dtype) -> tuple[np.ndarray, np.ndarray]:
+        """The folded fixed transforms in ``dtype``: rotations transposed (dof, 3, 3) and
+        origins (dof, 3), converted once per dtype."""
+        key = np.dtype(dtype).str
+        cache = self.__dict__.setdefault("_by_dtype", {})
+        if key not in cache:
+            cache[key] = (np.ascontiguousarray(self._a_rot.transpose(0, 2, 1), dtype=dtype),
+                          np.ascontiguousarray(self._a_t, dtype=dtype))
+        return cache[key]
 
     @staticmethod
     def _apply(rot: np.ndarray, pos: np.ndarray, local: np.ndarray, dtype) -> np.ndarray:
@@ -220,26 +236,24 @@ class Kinematics:
         rots, origins = self._frames(q, np.float64)
         tip = self._apply(rots[-1], origins[-1], self._tip, np.float64)
         n = q.shape[0]
-        jac = np.zeros((self.dof, 6, n))  # component-major, transposed once at the end
-        p_tip = tip[:, :3, 3].T
-        for i in range(self.dof):
-            z = rots[i][2]  # (3, n): the joint axis in the base frame
-            if self.prismatic[i]:
-                jac[i, :3] = z
-            else:
-                d = p_tip - origins[i]
-                jac[i, 0] = z[1] * d[2] - z[2] * d[1]
-                jac[i, 1] = z[2] * d[0] - z[0] * d[2]
-                jac[i, 2] = z[0] * d[1] - z[1] * d[0]
-                jac[i, 3:] = z
+        jac = np.empty((self.dof, 6, n))  # component-major, transposed once at the end
+        z = rots[:, 2]  # (dof, 3, n): the joint axes in the base frame
+        d = tip[:, :3, 3].T - origins  # (dof, 3, n): from each joint to the tip
+        jac[:, 0] = z[:, 1] * d[:, 2] - z[:, 2] * d[:, 1]
+        jac[:, 1] = z[:, 2] * d[:, 0] - z[:, 0] * d[:, 2]
+        jac[:, 2] = z[:, 0] * d[:, 1] - z[:, 1] * d[:, 0]
+        jac[:, 3:] = z
+        if self.prismatic.any():
+            jac[self.prismatic, :3] = z[self.prismatic]
+            jac[self.prismatic, 3:] = 0.0
         return tip, jac.transpose(2, 1, 0)
 
     # ------------------------------------------------------------------ inverse kinematics
 
     def clamp(self, q: np.ndarray) -> np.ndarray:
         """q (n, dof) clamped into the limits (continuous joints wrapped to [-pi, pi))."""
-        out = np.clip(q, self.lower, self.upper)
-        if self.continuous.any():
+        out = np.minimum(np.maximum(q, self.lower), self.upper)
+        if self._any_continuous:
             wrapped = (q + np.pi) % (2.0 * np.pi) - np.pi
             out = np.where(self.continuous, wrapped, out)
         return out
@@ -410,7 +424,7 @@ class Kinematics:
             e_pos = t_pos[active] - tip[:, :3, 3]
             r = tip[:, :3, :3]
             rt = t_rot[active]
-            pe = np.linalg.norm(e_pos, axis=1)
+            pe = np.sqrt((e_pos * e_pos).sum(axis=1))
             re = rotation_angle(r, rt)
             pos_err[active] = pe
             rot_err[active] = re
@@ -443,7 +457,7 @@ class Kinematics:
             # target (stable through singularities), light near it (fast final convergence).
             enorm = np.sqrt((err**2).sum(axis=1))
             lam = damping * np.clip(enorm / _DAMPING_ERROR, _DAMPING_MIN, 1.0)
-            jjt = jac @ np.swapaxes(jac, 1, 2) + (lam**2)[:, None, None] * np.eye(6)
+            jjt = jac @ np.swapaxes(jac, 1, 2) + (lam**2)[:, None, None] * _EYE6
             dq = np.einsum("kji,kj->ki", jac, np.linalg.solve(jjt, err[:, :, None])[:, :, 0])
             big = np.abs(dq).max(axis=1)
             dq *= np.minimum(1.0, max_step / np.maximum(big, 1e-12))[:, None]
