@@ -403,6 +403,7 @@ def _map_reason(ctx: PlanContext, attempt, reach: str | None) -> str | None:
             return f"reach ({reach}), grasp {i}: {reach_words(ctx, first, i, 0)}"
     h = next((n for n, c in enumerate(decision.hard)
               if c.rule.kind == "reach" and c.id in reason), None)
+    decision = decision.exact()  # reach judged on the rows the fast path left out too
     if h is None or not decision.fails[:, h].any():
         return None
     alone = decision.fails[:, h] & (decision.fails.sum(axis=1) == 1)

@@ -20,8 +20,9 @@ decided
     - a ``mode`` rule that chose the mode of a feasible plan (``mode_reason`` names it);
     - a hard rule that alone rejected at least one candidate of the chosen mode: no other hard
       rule judged on that candidate failed, so without this rule the planner could have
-      chosen it (collision rules are judged only on candidates that passed every other hard
-      rule, so a candidate failing a cheaper rule counts with the rules judged on it);
+      chosen it (reach and collision rules are judged only on candidates that passed every
+      hard rule before them, so a candidate failing a cheaper rule counts with the rules
+      judged on it);
     - the soft rule whose weighted score most favours the chosen candidate over the next best
       one (``alternatives[0]``), when the chosen one scores strictly higher.
 

@@ -1,12 +1,13 @@
 """Evaluate a constraint graph over every (grasp, presentation) row: the decision table.
 
-Hard rules run in the graph's order. Every non-collision hard rule is evaluated on all rows
-(a cheap indexing operation); collision rules, the expensive ones, run only on the rows that
-passed every other hard rule. Soft rules then score the survivors. That is the fast path of
-every plan.
+Hard rules run in the graph's order. Every hard rule is evaluated on all rows (a cheap
+indexing operation), except the expensive kinds (:data:`DEFERRED_KINDS`: the arms' reach,
+the collision rules), which run only on the rows that passed every hard rule before them.
+The first rule a row fails (``first_fail``, ``rejected_by``) is the same either way. Soft
+rules then score the survivors. That is the fast path of every plan.
 
 To explain an infeasible attempt, :meth:`Decision.exact` completes the table: every
-collision rule is judged on the rows it was not run on (batched), so the smallest sets of
+deferred rule is judged on the rows it was not run on (batched), so the smallest sets of
 rules that removed the last candidates (:func:`handover.engine.blocking.blocking_sets`) are
 exact, not lower bounds, and :func:`handover.engine.explain.infeasible_reason` ranks the
 causes.
@@ -31,10 +32,13 @@ if TYPE_CHECKING:
     from handover.engine.attempt import Phase
     from handover.engine.context import PlanContext
 
-__all__ = ["Decision", "evaluate", "evaluate_rule", "complete", "trace_row", "ROW_LIMIT"]
+__all__ = ["Decision", "evaluate", "evaluate_rule", "complete", "trace_row", "ROW_LIMIT",
+           "DEFERRED_KINDS"]
 
 # Rows beyond this are a sign of a mis-set generator; the error says how to fix it.
 ROW_LIMIT = 5_000_000
+# The expensive kinds: judged only on the rows that passed every hard rule before them.
+DEFERRED_KINDS = ("reach", "collision")
 
 
 @dataclass
@@ -67,8 +71,8 @@ class Decision:
     _sets: list | None = field(default=None, repr=False, compare=False)
 
     def exact(self) -> Decision:
-        """This table with every hard rule judged on every row that matters (the collision
-        rules too, where the fast path skipped them; :func:`complete`; memoised). Only
+        """This table with every hard rule judged on every row that matters (the reach and
+        collision rules too, where the fast path skipped them; :func:`complete`; memoised). Only
         explanations of an infeasible attempt ask for it; ``kept``, ``score`` and
         ``first_fail`` are the same."""
         if self.judged_in is None or self.checked.all():
@@ -114,8 +118,8 @@ class Decision:
 
 
 def complete(decision: Decision, ctx: PlanContext, phase: Phase) -> Decision:
-    """``decision`` with the rules the fast path skipped (collision rules on rows another
-    rule had removed) judged on every row that matters (batched per rule), so the minimal
+    """``decision`` with the rules the fast path skipped (reach and collision rules on rows
+    another rule had removed) judged on every row that matters (batched per rule), so the minimal
     failure patterns, their row counts and the fewest failures of any row are exact.
 
     A row whose known failures already hold, as a proper part, the whole failure pattern
@@ -187,25 +191,21 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
     checked = np.zeros((rows, len(hard)), dtype=bool)
     measured: dict[str, np.ndarray] = {}
 
-    is_collision = [c.rule.kind == "collision" for c in hard]
+    alive = np.ones(rows, dtype=bool)
     for h, c in enumerate(hard):
-        if is_collision[h]:
-            continue
-        out = evaluate_rule(c, ctx, phase, gi, pk)
-        fails[:, h] = ~out.passed
-        checked[:, h] = True
-        measured[c.id] = out.measured
-    alive = ~fails.any(axis=1)
-    for h, c in enumerate(hard):
-        if not is_collision[h]:
-            continue
-        idx = np.flatnonzero(alive)
-        measured[c.id] = np.full(rows, np.nan)
-        if len(idx):
-            out = evaluate_rule(c, ctx, phase, gi[idx], pk[idx])
-            fails[idx, h] = ~out.passed
-            checked[idx, h] = True
-            measured[c.id][idx] = out.measured
+        if c.rule.kind in DEFERRED_KINDS:  # only the rows every rule before it passed
+            idx = np.flatnonzero(alive)
+            measured[c.id] = np.full(rows, np.nan)
+            if len(idx):
+                out = evaluate_rule(c, ctx, phase, gi[idx], pk[idx])
+                fails[idx, h] = ~out.passed
+                checked[idx, h] = True
+                measured[c.id][idx] = out.measured
+        else:
+            out = evaluate_rule(c, ctx, phase, gi, pk)
+            fails[:, h] = ~out.passed
+            checked[:, h] = True
+            measured[c.id] = out.measured
         alive &= ~fails[:, h]
 
     # First failing hard rule in evaluation order (collision rules come last by cost).

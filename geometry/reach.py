@@ -290,8 +290,13 @@ def _eroded(grid: np.ndarray, erode: int) -> np.ndarray:
 def _cell_index(points: np.ndarray, lower: np.ndarray, voxel: float, shape: np.ndarray):
     """(m,) int64 flat voxel index of points (m, 3), -1 outside the grid."""
     ijk = np.floor(_settled((points - lower) / voxel)).astype(np.int64)
-    inside = np.all((ijk >= 0) & (ijk < shape), axis=1)
-    flat = (ijk[:, 0] * shape[1] + ijk[:, 1]) * shape[2] + ijk[:, 2]
+    # Viewed unsigned, a negative index is huge: one comparison per axis tests both ends.
+    unsigned = ijk.view(np.uint64)
+    nx, ny, nz = (int(v) for v in shape)
+    inside = unsigned[:, 0] < nx
+    inside &= unsigned[:, 1] < ny
+    inside &= unsigned[:, 2] < nz
+    flat = (ijk[:, 0] * ny + ijk[:, 1]) * nz + ijk[:, 2]
     return np.where(inside, flat, -1)
 
 
