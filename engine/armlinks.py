@@ -1,4 +1,5 @@
-"""The arms' links in a plan: what they must not touch (:func:`link_targets`), the screen of
+"""The arms' links in a plan: what they must not touch (:func:`link_targets`; the object
+held and the hands taking it, row by row: :func:`held_contacts`), the screen of
 the links fixed to the grasp frame before inverse kinematics (:func:`wrist_failures`), other
 inverse-kinematics answers where the links touch something (:func:`clear_links`), the two
 arms against each other (:func:`pair_contacts`), and the words the traces and reasons say
@@ -13,7 +14,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.armstages import STAGE_WORDS, canonical_first, row_keys, stage_poses
+from handover.engine.armstages import (
+    STAGE_WORDS,
+    canonical_first,
+    objects_at,
+    row_keys,
+    stage_poses,
+)
 
 if TYPE_CHECKING:
     from handover.engine.arms import ArmCheck
@@ -21,7 +28,8 @@ if TYPE_CHECKING:
     from handover.engine.context import PlanContext
 
 __all__ = ["LINK_STARTS", "LINK_POOL", "hit_words", "link_targets", "wrist_failures",
-           "target_groups", "link_tally", "pair_contacts", "links_words", "clear_links"]
+           "target_groups", "link_tally", "pair_contacts", "links_words", "clear_links",
+           "held_contacts", "held_names"]
 
 LINK_STARTS = 8
 """Other inverse-kinematics answers tried for a stage reached with the arm's links touching
@@ -59,6 +67,94 @@ def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
         spared = {f"body:robot:{name}" for name in ctx.arms.spared(side)}
         memo[key] = body.subset([name not in spared for name in body.names])
     return memo[key]
+
+def held_names(ctx: PlanContext, phase: Phase, stage: str) -> tuple[str, ...]:
+    """The targets :func:`held_contacts` tests at ``stage``: the object held
+    (``object:<id>``), and at the handover the receiver's hands that take it
+    (``body:receiver:<hand>_hand``)."""
+    names = (f"object:{ctx.situation.obj.id}",)
+    if stage == "handover":
+        names += tuple(f"body:receiver:{hand}_hand" for hand in phase.hands.receiving)
+    return names
+
+def held_contacts(ctx: PlanContext, phase: Phase, side: str, stage: str, q: np.ndarray,
+                  pk: np.ndarray) -> list[tuple[tuple[str, str], ...]]:
+    """What :func:`link_targets` leaves out, per configuration q (n, dof) of the arm on
+    ``side`` holding a row of presentation pk (n,) at ``stage``: ``(link, target)`` pairs
+    where its links touch the object it holds (at the stage's pose, against its mesh:
+    :class:`~handover.geometry.collision.ObjectCollider`'s ``capsules_collide`` and
+    ``solids_collide``) or, at the handover, the receiver's hands that take it (their palm
+    and finger boxes where the collision rules put them). Links in chain order, the object
+    first."""
+    from handover.geometry.armcollision import posed_boxes, posed_capsules
+    from handover.geometry.proximity import point_segment_distances
+
+    arms = ctx.arms
+    shapes = arms.arm(side).shapes
+    q = np.atleast_2d(np.asarray(q, dtype=float))
+    pk = np.asarray(pk, dtype=np.int64).reshape(-1)
+    if not len(q):
+        return []
+    link_poses = arms.link_poses(side, q)
+    objects = objects_at(ctx, phase, stage, pk)
+    cap_a, cap_b = posed_capsules(shapes, link_poses)
+    box_c, box_r = posed_boxes(shapes, link_poses)
+    names = held_names(ctx, phase, stage)
+    out = []
+    for i in range(len(q)):
+        touched = set()
+        if ctx.collider is not None:
+            collider = _placed(ctx, objects[i])
+            if len(shapes.cap_link):
+                hit = collider.capsules_collide(cap_a[i], cap_b[i], shapes.cap_radius)
+                touched.update(shapes.cap_link[hit].tolist())
+            if len(shapes.box_link):
+                hit = collider.solids_collide(box_c[i], box_r[i], shapes.box_extents)
+                touched.update(shapes.box_link[hit].tolist())
+        found = [(shapes.links[j], names[0]) for j in sorted(touched)]
+        if stage == "handover":
+            for boxes, centre, reach in _hand_boxes(ctx, phase, int(pk[i])):
+                gap = point_segment_distances(centre, cap_a[i], cap_b[i]) - shapes.cap_radius
+                if len(shapes.box_link) or (gap <= reach).any():  # else far from the hand
+                    hits = arms.contacts(side, q[i], boxes=boxes, own_body=False)[0]
+                    found += list(dict.fromkeys(hits))
+        out.append(tuple(found))
+    return out
+
+def _placed(ctx: PlanContext, pose: np.ndarray):
+    """The object's collider at ``pose`` (4, 4), world (memoised per pose)."""
+    memo = ctx.memo.setdefault("held_colliders", {})
+    key = np.round(pose, 12).tobytes()
+    if key not in memo:
+        memo[key] = ctx.collider.placed(pose)
+    return memo[key]
+
+def _hand_boxes(ctx: PlanContext, phase: Phase, k: int) -> list[tuple[list, np.ndarray, float]]:
+    """Per receiving hand in presentation ``k``: its boxes named ``body:receiver:<hand>_hand``
+    (world, at the handover), their centre and the radius of a sphere holding them (m).
+    Memoised per hands and presentation."""
+    from handover.engine.features import hand_models
+    from handover.geometry.hand import BOX_NAMES
+
+    hands = phase.hands
+    memo = ctx.memo.setdefault("held_hand_boxes", {})
+    if (hands.key, k) not in memo:
+        out = []
+        for hand, sites in zip(hands.receiving, hands.sites, strict=True):
+            extents, poses, valid = hand_models(ctx, hands.region, sites, np.array([k]),
+                                                hands.poses[k:k + 1])
+            boxes = [(f"body:receiver:{hand}_hand", extents[0, b], poses[0, b])
+                     for b in range(len(BOX_NAMES)) if valid[0, b]]
+            if boxes:
+                corners = np.array([p[:3, 3] + p[:3, :3] @ (e * sign / 2.0)
+                                    for _, e, p in boxes for sign in _CORNERS])
+                centre = corners.mean(axis=0)
+                out.append((boxes, centre, float(np.linalg.norm(corners - centre,
+                                                                axis=1).max())))
+        memo[(hands.key, k)] = out
+    return memo[(hands.key, k)]
+
+_CORNERS = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
 
 def wrist_failures(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
                    pk: np.ndarray) -> list[str | None]:
@@ -146,16 +242,26 @@ def links_words(ctx: PlanContext, phase: Phase, check: ArmCheck, grasp: int,
     return words
 
 def clear_links(arms, side: str, body, poses: np.ndarray, rows: np.ndarray,
-                 stage: tuple[np.ndarray, ...], hits: list[list[tuple]], t: int) -> None:
-    """At one stage: test the links of the arm at the reached ``rows`` against ``body``;
-    for those touching something, take the first of :data:`LINK_STARTS` other answers (as
-    planned, then with the fingers swapped) whose links are clear, updating ``stage`` (q
-    (n, dof), swapped (n,), position and rotation errors (n,), views of the stage's
-    column) in place; ``hits[r][t]`` records what row r's links still touch."""
+                 stage: tuple[np.ndarray, ...], hits: list[list[tuple]], t: int,
+                 held=None) -> None:
+    """At one stage: test the links of the arm at the reached ``rows`` against ``body``
+    (and ``held(rows, q)``: the contacts :func:`held_contacts` finds for those rows at
+    configurations q (m, dof)); for those touching something, take the first of
+    :data:`LINK_STARTS` other answers (as planned, then with the fingers swapped) whose
+    links are clear, updating ``stage`` (q (n, dof), swapped (n,), position and rotation
+    errors (n,), views of the stage's column) in place; ``hits[r][t]`` records what row r's
+    links still touch."""
     if not len(rows):
         return
     q, swapped, pos_err, rot_err = stage
-    found = arms.contacts(side, q[rows], bodies=[body], own_body=False)
+
+    def touching(at: np.ndarray, qs: np.ndarray) -> list[list[tuple[str, str]]]:
+        found = arms.contacts(side, qs, bodies=[body], own_body=False)
+        if held is not None and len(at):
+            found = [[*f, *h] for f, h in zip(found, held(at, qs), strict=True)]
+        return found
+
+    found = touching(rows, q[rows])
     bad = np.array([r for r, f in zip(rows, found, strict=True) if f], dtype=np.int64)
     for r, f in zip(rows, found, strict=True):
         hits[r][t] = tuple(f)
@@ -167,8 +273,7 @@ def clear_links(arms, side: str, body, poses: np.ndarray, rows: np.ndarray,
     good = np.argwhere(sol.ok)  # (g, 2): target, start
     clear = np.zeros(sol.ok.shape, dtype=bool)
     if len(good):
-        touch = arms.contacts(side, sol.q[good[:, 0], good[:, 1]], bodies=[body],
-                              own_body=False)  # fmt: skip
+        touch = touching(bad[good[:, 0] % len(bad)], sol.q[good[:, 0], good[:, 1]])
         clear[good[:, 0], good[:, 1]] = [not f for f in touch]
     b = len(bad)
     for j, r in enumerate(bad):

@@ -32,6 +32,8 @@ import numpy as np
 
 from handover.engine.armlinks import (
     clear_links,
+    held_contacts,
+    held_names,
     hit_words,
     link_tally,
     link_targets,
@@ -153,7 +155,8 @@ class ArmCheck:
     position_error : (T,) m. rotation_error : (T,) rad. hits : per stage, the ``(link,
     target)`` pairs the arm's links touch at ``q`` (:func:`link_targets`; checked where the
     stage was reached, empty elsewhere). against : what the links were checked against
-    (``scene:table``, ``scene:<obstacle>``, ``body:receiver``, ``body:robot``).
+    (``scene:table``, ``scene:<obstacle>``, ``body:receiver``, ``body:robot``,
+    ``object:<id>``).
     """
 
     side: str
@@ -201,7 +204,8 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
     nearer the arm's seed poses first (:func:`~handover.engine.armstages.canonical_first`:
     the same in any frame), then, where the position was reached but not the rotation, the
     other. At each stage reached, the arm's links are tested against
-    :func:`~handover.engine.armlinks.link_targets`; where they touch something, up to
+    :func:`~handover.engine.armlinks.link_targets` and the object held and the hands taking
+    it (:func:`~handover.engine.armlinks.held_contacts`); where they touch something, up to
     :data:`~handover.engine.armlinks.LINK_STARTS` other answers (in one finger order, then
     the other) are tried and the first whose links are clear is kept
     (:func:`~handover.engine.armlinks.clear_links`). A stage not held ends the row's checks.
@@ -248,10 +252,14 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
                 ok[take, t] = sol.ok[better]
                 swapped[take, t] = turned[take] != second
             body = link_targets(ctx, phase, side, stage)
-            against += target_groups(body.names)
+            against += target_groups((*body.names, *held_names(ctx, phase, stage)))
+
+            def held(at, qs, stage=stage):  # the object held, the hands taking it
+                return held_contacts(ctx, phase, side, stage, qs, pk[rows[at]])
+
             clear_links(arms, side, body, poses[stage], np.flatnonzero(ok[:, t] & pursued),
                          (q[:, t], swapped[:, t], pos_err[:, t], rot_err[:, t]),
-                         hits, t)  # fmt: skip
+                         hits, t, held)  # fmt: skip
         against = tuple(dict.fromkeys(against))
         for r, u in enumerate(todo):
             memo[unique[u]] = ArmCheck(side, names, np.stack([poses[s][r] for s in names])

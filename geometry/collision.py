@@ -378,6 +378,83 @@ class ObjectCollider:
         return hit
 
 
+    def solids_collide(self, centres: np.ndarray, rotations: np.ndarray,
+                       extents: np.ndarray) -> np.ndarray:
+        """(N,) bool: whether each box (centre (N, 3) and axes (N, 3, 3) in F, full edge
+        lengths (N, 3), m) touches or enters the object: :meth:`boxes_collide`, one box per
+        row, posed in F (an arm's box-shaped links)."""
+        centres = np.atleast_2d(np.asarray(centres, dtype=float))
+        rotations = np.asarray(rotations, dtype=float).reshape(-1, 3, 3)
+        extents = np.atleast_2d(np.asarray(extents, dtype=float))
+        if self._inverse is not None:  # into the object's own frame
+            rot, shift = self._inverse[:3, :3], self._inverse[:3, 3]
+            centres, rotations = centres @ rot.T + shift, rot @ rotations
+        return np.array([bool(self.boxes_collide(centres[i][None, None], rotations[i][None],
+                                                 extents[i][None])[0])
+                         for i in range(len(centres))], dtype=bool)
+
+    def capsules_collide(self, ends_a: np.ndarray, ends_b: np.ndarray,
+                         radius: np.ndarray | float) -> np.ndarray:
+        """(N,) bool: whether each capsule (the points within ``radius`` of the segment from
+        ``ends_a`` to ``ends_b``) touches or enters the object: an arm's link near the object
+        it holds.
+
+        ends_a, ends_b : (N, 3) m, in F (equal ends: a sphere). radius : (N,) or scalar, m.
+        A capsule farther from the mesh's bounding sphere than its radius is free; one thin
+        enough to lie wholly inside collides if its middle point is inside the mesh; the rest
+        collide where they cross the surface (python-fcl, capsule vs BVH).
+        """
+        import fcl
+
+        from handover.geometry.frames import frame_from_o_a, perpendicular
+        from handover.geometry.proximity import point_segment_distances
+
+        ends_a = np.atleast_2d(np.asarray(ends_a, dtype=float))
+        ends_b = np.atleast_2d(np.asarray(ends_b, dtype=float))
+        if ends_a.shape != ends_b.shape or ends_a.shape[-1] != 3:
+            raise ValueError(f"ends must both have shape (N, 3), got {ends_a.shape} and "
+                             f"{ends_b.shape}")  # fmt: skip
+        radius = np.broadcast_to(np.asarray(radius, dtype=float), (len(ends_a),))
+        if not (np.isfinite(ends_a).all() and np.isfinite(ends_b).all()
+                and np.isfinite(radius).all()) or (radius < 0).any():
+            raise ValueError("capsules must be finite, with radii >= 0")
+        if self._inverse is not None:  # into the object's own frame
+            rot, shift = self._inverse[:3, :3], self._inverse[:3, 3]
+            ends_a, ends_b = ends_a @ rot.T + shift, ends_b @ rot.T + shift
+        hit = np.zeros(len(ends_a), dtype=bool)
+        centre = self._aabb[0]
+        near = point_segment_distances(centre, ends_a, ends_b) <= radius + self._radius
+        if not near.any():
+            return hit
+        from handover.geometry.mesh import contains
+
+        middle = (ends_a + ends_b) / 2.0
+        # Wholly inside only if it fits: its middle within the bounding box, its diameter
+        # less than the box's thinnest side.
+        box_centre, box_ext = self._aabb
+        within = near & (np.abs(middle - box_centre) <= box_ext / 2.0).all(axis=1) & (
+            2.0 * radius < box_ext.min())
+        if within.any():
+            idx = np.flatnonzero(within)
+            hit[idx[contains(self.mesh, middle[idx])]] = True
+        todo = np.flatnonzero(near & ~hit)
+        axes = ends_b[todo] - ends_a[todo]
+        lengths = np.linalg.norm(axes, axis=1)
+        long = lengths > 1e-12
+        frames = np.broadcast_to(np.eye(3), (len(todo), 3, 3)).copy()
+        if long.any():
+            frames[long] = frame_from_o_a(perpendicular(axes[long]), axes[long])
+        target = self._fcl_object
+        request = fcl.CollisionRequest()
+        for j, i in enumerate(todo.tolist()):
+            geom = (fcl.Capsule(float(radius[i]), float(lengths[j])) if long[j]
+                    else fcl.Sphere(float(radius[i])))
+            part = fcl.CollisionObject(geom, fcl.Transform(frames[j], middle[i]))
+            if fcl.collide(part, target, request):
+                hit[i] = True
+        return hit
+
+
 def _part_probes(shapes, n_boxes: int) -> np.ndarray:
     """(K, P, 3) points of each part in its box frame whose inside-the-object test proves a
     collision: the box centre for boxes; for mesh parts, the vertex nearest the box centre

@@ -5,9 +5,10 @@ the object: at pick-up, at H2G2's midair regrasp and at the handover
 Over every row the arms' reachability maps screen the gripper poses: a row passes when one
 arm's map holds all of its stages. A grasp whose arm is decided (the chosen grasps: the
 phase names the arm) is judged by exact inverse kinematics instead, with the arm's links at
-those configurations tested against the table, the obstacles, the receiver's body and the
-robot's own body (and, where both arms hold the object at once, the other arm: the modes'
-pair choice, :mod:`handover.engine.armpairs`); its trace entry gives the arm, the joint
+those configurations tested against the table, the obstacles, the receiver's body (and, at
+the handover, the hands taking the object), the robot's own body and the object held (and,
+where both arms hold the object at once, the other arm: the modes' pair choice,
+:mod:`handover.engine.armpairs`); its trace entry gives the arm, the joint
 values and what the links were found clear of. A robot without arms (no URDF) makes the
 rule not applicable.
 """

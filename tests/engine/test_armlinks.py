@@ -42,24 +42,26 @@ def fcl_object(geometry, pose: np.ndarray) -> fcl.CollisionObject:
 
 def link_objects(urdf: yourdfpy.URDF, base: np.ndarray, links) -> dict[str, list]:
     """Each link's collision elements at the URDF's current configuration, in the world."""
-    out = {}
-    for name in links:
-        world = base @ urdf.get_transform(name, urdf.base_link)
-        shapes = []
-        for c in urdf.link_map[name].collisions:
-            origin = np.eye(4) if c.origin is None else c.origin
-            g = c.geometry
-            if g.cylinder is not None:
-                geom = fcl.Cylinder(float(g.cylinder.radius), float(g.cylinder.length))
-            elif g.sphere is not None:
-                geom = fcl.Sphere(float(g.sphere.radius))
-            elif g.box is not None:
-                geom = fcl.Box(*map(float, g.box.size))
-            else:
-                raise AssertionError(f"{name}: a collision geometry this test does not model")
-            shapes.append(fcl_object(geom, world @ origin))
-        out[name] = shapes
-    return out
+    return {name: link_objects_at(urdf, name, base @ urdf.get_transform(name, urdf.base_link))
+            for name in links}
+
+
+def link_objects_at(urdf: yourdfpy.URDF, name: str, world: np.ndarray) -> list:
+    """The collision elements of link ``name`` with the link at pose ``world`` (4, 4)."""
+    shapes = []
+    for c in urdf.link_map[name].collisions:
+        origin = np.eye(4) if c.origin is None else c.origin
+        g = c.geometry
+        if g.cylinder is not None:
+            geom = fcl.Cylinder(float(g.cylinder.radius), float(g.cylinder.length))
+        elif g.sphere is not None:
+            geom = fcl.Sphere(float(g.sphere.radius))
+        elif g.box is not None:
+            geom = fcl.Box(*map(float, g.box.size))
+        else:
+            raise AssertionError(f"{name}: a collision geometry this test does not model")
+        shapes.append(fcl_object(geom, world @ origin))
+    return shapes
 
 
 def arm_links(urdf: yourdfpy.URDF, side: str) -> list[str]:
@@ -125,9 +127,32 @@ def receiver_body(result: dict, without: tuple[str, ...] = ()) -> dict[str, fcl.
     return out
 
 
-def link_hits(kb: Path, urdf, result: dict, scene: str) -> list[str]:
+def receiver_hands(result: dict) -> dict[str, fcl.CollisionObject]:
+    """The boxes of the receiver's hands that take the object, where the result puts them
+    at the handover (``human_grasps[].model``, world)."""
+    return {f"body:receiver:{h['hand']}_hand:{b['name']}": fcl_object(
+        fcl.Box(*b["extents"]), np.asarray(b["pose"])) for h in result["human_grasps"]
+        for b in h["model"]}
+
+
+def held_object(result: dict, boxes, stage: str) -> dict[str, fcl.CollisionObject]:
+    """The object held, as boxes ``(extents, centre)`` in its own frame (from its YAML), at
+    pick-up (``initial_pose``) or at the handover (``object_pose``)."""
+    pose = np.asarray(result["initial_pose" if stage == "pickup" else "object_pose"])
+    out = {}
+    for i, (extents, centre) in enumerate(boxes):
+        local = np.eye(4)
+        local[:3, 3] = centre
+        out[f"object:{result['object']}:{i}"] = fcl_object(fcl.Box(*extents), pose @ local)
+    return out
+
+
+def link_hits(kb: Path, urdf, result: dict, scene: str, object_boxes=()) -> list[str]:
     """Every (stage, arm's link, target) the plan's joint values put in contact,
-    independently of the planner; [] for a clear plan."""
+    independently of the planner; [] for a clear plan. Targets: the table, the obstacles,
+    the receiver's body (without the arms that take the object at the handover) and the
+    hands that take it, the robot's fixed links, the other arm, and (``object_boxes``, its
+    boxes in its own frame) the object held at pick-up and at the handover."""
     base = base_pose(kb)
     urdf.update_cfg(np.zeros(len(urdf.actuated_joint_names)))
     torso = {f"body:robot:{n}": o for n, objs in
@@ -145,7 +170,10 @@ def link_hits(kb: Path, urdf, result: dict, scene: str) -> list[str]:
             arm = posed_arm(urdf, base, side, joints)
             posed.setdefault(stage, {})[side] = arm
             person = receiver_body(result, receiving if stage == "handover" else ())
-            targets = {**world, **person, **torso,
+            if stage == "handover":
+                person.update(receiver_hands(result))
+            held = held_object(result, object_boxes, stage) if stage != "midair" else {}
+            targets = {**world, **person, **torso, **held,
                        **{f"body:robot:{other}_link0": o for o in mount}}
             for link, objs in arm.items():
                 for name, target in targets.items():
@@ -254,8 +282,8 @@ def test_the_trace_says_what_the_links_were_checked_against(links_kb):
         assert f"of the {other} arm's links at the midair regrasp" in e["links"]
     single = Planner().plan("knife", mode="h1g1").to_dict()
     (e,) = [e for e in single["trace"] if e["rule"] == "arm_reaches"]
-    assert e["links"] == ("clear of scene:table, body:receiver, body:robot at pick-up and at "
-                          "the handover")
+    assert e["links"] == ("clear of scene:table, body:receiver, body:robot, object:knife at "
+                          "pick-up and at the handover")
 
 
 def test_the_shoulders_an_arm_turns_in_are_spared_whatever_the_body_calls_them(
@@ -282,3 +310,79 @@ def test_the_shoulders_an_arm_turns_in_are_spared_whatever_the_body_calls_them(
     hits = arms.collisions("left", q)
     assert any("torso" in row for row in hits)
     assert not any("left_shoulder" in row for row in hits)
+
+
+# ----------------------------------------------------------------- the object held
+
+TROPHY = """\
+id: trophy
+name: A trophy, its post on a wide plinth
+mass: 0.4
+geometry:
+  primitives:
+    - {shape: box, part: base, extents: [0.40, 0.40, 0.10], position: [0, 0, 0.05]}
+    - {shape: box, part: post, extents: [0.02, 0.02, 0.16], position: [0, 0, 0.18]}
+parts:
+  base: {tags: []}
+  post: {tags: [handle]}
+axes:
+  up: [0, 0, 1]
+"""
+TROPHY_BOXES = (((0.40, 0.40, 0.10), (0.0, 0.0, 0.05)), ((0.02, 0.02, 0.16), (0.0, 0.0, 0.18)))
+
+
+@pytest.fixture(scope="module")
+def trophy_plan(links_kb):
+    (links_kb / "objects" / "trophy.yaml").write_text(TROPHY, encoding="utf-8")
+    return Planner(kb=load_kb(links_kb)).plan("trophy")
+
+
+def test_no_link_goes_into_the_object_held_or_the_hands_taking_it(links_kb, builtin_urdf,
+                                                                  trophy_plan):
+    r = trophy_plan.to_dict()
+    assert r["outcome"] == "handover", r["reason"]
+    assert link_hits(links_kb, builtin_urdf, r, "table", TROPHY_BOXES) == []
+    (entry,) = [e for e in r["trace"] if e["rule"] == "arm_reaches"]
+    assert entry["links"] == ("clear of scene:table, body:receiver, body:robot, object:trophy "
+                              "at pick-up and at the handover")
+
+
+def test_a_grasp_low_on_the_post_puts_the_wrist_into_the_base(links_kb, builtin_urdf,
+                                                              trophy_plan):
+    # Side grasps 3.6 cm above the plinth, the fingers closing horizontally: the gripper
+    # fits (its palm is 6 cm thick), the wrist behind it does not (its last link, a cylinder
+    # of 5 cm radius about the approach, 15-22 cm behind the grasp, over the plinth).
+    # Whatever the arm's other joints do, the exact check finds it in the plinth, names the
+    # link and the object, and passes the row over.
+    from handover.engine.arms import confirm
+    from handover.engine.attempt import Phase, Roles
+
+    ctx = trophy_plan.context
+    r = trophy_plan.to_dict()
+    poses = ctx.gripper_poses()  # object frame
+    low = np.flatnonzero((np.abs(poses[:, 2, 2]) < 0.05) & (np.abs(poses[:, 2, 0]) > 0.95)
+                         & (poses[:, 2, 3] > 0.12) & (poses[:, 2, 3] < 0.15))
+    assert len(low)
+    hands = ctx.hands(Roles(want=frozenset({"handle"})))
+    (base_box,) = held_object(r, TROPHY_BOXES[:1], "pickup").values()
+    checked = 0
+    for side in ("left", "right"):
+        phase = Phase("H1G1", hands=hands, arm=side)
+        flange_to_link7 = np.linalg.inv(builtin_urdf.get_transform(f"{side}_flange",
+                                                                   f"{side}_link7"))
+        tcp = np.asarray(r["robot"]["arms"][side]["tcp"])
+        for grasp in low:
+            check = confirm(ctx, phase, side, np.array([grasp]), np.array([0]))[0]
+            if not check.reached[0]:  # not within this arm's reach at pick-up
+                continue
+            checked += 1
+            assert not check.ok
+            words = check.failure()
+            assert words.startswith(f"the {side} arm's ") and words.endswith(" at pick-up")
+            assert f"{side}_link7" in words and "object:trophy" in words, words
+            # Here: the URDF's cylinder of the last link, where the grasp puts it.
+            link7 = (np.asarray(r["initial_pose"]) @ poses[grasp] @ np.linalg.inv(tcp)
+                     @ flange_to_link7)
+            (cylinder,) = link_objects_at(builtin_urdf, f"{side}_link7", link7)
+            assert collide(cylinder, base_box)
+    assert checked

@@ -222,6 +222,61 @@ def test_placed_collider_moves_the_object_not_the_grippers():
         collider.placed(np.diag([2.0, 1.0, 1.0, 1.0]))
 
 
+
+def test_capsules_against_a_box_at_hand_computed_gaps():
+    # A 0.1 m cube at the origin; capsules of radius 0.02 along z above it, x = 0: the gap
+    # is (lowest end - radius) - 0.05, touching counts.
+    collider = ObjectCollider(_box([0.1, 0.1, 0.1]))
+    lows = np.array([0.06, 0.0699, 0.0701, 0.2])
+    ends_a = np.column_stack([np.zeros(4), np.zeros(4), lows])
+    hit = collider.capsules_collide(ends_a, ends_a + [0.0, 0.0, 0.1], 0.02)
+    assert hit.tolist() == [True, True, False, False]
+    # Beside the cube's edge (x = y = 0.05 + 0.02 / sqrt(2) +- 1 mm): the round side counts.
+    d = 0.05 + 0.02 / np.sqrt(2.0)
+    side = np.array([[d - 0.001, d - 0.001, -0.2], [d + 0.001, d + 0.001, -0.2]])
+    hit = collider.capsules_collide(side, side + [0.0, 0.0, 0.4], np.array([0.02, 0.02]))
+    assert hit.tolist() == [True, False]
+    # Wholly inside (no surface crossed: python-fcl alone misses it), and a point-sized sphere.
+    assert collider.capsules_collide([[0, 0, -0.01]], [[0, 0, 0.01]], 0.005).tolist() == [True]
+    assert collider.capsules_collide([[0, 0, 0.07]], [[0, 0, 0.07]],
+                                     [0.021]).tolist() == [True]
+    assert collider.capsules_collide([[0, 0, 0.07]], [[0, 0, 0.07]],
+                                     [0.019]).tolist() == [False]
+    # Placed: the object moves, the capsules do not.
+    moved = collider.placed(_moved([1.0, 0, 0]))
+    assert moved.capsules_collide([[1.0, 0, 0.06]], [[1.0, 0, 0.16]], 0.02).tolist() == [True]
+    assert moved.capsules_collide([[0, 0, 0.06]], [[0, 0, 0.16]], 0.02).tolist() == [False]
+    with pytest.raises(ValueError, match="radii"):
+        collider.capsules_collide([[0, 0, 0]], [[0, 0, 1]], -0.1)
+
+
+
+def test_posed_boxes_against_a_placed_object():
+    # The cube placed 1 m along x: a 2 cm box 6 cm above its centre touches it (its bottom
+    # face at 5 cm), 7.1 cm above does not; a 45-degree box's corner reaches down 1.41 cm.
+    moved = ObjectCollider(_box([0.1, 0.1, 0.1])).placed(_moved([1.0, 0, 0]))
+    turned = Rotation.from_euler("x", 45, degrees=True).as_matrix()
+    centres = np.array([[1.0, 0, 0.06], [1.0, 0, 0.071], [1.0, 0, 0.0635], [1.0, 0, 0.0645],
+                        [0.0, 0, 0.06]])
+    rotations = np.stack([EYE, EYE, turned, turned, EYE])
+    got = moved.solids_collide(centres, rotations, np.full((5, 3), 0.02))
+    assert got.tolist() == [True, False, True, False, False]
+
+@given(st.floats(0.005, 0.05), st.floats(-0.3, 0.3), st.floats(-0.3, 0.3), st.floats(-0.3, 0.3),
+       st.floats(0.0, 0.2))
+@settings(max_examples=60, deadline=None, derandomize=True)
+def test_capsules_agree_with_the_distance_to_a_box(radius, x, y, z, length):
+    # A vertical capsule against the cube: it collides when its segment comes within its
+    # radius of the solid cube (the distance computed here, by clamping; 1 mm either way).
+    collider = ObjectCollider(_box([0.1, 0.1, 0.1]))
+    zs = np.linspace(z, z + length, 401)
+    points = np.column_stack([np.full_like(zs, x), np.full_like(zs, y), zs])
+    gap = np.linalg.norm(points - np.clip(points, -0.05, 0.05), axis=1).min()
+    if abs(gap - radius) < 1e-3:
+        return
+    got = collider.capsules_collide([[x, y, z]], [[x, y, z + length]], radius)[0]
+    assert got == (gap < radius)
+
 def _reference(mesh, poses, widths):
     """Slow and plain: one BVH of the whole gripper per pose; containment from every box
     corner in the mesh and every mesh vertex in a box."""
