@@ -53,7 +53,8 @@ class Hands:
     ``locations.points``); where no location passes every hard location rule, the one that
     came closest (and ``located[k]`` is False). measured : measure -> (K,) the chosen
     location's values (``clear`` 1/0). hits : per presentation, what the object or the
-    receiver's hands hit at the chosen location (names; empty when clear).
+    receiver's hands hit at the chosen location (names; empty when clear). avoid : the
+    candidate locations tried last (a mode moved the presentations off them).
     """
 
     key: tuple
@@ -67,6 +68,7 @@ class Hands:
     hits: tuple[tuple[str, ...], ...]
     receiving: tuple[str, ...] = ("right",)
     locations: Locations | None = None
+    avoid: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)

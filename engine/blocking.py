@@ -125,7 +125,7 @@ def _lifted(decision: Decision, removed: set[str]) -> tuple[int, Decision | None
     hands = phase.hands if phase is not None else None
     if phase is not None and any(c.rule.kind in ("contact", "location") for c in cg.order
                                  if c.id in removed):
-        hands = hands_for(cg2, ctx, len(phase.hands.sites))
+        hands = hands_for(cg2, ctx, len(phase.hands.sites), phase.hands.avoid)
     kept_ids = {c.id for c in cg2.order}
     joined = any(c.id not in {o.id for o in cg.order} for c in cg2.order)
     if phase is None or (hands is phase.hands and not joined):

@@ -212,7 +212,7 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
     return Hands(key=key, region=region, sites=sites, s_range=s_range, poses=placed.poses,
                  location=placed.location, located=placed.located, measured=placed.measured,
                  hits=placed.hits, receiving=receiving,
-                 locations=ctx.locations(receiving[0]))
+                 locations=ctx.locations(receiving[0]), avoid=avoid)
 
 
 def _rotation_deg(angles) -> np.ndarray:

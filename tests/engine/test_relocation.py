@@ -82,3 +82,35 @@ def test_without_the_move_the_same_request_had_no_plan(capsys, monkeypatch):
     code, r = _plan(capsys, "bottle", "--receiver", "child_10", "--mode", "h2g1")
     assert code == 4 and r["outcome"] == "infeasible"
     assert "arm cannot reach" in r["reason"] and "arm_reaches" in r["reason"]
+
+
+def test_explaining_an_attempt_at_moved_locations_judges_them_there(builtin_kb, monkeypatch):
+    # A mode that moved the presentations off their first locations (``avoid``) and still
+    # failed is explained where it was judged: lifting a location rule places the receiver's
+    # hands again with the same locations tried last, not back at the first ones.
+    from handover.engine import blocking
+    from handover.engine.attempt import Phase
+    from handover.engine.compiler import compile as compile_graph
+    from handover.engine.evaluate import evaluate
+    from handover.engine.hands import hands_for
+    from handover.engine.prepare import prepare
+    from handover.engine.query import Query
+
+    ctx = prepare(builtin_kb, Query(object="mug"))
+    cg = compile_graph(builtin_kb, ctx, "H1G1")
+    first = hands_for(cg, ctx)
+    avoid = tuple(sorted({int(v) for v in first.location}))
+    moved = hands_for(cg, ctx, 1, avoid)
+    assert moved.avoid == avoid and not set(moved.location.tolist()) & set(avoid)
+    decision = evaluate(cg, ctx, Phase("H1G1", hands=moved))
+    asked = []
+
+    def spy(graph, context, count=1, avoid=()):
+        asked.append(avoid)
+        return hands_for(graph, context, count, avoid)
+
+    monkeypatch.setattr(blocking, "hands_for", spy)
+    rule = next(c.id for c in cg.order if c.rule.kind == "location" and c.rule.hard)
+    n, again = blocking._lifted(decision, {rule})
+    assert asked == [avoid]
+    assert again is not None and again.judged_in[1].hands.avoid == avoid
