@@ -213,7 +213,11 @@ def build_result(
     placed = outcome == "place" and placement is not None and placement.feasible
     s = ctx.situation
     shown, sctx = (placement.attempt, placement.context) if placed else (attempt, ctx)
-    k = shown.chosen[-1].presentation if shown.chosen else 0
+    if shown.chosen:
+        k = shown.chosen[-1].presentation
+    else:  # where the rows got furthest: what the recording shows and handover_point says
+        k = (shown.decision.furthest_presentation(sctx.k) if shown.decision is not None
+             else 0)
     robot_grasps = [grasp_record(sctx, c.hand, c.grasp, c.phase.hands.poses[c.presentation],
                                  shown.score)
                     for c in shown.chosen]

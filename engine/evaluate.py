@@ -110,6 +110,19 @@ class Decision:
                 out[c.id] = dict(sorted(tally.items(), key=lambda kv: (-kv[1], kv[0])))
         return out
 
+    def furthest_presentation(self, k_total: int) -> int:
+        """The presentation (of ``k_total``) whose rows got furthest: most kept, then most
+        past every hard rule but the collision rules, then fewest failed rules; the lowest
+        index on ties (0 without rows). What an infeasible plan shows and says."""
+        if self.n_rows == 0 or k_total == 0:
+            return 0
+        cheap = [h for h, c in enumerate(self.hard) if c.rule.kind != "collision"]
+        past_cheap = ~self.fails[:, cheap].any(axis=1) if cheap else np.ones(self.n_rows, bool)
+        kept = np.bincount(self.pk, self.kept.astype(float), minlength=k_total)
+        past = np.bincount(self.pk, past_cheap.astype(float), minlength=k_total)
+        nfail = np.bincount(self.pk, self.fails.sum(axis=1).astype(float), minlength=k_total)
+        return int(np.lexsort((np.arange(k_total), nfail, -past, -kept))[0])
+
     def rejected_by(self) -> dict[str, int]:
         """Rows removed by each hard rule: the first rule (in order) a row failed."""
         first = self.first_fail[self.first_fail >= 0]

@@ -204,16 +204,9 @@ def shown_presentation(result: PlanResult, decision: Decision | None, k_total: i
     pres = result.presentation or {}
     if result.feasible and pres.get("index") is not None:
         return int(pres["index"])
-    if decision is None or decision.n_rows == 0 or k_total == 0:
+    if decision is None:
         return 0
-    cheap, _ = _cheap_and_collision(decision)
-    past_cheap = ~decision.fails[:, cheap].any(axis=1) if cheap else np.ones(decision.n_rows, bool)
-    kept = np.bincount(decision.pk, decision.kept.astype(float), minlength=k_total)
-    past = np.bincount(decision.pk, past_cheap.astype(float), minlength=k_total)
-    nfail = np.bincount(decision.pk, decision.fails.sum(axis=1).astype(float),
-                        minlength=k_total)  # fmt: skip
-    order = np.lexsort((np.arange(k_total), nfail, -past, -kept))
-    return int(order[0])
+    return decision.furthest_presentation(k_total)
 
 
 @dataclass

@@ -753,3 +753,44 @@ def test_the_recording_draws_both_bodies_and_the_handover_locations(kb, tmp_path
     radii = np.asarray(rows[0]["Points3D:radii"])
     big = points[np.argmax(radii)]
     np.testing.assert_allclose(big, result.handover_point["position"], atol=1e-4)
+
+
+FAR_APART = """\
+id: far_apart
+name: The gripper 10 m from the receiver's hand (no candidate can)
+extends: common
+why: A culture no plan satisfies, to look at an infeasible plan.
+rules:
+  - id: ten_metres_apart
+    kind: clearance
+    min_m: 10.0
+    hard: true
+    why: Nothing passes, so every presentation fails.
+"""
+
+
+def test_an_infeasible_plan_says_and_draws_the_same_handover_location(tmp_path):
+    import shutil
+
+    from handover.engine.loader import load_kb
+    from handover.engine.planner import plan
+    from handover.engine.query import Query
+    from handover.engine.store import builtin_kb_dir
+
+    root = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    (root / "etiquette" / "far_apart.yaml").write_text(FAR_APART, encoding="utf-8")
+    planned = plan(load_kb(root), Query(object="knife", culture="far_apart", mode="h1g1"))
+    result = planned.result
+    assert not result.feasible and "ten_metres_apart" in result.reason
+    point = result.handover_point
+    # The presentation whose rows got furthest is the one drawn and the one described.
+    decision = planned.attempt.decision
+    k = decision.furthest_presentation(len(planned.context.rotations))
+    assert k != 0 and point["presentation"] == k  # not simply the first one
+    path = tmp_path / "far.rrd"
+    planned.record(path)
+    rows = read_columns(path)["world/handover/locations"]
+    points = np.asarray(rows[0]["Points3D:positions"])
+    radii = np.asarray(rows[0]["Points3D:radii"])
+    np.testing.assert_allclose(points[np.argmax(radii)], point["position"], atol=1e-4)
