@@ -388,6 +388,46 @@ class RobotModel:
         return pose, np.maximum(hi - lo, 1e-6)
 
 
+def _floats(text: str | None, count: int) -> list[float] | None:
+    """``count`` numbers from an attribute's text, None when they are not that many finite
+    numbers."""
+    try:
+        values = [float(v) for v in (text or "").split()]
+    except ValueError:
+        return None
+    return values if len(values) == count and all(np.isfinite(values)) else None
+
+def _check_numbers(root, path: Path) -> None:
+    """Every ``<origin>`` (xyz, rpy) finite, every mesh's scale finite and non-zero, every
+    collision shape's size finite and positive (a cylinder's length may be 0), at the
+    element's line, before any is used."""
+    for element in root.iter("origin"):
+        for attr in ("xyz", "rpy"):
+            if element.get(attr) is not None and _floats(element.get(attr), 3) is None:
+                raise RobotModelError(f"<origin {attr}={element.get(attr)!r}>: expected three "
+                                      "finite numbers", path, element.sourceline)
+    for element in root.iter("mesh"):
+        scale = element.get("scale")
+        if scale is not None and ((v := _floats(scale, 3)) is None or min(map(abs, v)) == 0):
+            raise RobotModelError(f"<mesh scale={scale!r}>: expected three finite, non-zero "
+                                  "numbers", path, element.sourceline)
+    sizes = {"box": (("size", 3),), "sphere": (("radius", 1),),
+             "cylinder": (("radius", 1), ("length", 1))}
+    for collision in root.iter("collision"):
+        for tag, attrs in sizes.items():
+            for element in collision.iter(tag):
+                for attr, count in attrs:
+                    values = _floats(element.get(attr), count)
+                    least_ok = 0.0 if attr == "length" else 1e-12
+                    if values is None or min(values) < least_ok:
+                        raise RobotModelError(
+                            f"<{tag} {attr}={element.get(attr)!r}>: expected "
+                            f"{'a' if count == 1 else count} finite "
+                            f"{'length' if count == 1 else 'lengths'} "
+                            f"{'>= 0' if attr == 'length' else '> 0'} (m)",
+                            path, element.sourceline)  # fmt: skip
+
+
 def _sphere_inside(cap, caps) -> bool:
     """Whether ``cap`` is a sphere lying wholly inside another capsule of ``caps``."""
     a, b, r = cap
@@ -501,6 +541,8 @@ def load_urdf(path: str | os.PathLike) -> RobotModel:
                     f"the joints form a cycle through link {link!r}", path, lines[f"link:{link}"]
                 )
             seen.add(link)
+
+    _check_numbers(root, path)
 
     # Every referenced mesh must exist (yourdfpy would load a missing one as nothing).
     mesh_files: dict[str, Path] = {}

@@ -197,3 +197,19 @@ def test_validate_exits_3_without_a_traceback(make_kb):
     assert f"robots/arm.yaml:{line_of(ROBOT, 'base_link:')}:" in proc.stderr
     assert "planar joints are not supported" in proc.stderr
     assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize(("old", "new", "expected"), [
+    ('<origin xyz="0 0 0.3"/>', '<origin xyz="0 0 nan"/>',
+     "<origin xyz='0 0 nan'>: expected three finite numbers"),
+    ('<box size="0.3 0.3 0.3"/>', '<box size="0.3 -0.3 0.3"/>',
+     "<box size='0.3 -0.3 0.3'>: expected 3 finite lengths > 0"),
+])
+def test_numbers_a_plan_cannot_use(make_kb, old, new, expected):
+    # A NaN in a joint's origin, a box of negative size: a KB error at the URDF's line (a
+    # plan with them would compute NaN poses, or crash), not a plan.
+    urdf = ARM_URDF.replace(old, new)
+    issue = the_error(make_kb({"robots/arm.yaml": ROBOT, "robots/arm.urdf": urdf}))
+    assert issue.line == line_of(ROBOT, "urdf:")
+    assert expected in issue.message
+    assert f"robots/arm.urdf:{line_of(urdf, new)}" in issue.message

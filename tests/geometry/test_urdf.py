@@ -220,3 +220,39 @@ def test_revolute_joint_without_limits_is_an_error(tmp_path):
         """)
     with pytest.raises(RobotModelError, match="needs <limit"):
         load_urdf(path).chain("a", "b")
+
+
+@pytest.mark.parametrize(("bad", "message"), [
+    ('<origin xyz="0 0 0.1"/>', None),  # the joint's origin, well formed: loads
+    ('<origin xyz="0 0 nan"/>', r"<origin xyz='0 0 nan'>: expected three finite numbers"),
+    ('<origin xyz="0 0"/>', r"<origin xyz='0 0'>: expected three finite numbers"),
+    ('<origin rpy="0 inf 0"/>', r"<origin rpy='0 inf 0'>: expected three finite numbers"),
+])
+def test_a_joint_origin_that_is_not_three_finite_numbers_is_an_error_at_its_line(
+        tmp_path, bad, message):
+    path = _write(tmp_path, TWO_LINK.replace('<origin xyz="0 0 0.1"/>', bad))
+    if message is None:
+        load_urdf(path)
+        return
+    with pytest.raises(RobotModelError, match=message) as info:
+        load_urdf(path)
+    assert info.value.line == _line_of(path, bad)
+
+
+@pytest.mark.parametrize(("geometry", "message"), [
+    ('<cylinder radius="-0.05" length="0.4"/>', r"<cylinder radius='-0.05'>: expected a finite "
+     r"length > 0"),
+    ('<cylinder radius="0.05" length="-1"/>', r"<cylinder length='-1'>: expected a finite "
+     r"length >= 0"),
+    ('<sphere radius="0"/>', r"<sphere radius='0'>: expected a finite length > 0"),
+    ('<box size="0.1 0 0.1"/>', r"<box size='0.1 0 0.1'>: expected 3 finite lengths > 0"),
+    ('<box size="0.1 0.1"/>', r"<box size='0.1 0.1'>: expected 3 finite lengths > 0"),
+    ('<mesh filename="m.stl" scale="1 0 1"/>', r"<mesh scale='1 0 1'>: expected three finite, "
+     "non-zero numbers"),
+])
+def test_a_collision_shape_of_no_size_is_an_error_at_its_line(tmp_path, geometry, message):
+    trimesh.creation.box((0.1, 0.1, 0.1)).export(tmp_path / "m.stl")
+    path = _write(tmp_path, TWO_LINK.replace('<cylinder radius="0.05" length="0.4"/>', geometry))
+    with pytest.raises(RobotModelError, match=message) as info:
+        load_urdf(path)
+    assert info.value.line == _line_of(path, geometry)
