@@ -208,6 +208,18 @@ def assemble(kb: KB, spec: RobotSpec) -> tuple[tuple | None, list[KBIssue]]:
         except RobotModelError as exc:
             issues.append(_urdf_issue(kb, spec, exc, "arms", side))
             continue
+        shared = [(other, j) for other, arm in arms.items() for j in chain.joint_names
+                  if j in arm.chain.joint_names]
+        if shared:  # one arm named twice: it cannot hold two grasps at once
+            other = shared[0][0]
+            issues.append(kb.issue(
+                spec, f"robot '{spec.id}': the {side} arm's chain moves with the {other} "
+                f"arm's joint{'s' if len(shared) > 1 else ''} "
+                f"{', '.join(repr(j) for _, j in shared)}: each arm needs joints of its own "
+                "(a joint both arms move, a waist, is not planned: make it fixed in the URDF "
+                "at the pose to plan for and start both chains after it)",
+                "arms", side, "tip_link"))  # fmt: skip
+            continue
         mount = model.urdf.joint_map[chain.joint_names[0]].parent
         gripper = arm_spec.gripper or spec.gripper
         arms[side] = Arm(side, chain, kin, base, tcp, shapes, mount, gripper)
@@ -239,8 +251,9 @@ def _horizontal_reach(arm: Arm, base_pose: np.ndarray) -> float:
 def check_robot(kb: KB, spec: RobotSpec) -> list[KBIssue]:
     """Problems of a robot's URDF and arms (its file is assumed to exist inside the KB: see
     :func:`handover.engine.lint.lint_robot`): the URDF does not parse, a link named by an arm
-    is missing, a chain has unsupported joints or none that moves, an arm's base link moves
-    relative to the root, a warning when ``reach`` exceeds the arms'."""
+    is missing, a chain has unsupported joints or none that moves, two arms share a joint,
+    an arm's base link moves relative to the root, a warning when ``reach`` exceeds the
+    arms'."""
     if spec.urdf is None:
         return []
     return assemble(kb, spec)[1]

@@ -213,3 +213,52 @@ def test_numbers_a_plan_cannot_use(make_kb, old, new, expected):
     assert issue.line == line_of(ROBOT, "urdf:")
     assert expected in issue.message
     assert f"robots/arm.urdf:{line_of(urdf, new)}" in issue.message
+
+
+TWO_ARMS_ON_A_WAIST = """\
+<?xml version="1.0"?>
+<robot name="waist">
+  <link name="base"/><link name="torso"/>
+  <link name="la"/><link name="ltip"/><link name="ra"/><link name="rtip"/>
+  <joint name="waist" type="revolute">
+    <parent link="base"/><child link="torso"/><origin xyz="0 0 0.8"/><axis xyz="0 0 1"/>
+    <limit lower="-1" upper="1"/>
+  </joint>
+  <joint name="lj" type="revolute">
+    <parent link="torso"/><child link="la"/><origin xyz="0 0.2 0.3"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2"/>
+  </joint>
+  <joint name="lt" type="fixed"><parent link="la"/><child link="ltip"/>
+    <origin xyz="0.4 0 0"/></joint>
+  <joint name="rj" type="revolute">
+    <parent link="torso"/><child link="ra"/><origin xyz="0 -0.2 0.3"/><axis xyz="0 1 0"/>
+    <limit lower="-2" upper="2"/>
+  </joint>
+  <joint name="rt" type="fixed"><parent link="ra"/><child link="rtip"/>
+    <origin xyz="0.4 0 0"/></joint>
+</robot>
+"""
+
+
+@pytest.mark.parametrize(("left", "right", "shared"), [
+    ("{base_link: base, tip_link: ltip}", "{base_link: base, tip_link: ltip}",
+     "'waist', 'lj'"),  # one arm named twice
+    ("{base_link: base, tip_link: ltip}", "{base_link: base, tip_link: rtip}",
+     "'waist'"),  # both chains through the waist: each arm would turn it its own way
+])
+def test_two_arms_that_share_a_joint(make_kb, left, right, shared):
+    text = ROBOT.replace("urdf: arm.urdf", "urdf: waist.urdf").replace(
+        "arms:\n  right:\n    base_link: base\n    tip_link: tip\n",
+        f"arms:\n  left: {left}\n  right: {right}\n")
+    issue = the_error(make_kb({"robots/arm.yaml": text, "robots/waist.urdf": TWO_ARMS_ON_A_WAIST}))
+    assert issue.line == line_of(text, "  right:")
+    assert "the right arm's chain moves with the left arm's joint" in issue.message
+    assert shared in issue.message and "make it fixed in the URDF" in issue.message
+    # The waist fixed, the chains from the torso: two arms.
+    fixed = TWO_ARMS_ON_A_WAIST.replace('name="waist" type="revolute"', 'name="waist" type="fixed"')
+    good = text.replace("{base_link: base, tip_link: ltip}", "{base_link: torso, tip_link: ltip}"
+                        ).replace("{base_link: base, tip_link: rtip}",
+                                  "{base_link: torso, tip_link: rtip}")
+    if "rtip" in right:
+        kb = load_kb(make_kb({"robots/arm.yaml": good, "robots/waist.urdf": fixed}))
+        assert sorted(kb.robot("arm").arms) == ["left", "right"]
