@@ -84,9 +84,9 @@ def held_contacts(ctx: PlanContext, phase: Phase, side: str, stage: str, q: np.n
     where its links touch the object it holds (at the stage's pose, against its mesh:
     :class:`~handover.geometry.collision.ObjectCollider`'s ``capsules_collide`` and
     ``solids_collide``) or, at the handover, the receiver's hands that take it (their palm
-    and finger boxes where the collision rules put them). Links in chain order, the object
-    first."""
-    from handover.geometry.armcollision import posed_boxes, posed_capsules
+    and finger boxes where the collision rules put them) and the arms reaching for it (from
+    the shoulder to the palm). Links in chain order, the object first."""
+    from handover.geometry.armcollision import posed_boxes, posed_capsules, segment_distances
     from handover.geometry.proximity import point_segment_distances
 
     arms = ctx.arms
@@ -113,10 +113,13 @@ def held_contacts(ctx: PlanContext, phase: Phase, side: str, stage: str, q: np.n
                 touched.update(shapes.box_link[hit].tolist())
         found = [(shapes.links[j], names[0]) for j in sorted(touched)]
         if stage == "handover":
-            for boxes, centre, reach in _hand_boxes(ctx, phase, int(pk[i])):
+            for boxes, centre, reach, arm in _hand_boxes(ctx, phase, int(pk[i])):
                 gap = point_segment_distances(centre, cap_a[i], cap_b[i]) - shapes.cap_radius
-                if len(shapes.box_link) or (gap <= reach).any():  # else far from the hand
-                    hits = arms.contacts(side, q[i], boxes=boxes, own_body=False)[0]
+                near = segment_distances(cap_a[i], cap_b[i], arm.p0, arm.p1) <= (
+                    shapes.cap_radius + arm.radius)
+                if len(shapes.box_link) or (gap <= reach).any() or near.any():
+                    hits = arms.contacts(side, q[i], boxes=boxes, bodies=[arm],
+                                         own_body=False)[0]
                     found += list(dict.fromkeys(hits))
         out.append(tuple(found))
     return out
@@ -129,28 +132,39 @@ def _placed(ctx: PlanContext, pose: np.ndarray):
         memo[key] = ctx.collider.placed(pose)
     return memo[key]
 
-def _hand_boxes(ctx: PlanContext, phase: Phase, k: int) -> list[tuple[list, np.ndarray, float]]:
+def _hand_boxes(ctx: PlanContext, phase: Phase, k: int) -> list[tuple]:
     """Per receiving hand in presentation ``k``: its boxes named ``body:receiver:<hand>_hand``
-    (world, at the handover), their centre and the radius of a sphere holding them (m).
+    (world, at the handover), their centre and the radius of a sphere holding them (m), and
+    the arm reaching for the object (a :class:`~handover.geometry.bodies.Body` of one
+    capsule, ``body:receiver:<hand>_arm``, from the shoulder to the palm's centre, as thick
+    as the upper arm: the elbow's bend is not known, the straight arm stands for it).
     Memoised per hands and presentation."""
     from handover.engine.features import hand_models
+    from handover.geometry.bodies import Body
     from handover.geometry.hand import BOX_NAMES
 
     hands = phase.hands
     memo = ctx.memo.setdefault("held_hand_boxes", {})
     if (hands.key, k) not in memo:
+        body = ctx.world.receiver_body
         out = []
         for hand, sites in zip(hands.receiving, hands.sites, strict=True):
             extents, poses, valid = hand_models(ctx, hands.region, sites, np.array([k]),
                                                 hands.poses[k:k + 1])
             boxes = [(f"body:receiver:{hand}_hand", extents[0, b], poses[0, b])
                      for b in range(len(BOX_NAMES)) if valid[0, b]]
-            if boxes:
-                corners = np.array([p[:3, 3] + p[:3, :3] @ (e * sign / 2.0)
-                                    for _, e, p in boxes for sign in _CORNERS])
-                centre = corners.mean(axis=0)
-                out.append((boxes, centre, float(np.linalg.norm(corners - centre,
-                                                                axis=1).max())))
+            if not boxes:
+                continue
+            corners = np.array([p[:3, 3] + p[:3, :3] @ (e * sign / 2.0)
+                                for _, e, p in boxes for sign in _CORNERS])
+            centre = corners.mean(axis=0)
+            upper = body.capsule_names.index(f"{hand}_upper_arm")
+            arm = Body(capsule_names=(f"body:receiver:{hand}_arm",),
+                       p0=body.p0[upper][None], p1=poses[0, 0, :3, 3][None],  # palm
+                       radius=body.radius[upper:upper + 1], box_names=(),
+                       extents=np.zeros((0, 3)), poses=np.zeros((0, 4, 4)))
+            out.append((boxes, centre, float(np.linalg.norm(corners - centre, axis=1).max()),
+                        arm))
         memo[(hands.key, k)] = out
     return memo[(hands.key, k)]
 

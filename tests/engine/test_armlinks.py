@@ -108,18 +108,8 @@ def receiver_body(result: dict, without: tuple[str, ...] = ()) -> dict[str, fcl.
                ("upper_arm", "forearm", "hand") for h in without):
             continue
         if p["shape"] == "capsule":
-            p0, p1 = np.asarray(p["p0"]), np.asarray(p["p1"])
-            axis = p1 - p0
-            length = float(np.linalg.norm(axis))
-            pose = np.eye(4)
-            pose[:3, 3] = 0.5 * (p0 + p1)
-            if length > 1e-9:
-                z = axis / length
-                x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
-                x /= np.linalg.norm(x)
-                pose[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-            out[f"body:receiver:{p['name']}"] = fcl_object(fcl.Capsule(p["radius"], length),
-                                                           pose)
+            out.update(capsule_objects(f"body:receiver:{p['name']}", p["p0"], p["p1"],
+                                       p["radius"]))
         else:
             assert p["shape"] == "box", p
             out[f"body:receiver:{p['name']}"] = fcl_object(fcl.Box(*p["extents"]),
@@ -129,10 +119,33 @@ def receiver_body(result: dict, without: tuple[str, ...] = ()) -> dict[str, fcl.
 
 def receiver_hands(result: dict) -> dict[str, fcl.CollisionObject]:
     """The boxes of the receiver's hands that take the object, where the result puts them
-    at the handover (``human_grasps[].model``, world)."""
-    return {f"body:receiver:{h['hand']}_hand:{b['name']}": fcl_object(
+    at the handover (``human_grasps[].model``, world), and each arm reaching for it: a
+    capsule from the shoulder (the result's body) to the palm's centre, as thick as the
+    upper arm."""
+    out = {f"body:receiver:{h['hand']}_hand:{b['name']}": fcl_object(
         fcl.Box(*b["extents"]), np.asarray(b["pose"])) for h in result["human_grasps"]
         for b in h["model"]}
+    parts = {p["name"]: p for p in result["bodies"]["receiver"]}
+    for h in result["human_grasps"]:
+        upper = parts[f"{h['hand']}_upper_arm"]
+        palm = next(b for b in h["model"] if b["name"] == "palm")
+        out.update(capsule_objects(f"body:receiver:{h['hand']}_arm", upper["p0"],
+                                   np.asarray(palm["pose"])[:3, 3], upper["radius"]))
+    return out
+
+
+def capsule_objects(name: str, p0, p1, radius: float) -> dict[str, fcl.CollisionObject]:
+    p0, p1 = np.asarray(p0, dtype=float), np.asarray(p1, dtype=float)
+    axis = p1 - p0
+    length = float(np.linalg.norm(axis))
+    pose = np.eye(4)
+    pose[:3, 3] = 0.5 * (p0 + p1)
+    if length > 1e-9:
+        z = axis / length
+        x = np.cross(z, [1.0, 0.0, 0.0] if abs(z[0]) < 0.9 else [0.0, 1.0, 0.0])
+        x /= np.linalg.norm(x)
+        pose[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return {name: fcl_object(fcl.Capsule(radius, length), pose)}
 
 
 def held_object(result: dict, boxes, stage: str) -> dict[str, fcl.CollisionObject]:
@@ -150,9 +163,10 @@ def held_object(result: dict, boxes, stage: str) -> dict[str, fcl.CollisionObjec
 def link_hits(kb: Path, urdf, result: dict, scene: str, object_boxes=()) -> list[str]:
     """Every (stage, arm's link, target) the plan's joint values put in contact,
     independently of the planner; [] for a clear plan. Targets: the table, the obstacles,
-    the receiver's body (without the arms that take the object at the handover) and the
-    hands that take it, the robot's fixed links, the other arm, and (``object_boxes``, its
-    boxes in its own frame) the object held at pick-up and at the handover."""
+    the receiver's body (without the arms that take the object at the handover), the hands
+    that take it and the arms reaching for it, the robot's fixed links, the other arm, and
+    (``object_boxes``, its boxes in its own frame) the object held at pick-up and at the
+    handover."""
     base = base_pose(kb)
     urdf.update_cfg(np.zeros(len(urdf.actuated_joint_names)))
     torso = {f"body:robot:{n}": o for n, objs in
