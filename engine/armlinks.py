@@ -18,6 +18,7 @@ from handover.engine.armstages import (
     STAGE_WORDS,
     canonical_first,
     objects_at,
+    other_arm_idle,
     row_keys,
     stage_poses,
 )
@@ -56,16 +57,26 @@ def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
     (:class:`~handover.geometry.bodies.Body`, world, names as :class:`~handover.engine.world.
     World`'s): the scene's table (down to the floor) and obstacles, the receiver's body (at
     the handover without the arms that take the object: they reach for it, and their hands
-    are the collision rules' concern) and the robot's own body but what the arm's links
-    always touch (:meth:`~handover.engine.robot.RobotArms.spared`: its mount). Memoised in
-    the context (one world per query)."""
+    are the collision rules' concern), the robot's own body but what the arm's links
+    always touch (:meth:`~handover.engine.robot.RobotArms.spared`: its mount), and the other
+    arm at its ``rest`` where it waits (:func:`~handover.engine.armstages.other_arm_idle`;
+    its links named ``body:robot:<link>``). Memoised in the context (one world per
+    query)."""
     memo = ctx.memo.setdefault("arm_link_targets", {})
     receiving = tuple(phase.hands.receiving) if stage == "handover" else ()
-    key = (side, receiving)
+    others = [o for o in ctx.arms.sides if o != side and ctx.arms.arm(o).rest is not None]
+    idle = tuple(others) if other_arm_idle(phase, stage) else ()
+    key = (side, receiving, idle)
     if key not in memo:
+        from handover.geometry.bodies import concatenate
+
         body = ctx.world.without_receiving_arms(receiving)
         spared = {f"body:robot:{name}" for name in ctx.arms.spared(side)}
-        memo[key] = body.subset([name not in spared for name in body.names])
+        body = body.subset([name not in spared for name in body.names])
+        if idle:  # the other arm at rest, its links named as the robot's body
+            body = concatenate([body, *(ctx.arms.rest_body(o).renamed("body:robot")
+                                        for o in idle)])
+        memo[key] = body
     return memo[key]
 
 def held_names(ctx: PlanContext, phase: Phase, stage: str) -> tuple[str, ...]:

@@ -47,6 +47,15 @@ def stages(phase: Phase) -> tuple[str, ...]:
     on = (phase.pickup, phase.mode == "H2G2", phase.receiver_present)
     return tuple(s for s, yes in zip(STAGES, on, strict=True) if yes)
 
+def other_arm_idle(phase: Phase, stage: str) -> bool:
+    """Whether the robot's other arm waits at rest while this grasp's arm holds the object at
+    ``stage``: always in H1G1 and a placement; in H2G2 but at the midair regrasp (at pick-up
+    the second arm has not come yet, at the handover the first has let go); never in H2G1,
+    whose arms work together."""
+    if phase.mode == "H2G1":
+        return False
+    return not (phase.mode == "H2G2" and stage == "midair")
+
 def screened_stages(phase: Phase) -> tuple[str, ...]:
     """The stages :func:`screen` judges: :func:`stages`, except for H2G2's first grasp before
     its pair is chosen (no arm yet): its midair pose depends on the second grasp's

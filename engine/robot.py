@@ -128,6 +128,7 @@ class RobotArms:
     reach_dir: Path | None = None
     map_params: dict = field(default_factory=dict)
     _library: dict = field(default_factory=dict, repr=False)
+    _rest: dict = field(default_factory=dict, repr=False)
     _distal: dict = field(default_factory=dict, repr=False)
     _spared: dict = field(default_factory=dict, repr=False)
 
@@ -494,10 +495,33 @@ class RobotArms:
 
     # ------------------------------------------------------------------ the result's field
 
+    def rest_body(self, side: str) -> Body | None:
+        """The arm on ``side`` at its rest configuration (world): its links' capsules and
+        boxes named ``<link>``, or None for an arm without ``rest``. Memoised."""
+        arm = self.arm(side)
+        if arm.rest is None:
+            return None
+        if side not in self._rest:
+            from handover.geometry.armcollision import posed_boxes, posed_capsules
+
+            shapes = arm.shapes
+            poses = self.link_poses(side, arm.rest[None])
+            a, b = posed_capsules(shapes, poses)
+            centres, rotations = posed_boxes(shapes, poses)
+            boxes = []
+            for i, link in enumerate(shapes.box_link):
+                pose = np.eye(4)
+                pose[:3, :3], pose[:3, 3] = rotations[0, i], centres[0, i]
+                boxes.append((shapes.links[link], shapes.box_extents[i], pose))
+            self._rest[side] = Body.from_primitives(
+                capsules=[(shapes.links[link], a[0, i], b[0, i], float(shapes.cap_radius[i]))
+                          for i, link in enumerate(shapes.cap_link)], boxes=boxes)
+        return self._rest[side]
+
     def describe(self) -> dict:
         """The result's ``robot`` field: ``{id, urdf (relative to the KB folder), base_pose
         (4x4 world), arms: {side: {base_link, tip_link, tcp (4x4, tip link -> grasp frame),
-        gripper, joints: [names]}}}``, plain JSON types."""
+        gripper, joints: [names], rest: {joint: value} or null}}}``, plain JSON types."""
         return {
             "id": self.spec.id,
             "urdf": self.urdf,
@@ -509,6 +533,7 @@ class RobotArms:
                     "tcp": arm.tcp.tolist(),
                     "gripper": arm.gripper,
                     "joints": list(arm.chain.joint_names),
+                    "rest": None if arm.rest is None else arm.chain.as_dict(arm.rest),
                 }
                 for side, arm in ((s, self.arms[s]) for s in self.sides)
             },

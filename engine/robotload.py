@@ -131,7 +131,8 @@ class Arm:
     base : (4, 4) the chain's base link in the world. tcp : (4, 4) tip link -> grasp frame.
     shapes : collision shapes of the links the joints move (indexed like ``chain.links``).
     mount : the link carrying the first joint (never tested against this arm's links).
-    gripper : the gripper id.
+    gripper : the gripper id. rest : (dof,) the joint values it waits at while the other arm
+    works, or None (placed nowhere).
     """
 
     side: str
@@ -142,6 +143,7 @@ class Arm:
     shapes: LinkShapes
     mount: str
     gripper: str
+    rest: np.ndarray | None = None
 
     @property
     def dof(self) -> int:
@@ -220,9 +222,14 @@ def assemble(kb: KB, spec: RobotSpec) -> tuple[tuple | None, list[KBIssue]]:
                 "at the pose to plan for and start both chains after it)",
                 "arms", side, "tip_link"))  # fmt: skip
             continue
+        rest, problem = _rest(arm_spec.rest, chain)
+        if problem:
+            issues.append(kb.issue(spec, f"robot '{spec.id}': the {side} arm's rest: {problem}",
+                                   "arms", side, "rest"))
+            continue
         mount = model.urdf.joint_map[chain.joint_names[0]].parent
         gripper = arm_spec.gripper or spec.gripper
-        arms[side] = Arm(side, chain, kin, base, tcp, shapes, mount, gripper)
+        arms[side] = Arm(side, chain, kin, base, tcp, shapes, mount, gripper, rest)
     try:
         capsules, boxes = yaml_body(spec) if spec.body is not None else urdf_body(model)
     except RobotModelError as exc:
@@ -238,6 +245,27 @@ def assemble(kb: KB, spec: RobotSpec) -> tuple[tuple | None, list[KBIssue]]:
     if any(issue.severity == "error" for issue in issues):
         return None, issues
     return (model, arms, body), issues
+
+
+def _rest(values: dict[str, float] | None, chain: Chain) -> tuple[np.ndarray | None, str]:
+    """(dof,) the rest configuration in chain order from ``{joint: value}``, or None, and
+    what is wrong with it ("" when nothing)."""
+    if values is None:
+        return None, ""
+    unknown = [j for j in values if j not in chain.joint_names]
+    if unknown:
+        return None, (f"{', '.join(repr(j) for j in unknown)} not a joint of the chain "
+                      f"(joints: {', '.join(chain.joint_names)})")
+    missing = [j for j in chain.joint_names if j not in values]
+    if missing:
+        return None, f"every joint of the chain needs a value; missing {', '.join(missing)}"
+    q = np.array([float(values[j]) for j in chain.joint_names])
+    inside = chain.continuous | ((q >= chain.lower - 1e-9) & (q <= chain.upper + 1e-9))
+    outside = [f"{j} {v:g} not in [{lo:g}, {hi:g}]" for j, v, lo, hi, ok in zip(
+        chain.joint_names, q, chain.lower, chain.upper, inside, strict=True) if not ok]
+    if outside:
+        return None, "beyond the joint limits: " + "; ".join(outside)
+    return q, ""
 
 
 def _horizontal_reach(arm: Arm, base_pose: np.ndarray) -> float:

@@ -18,7 +18,7 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from handover.engine.kbmodel import FiniteVec3, Id, KBModel, Positive
+from handover.engine.kbmodel import Finite, FiniteVec3, Id, KBModel, Positive
 
 __all__ = ["FramePose", "ArmSpec", "BodyPrimitive", "RobotSpec", "SIDES"]
 
@@ -38,13 +38,16 @@ class FramePose(KBModel):
 
 class ArmSpec(KBModel):
     """One arm: the URDF chain from ``base_link`` to ``tip_link`` (link names of the URDF),
-    the ``tcp`` (tip link -> grasp frame) and the gripper at its end (default: the robot's
-    ``gripper``)."""
+    the ``tcp`` (tip link -> grasp frame), the gripper at its end (default: the robot's
+    ``gripper``) and ``rest``, the joint values (rad; m for a prismatic joint) it waits at
+    while the other arm works (every joint of the chain, within its limits; without it the
+    idle arm is placed nowhere and nothing is tested against it)."""
 
     base_link: str = LinkName
     tip_link: str = LinkName
     tcp: FramePose = Field(default_factory=FramePose)
     gripper: Id | None = None
+    rest: dict[str, Finite] | None = None
 
 
 class BodyPrimitive(KBModel):

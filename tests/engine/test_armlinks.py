@@ -164,9 +164,9 @@ def link_hits(kb: Path, urdf, result: dict, scene: str, object_boxes=()) -> list
     """Every (stage, arm's link, target) the plan's joint values put in contact,
     independently of the planner; [] for a clear plan. Targets: the table, the obstacles,
     the receiver's body (without the arms that take the object at the handover), the hands
-    that take it and the arms reaching for it, the robot's fixed links, the other arm, and
-    (``object_boxes``, its boxes in its own frame) the object held at pick-up and at the
-    handover."""
+    that take it and the arms reaching for it, the robot's fixed links, the other arm (at
+    its ``rest`` where it waits: H1G1, H2G2 but midair), and (``object_boxes``, its boxes in
+    its own frame) the object held at pick-up and at the handover."""
     base = base_pose(kb)
     urdf.update_cfg(np.zeros(len(urdf.actuated_joint_names)))
     torso = {f"body:robot:{n}": o for n, objs in
@@ -180,6 +180,9 @@ def link_hits(kb: Path, urdf, result: dict, scene: str, object_boxes=()) -> list
         other = "right" if side == "left" else "left"
         urdf.update_cfg(np.zeros(len(urdf.actuated_joint_names)))
         mount = link_objects(urdf, base, [f"{other}_link0"])[f"{other}_link0"]
+        rest = result["robot"]["arms"][other]["rest"]
+        resting = {f"body:robot:{n}": o for n, objs in
+                   posed_arm(urdf, base, other, rest).items() for o in objs} if rest else {}
         for stage, joints in g["joints"].items():
             arm = posed_arm(urdf, base, side, joints)
             posed.setdefault(stage, {})[side] = arm
@@ -187,7 +190,9 @@ def link_hits(kb: Path, urdf, result: dict, scene: str, object_boxes=()) -> list
             if stage == "handover":
                 person.update(receiver_hands(result))
             held = held_object(result, object_boxes, stage) if stage != "midair" else {}
-            targets = {**world, **person, **torso, **held,
+            # The other arm waits at rest but where both arms work (H2G2's midair, H2G1).
+            idle = resting if result["mode"] != "H2G1" and stage != "midair" else {}
+            targets = {**world, **person, **torso, **held, **idle,
                        **{f"body:robot:{other}_link0": o for o in mount}}
             for link, objs in arm.items():
                 for name, target in targets.items():
@@ -400,3 +405,70 @@ def test_a_grasp_low_on_the_post_puts_the_wrist_into_the_base(links_kb, builtin_
             (cylinder,) = link_objects_at(builtin_urdf, f"{side}_link7", link7)
             assert collide(cylinder, base_box)
     assert checked
+
+
+# ----------------------------------------------------------------- the other arm at rest
+
+def test_an_arm_resting_over_the_object_is_worked_around(links_kb, builtin_urdf):
+    # The right arm's rest puts its gripper 10 cm above where the left arm picks the knife up
+    # (the inverse kinematics of that pose, pointing down). One hand cannot pick it there
+    # (the left arm's wrist would go into the resting right arm's, and that is said); the
+    # plan found picks it up around the resting arm, its links clear of it (checked here
+    # with the URDF posed at the rest joints).
+    default = Planner(kb=load_kb(links_kb)).plan("knife").to_dict()
+    assert default["mode"] == "H1G1" and default["robot_grasps"][0]["arm"] == "left"
+    rest = default["robot"]["arms"]["right"]["rest"]
+    assert link_hits(links_kb, builtin_urdf, default, "table") == []
+    robot = links_kb / "robots" / "idro.yaml"
+    text = robot.read_text(encoding="utf-8")
+    over = dict(zip([f"right_joint{i}" for i in range(1, 8)],
+                    [2.167, -1.476, -2.61, -2.139, -2.405, 0.895, 1.453], strict=True))
+    assert set(rest) == set(over)
+    try:
+        lines = text.splitlines()
+        start = next(i for i, line in enumerate(lines) if "rest: {right_joint1" in line)
+        end = next(i for i in range(start, len(lines)) if lines[i].rstrip().endswith("}"))
+        lines[start:end + 1] = ["    rest: {" + ", ".join(f"{j}: {v}" for j, v in over.items())
+                                + "}"]
+        robot.write_text("\n".join(lines) + "\n", encoding="utf-8")
+        r = Planner(kb=load_kb(links_kb)).plan("knife").to_dict()
+    finally:
+        robot.write_text(text, encoding="utf-8")
+    assert r["robot"]["arms"]["right"]["rest"] == over
+    # Where the right arm rests, 10 cm over the left arm's pick-up grasp (URDF, yourdfpy).
+    builtin_urdf.update_cfg(over)
+    hover = (base_pose(links_kb) @ builtin_urdf.get_transform("right_flange",
+                                                              builtin_urdf.base_link))[:3, 3]
+    g = default["robot_grasps"][0]
+    pick = (np.asarray(default["initial_pose"]) @ np.asarray(g["pose"]))[:3, 3]
+    assert np.linalg.norm(hover - pick) < 0.25
+    one_hand = next(t for t in r["modes_tried"] if t["mode"] == "H1G1")
+    assert r["outcome"] == "handover", r["reason"]
+    if r["mode"] != "H1G1":
+        assert "body:robot:right_link" in one_hand["reason"], one_hand["reason"]
+    assert link_hits(links_kb, builtin_urdf, r, "table") == []
+
+
+def test_the_shipped_arms_rest_beside_the_torso_clear_of_the_body_and_each_other(builtin_urdf):
+    r = Planner().plan("knife").to_dict()
+    base = base_pose(builtin_kb_dir())
+    posed = {}
+    for side, arm in r["robot"]["arms"].items():
+        rest = arm["rest"]
+        assert list(rest) == arm["joints"]
+        for joint, value in rest.items():
+            limit = builtin_urdf.joint_map[joint].limit
+            assert limit.lower <= value <= limit.upper
+        posed[side] = posed_arm(builtin_urdf, base, side, rest)
+    builtin_urdf.update_cfg(np.zeros(len(builtin_urdf.actuated_joint_names)))
+    torso = [o for objs in link_objects(builtin_urdf, base, TORSO_LINKS).values() for o in objs]
+    for side, links in posed.items():
+        other = "right" if side == "left" else "left"
+        for link, objs in links.items():
+            assert not any(collide(o, t) for o in objs for t in torso), (side, link)
+            assert not any(collide(o, t) for o in objs for objs_b in posed[other].values()
+                           for t in objs_b), (side, link)
+            # Behind the torso's front (x <= 0.12 m) and out to its side (|y| >= 0.12 m).
+            builtin_urdf.update_cfg(r["robot"]["arms"][side]["rest"])
+            origin = (base @ builtin_urdf.get_transform(link, builtin_urdf.base_link))[:3, 3]
+            assert origin[0] <= 0.12 and abs(origin[1]) >= 0.12, (side, link, origin)

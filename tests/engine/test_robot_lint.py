@@ -262,3 +262,22 @@ def test_two_arms_that_share_a_joint(make_kb, left, right, shared):
     if "rtip" in right:
         kb = load_kb(make_kb({"robots/arm.yaml": good, "robots/waist.urdf": fixed}))
         assert sorted(kb.robot("arm").arms) == ["left", "right"]
+
+
+@pytest.mark.parametrize(("rest", "expected"), [
+    ("{j1: 0.5, j2: 0.1}", None),
+    ("{j1: 0.5}", "every joint of the chain needs a value; missing j2"),
+    ("{j1: 0.5, j2: 0.1, elbow: 1}", "'elbow' not a joint of the chain (joints: j1, j2)"),
+    ("{j1: 0.5, j2: 2.5}", "beyond the joint limits: j2 2.5 not in [-2, 2]"),
+    ("{j1: 0.5, j2: .nan}", "arms.right.rest.j2: must be a finite number, not nan"),
+])
+def test_an_arm_s_rest(make_kb, rest, expected):
+    text = ROBOT + f"    rest: {rest}\n"
+    root = make_kb({"robots/arm.yaml": text, "robots/arm.urdf": ARM_URDF})
+    if expected is None:
+        arm = load_kb(root).robot("arm").arms["right"]
+        assert arm.rest == {"j1": 0.5, "j2": 0.1}
+        return
+    issue = the_error(root)
+    assert issue.line == line_of(text, "rest:")
+    assert expected in issue.message
