@@ -30,7 +30,7 @@ if TYPE_CHECKING:
 
 __all__ = ["LINK_STARTS", "LINK_POOL", "hit_words", "link_targets", "wrist_failures",
            "target_groups", "link_tally", "pair_contacts", "links_words", "clear_links",
-           "held_contacts", "held_names"]
+           "held_contacts", "held_names", "rest_blocked"]
 
 LINK_STARTS = 8
 """Other inverse-kinematics answers tried for a stage reached with the arm's links touching
@@ -43,9 +43,11 @@ LINK_POOL = 32
 
 def hit_words(pairs) -> str:
     """``(link, target)`` pairs in words, by target: "left_link6, left_link7 hit scene:table
-    and left_link5 hits body:robot:torso" (at most three targets, then "and more")."""
+    and left_link5 hits body:robot:torso" (at most three targets, then "and more"; a link
+    ``rest:<side>:<link>`` of :func:`rest_blocked` is said as its link)."""
     by_target: dict[str, list[str]] = {}
     for link, target in pairs:
+        link = link.split(":")[-1]
         by_target.setdefault(target, []).append(link)
     said = [f"{', '.join(links)} {'hit' if len(links) > 1 else 'hits'} {target}"
             for target, links in list(by_target.items())[:3]]
@@ -78,6 +80,33 @@ def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
                                         for o in idle)])
         memo[key] = body
     return memo[key]
+
+def rest_blocked(ctx: PlanContext, phase: Phase, side: str,
+                 stage: str) -> tuple[tuple[str, str], ...]:
+    """Where the other arm waits at its ``rest`` while the arm on ``side`` works at ``stage``
+    (:func:`~handover.engine.armstages.other_arm_idle`): the ``("rest:<other>:<link>",
+    target)`` pairs of its links touching the scene, the receiver's body (without the
+    receiving arms at the handover) or the robot's own body but its mount. Not empty: that
+    arm cannot wait there, so nothing is planned that needs it to. Memoised."""
+    if not other_arm_idle(phase, stage):
+        return ()
+    arms = ctx.arms
+    memo = ctx.memo.setdefault("rest_blocked", {})
+    receiving = tuple(phase.hands.receiving) if stage == "handover" else ()
+    out: list[tuple[str, str]] = []
+    for other in arms.sides:
+        if other == side or arms.arm(other).rest is None:
+            continue
+        key = (other, receiving)
+        if key not in memo:
+            body = ctx.world.without_receiving_arms(receiving)
+            spared = {f"body:robot:{name}" for name in arms.spared(other)}
+            body = body.subset([name not in spared for name in body.names])
+            found = arms.contacts(other, arms.arm(other).rest, bodies=[body],
+                                  own_body=False)[0]
+            memo[key] = tuple((f"rest:{other}:{link}", target) for link, target in found)
+        out += memo[key]
+    return tuple(out)
 
 def held_names(ctx: PlanContext, phase: Phase, stage: str) -> tuple[str, ...]:
     """The targets :func:`held_contacts` tests at ``stage``: the object held

@@ -37,6 +37,7 @@ from handover.engine.armlinks import (
     hit_words,
     link_tally,
     link_targets,
+    rest_blocked,
     target_groups,
     wrist_failures,
 )
@@ -193,6 +194,12 @@ class ArmCheck:
                         f"ends {1e3 * self.position_error[t]:.0f} mm, "
                         f"{np.degrees(self.rotation_error[t]):.0f} deg off)")
             if self.hits and self.hits[t]:
+                waiting = sorted({link.split(":")[1] for link, _ in self.hits[t]
+                                  if link.startswith("rest:")})
+                if waiting:
+                    return (f"the {' and '.join(waiting)} arm cannot wait at its rest "
+                            f"{STAGE_WORDS[stage]} while the {self.side} arm works: its "
+                            f"{hit_words(self.hits[t])}")
                 return f"the {self.side} arm's {hit_words(self.hits[t])} {STAGE_WORDS[stage]}"
         return None
 
@@ -257,6 +264,11 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
             def held(at, qs, stage=stage):  # the object held, the hands taking it
                 return held_contacts(ctx, phase, side, stage, qs, pk[rows[at]])
 
+            blocked = rest_blocked(ctx, phase, side, stage)
+            if blocked:  # the other arm cannot wait where it should: no row here
+                for r in np.flatnonzero(ok[:, t] & pursued):
+                    hits[r][t] = blocked
+                continue
             clear_links(arms, side, body, poses[stage], np.flatnonzero(ok[:, t] & pursued),
                          (q[:, t], swapped[:, t], pos_err[:, t], rot_err[:, t]),
                          hits, t, held)  # fmt: skip

@@ -472,3 +472,37 @@ def test_the_shipped_arms_rest_beside_the_torso_clear_of_the_body_and_each_other
             builtin_urdf.update_cfg(r["robot"]["arms"][side]["rest"])
             origin = (base @ builtin_urdf.get_transform(link, builtin_urdf.base_link))[:3, 3]
             assert origin[0] <= 0.12 and abs(origin[1]) >= 0.12, (side, link, origin)
+
+
+def test_an_arm_that_cannot_wait_at_its_rest_does_not_wait(links_kb, builtin_urdf):
+    # A post by the robot's left side, where the left arm's elbow rests (the URDF posed at
+    # the rest joints): the right arm cannot work while the left waits there, so the
+    # screwdriver the right arm hands over on the plain table is handed over by the left,
+    # and the one-hand attempt with the right arm says why.
+    plain = Planner(kb=load_kb(links_kb)).plan("screwdriver", mode="h1g1").to_dict()
+    assert [g["arm"] for g in plain["robot_grasps"]] == ["right"]
+    builtin_urdf.update_cfg(plain["robot"]["arms"]["left"]["rest"])
+    elbow = (base_pose(links_kb) @ builtin_urdf.get_transform("left_link4",
+                                                              builtin_urdf.base_link))[:3, 3]
+    assert elbow[0] < 0.0 and elbow[1] > 0.4  # behind the torso's front, out to the left
+    (links_kb / "scenes" / "post.yaml").write_text(SCENE.format(
+        id="post", name="A post by the robot's left side", obstacle="post",
+        x=elbow[0], y=elbow[1], z=elbow[2], ex=0.05, ey=0.05, ez=0.05), encoding="utf-8")
+    planner = Planner(kb=load_kb(links_kb))
+    r = planner.plan("screwdriver", scene="post", mode="h1g1").to_dict()
+    assert r["outcome"] == "handover", r["reason"]
+    assert [g["arm"] for g in r["robot_grasps"]] == ["left"]
+    assert link_hits(links_kb, builtin_urdf, r, "post") == []
+    # Posts by both sides: neither arm can wait, so one hand cannot hand it over, and says so.
+    text = SCENE.format(id="posts", name="Posts by both sides of the robot",
+                        obstacle="left_post", x=elbow[0], y=elbow[1], z=elbow[2], ex=0.05,
+                        ey=0.05, ez=0.05)
+    right = (f"  - {{id: right_post, position: [{elbow[0]:.4f}, {-elbow[1]:.4f}, "
+             f"{elbow[2]:.4f}], extents: [0.05, 0.05, 0.05]}}\n")
+    text = text.replace("receiver:", right + "receiver:", 1)
+    (links_kb / "scenes" / "posts.yaml").write_text(text, encoding="utf-8")
+    r = Planner(kb=load_kb(links_kb)).plan("screwdriver", scene="posts", mode="h1g1").to_dict()
+    assert r["outcome"] == "infeasible"
+    assert "the left arm cannot wait at its rest at pick-up while the right arm works: its " \
+           "left_link3, left_link4 hit scene:left_post" in r["reason"], r["reason"]
+    assert "the right arm cannot wait at its rest" in r["reason"], r["reason"]
