@@ -60,7 +60,8 @@ Entities (see ``ENTITY_*``)::
                                       chosen grasps, posed by forward kinematics of the
                                       result's joint values (robots with arms): at pick-up and
                                       at the handover (stage 4); in H2G2 only the arms of
-                                      stages 5 (pick-up), 6 (midair), 7 (handover)
+                                      stages 5 (pick-up), 6 (midair), 7 (handover); under
+                                      .../rest/ the arm waiting at its rest meanwhile
     trace/summary                     TextDocument (markdown), one per stage
     trace/log                         TextLog: one line per rule decision of each chosen grasp
 
@@ -396,7 +397,7 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
                       [OUTCOME_COLOURS["chosen"]] * len(pick_grasps))  # fmt: skip
         if arms is not None:
             for stage in ("pickup", "handover", "place"):  # place: where it is set down
-                log_arms(rec, arms, result.robot_grasps, stage)
+                log_arms(rec, arms, result.robot_grasps, stage, result.mode or "place")
         if result.human_grasps:
             rec.log("world/receiver/sites", rr.Points3D(
                 [np.asarray(h["position_world"], dtype=float) for h in result.human_grasps],
@@ -424,13 +425,13 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
                 gone, shown = ("handover", None) if s == 5 else ("pickup", "midair")
                 rec.log(f"{ENTITY_ARMS}/{gone}", rr.Clear(recursive=True))
                 if shown:
-                    log_arms(rec, arms, result.robot_grasps, shown)
+                    log_arms(rec, arms, result.robot_grasps, shown, result.mode)
             rec.log(ENTITY_SUMMARY, rr.TextDocument(docs[s], media_type=rr.MediaType.MARKDOWN))
         rec.set_time(TIMELINE, sequence=7)
         rec.log("world/regrasp", rr.Clear(recursive=True))
         if arms is not None:
             rec.log(f"{ENTITY_ARMS}/midair", rr.Clear(recursive=True))
-            log_arms(rec, arms, result.robot_grasps, "handover")
+            log_arms(rec, arms, result.robot_grasps, "handover", result.mode)
         rec.log(ENTITY_SUMMARY, rr.TextDocument(docs[7], media_type=rr.MediaType.MARKDOWN))
 
     # -- the trace: one batch

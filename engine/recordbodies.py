@@ -125,10 +125,13 @@ def arm_primitives(arms: RobotArms, grasps: list[dict],
     return prims, colours, chains
 
 
-def log_arms(rec, arms: RobotArms, grasps: list[dict], stage: str) -> None:
+def log_arms(rec, arms: RobotArms, grasps: list[dict], stage: str,
+             mode: str | None = None) -> None:
     """The arms at ``stage`` (:func:`arm_primitives`) at the current time, as
     ``world/robot/arms/{stage}/capsules``, ``.../boxes`` (the links' collision shapes) and
-    ``.../chain`` (LineStrips3D through the link origins, one strip per arm)."""
+    ``.../chain`` (LineStrips3D through the link origins, one strip per arm); an arm that
+    waits at its ``rest`` meanwhile (in plans of ``mode``: :func:`~handover.engine.armstages
+    .other_arm_idle`) under ``.../rest/``."""
     import rerun as rr
 
     prims, colours, chains = arm_primitives(arms, grasps, stage)
@@ -142,3 +145,19 @@ def log_arms(rec, arms: RobotArms, grasps: list[dict], stage: str) -> None:
         [c["points"] for c in chains], radii=0.005,
         colors=[ARM_COLOURS.get(c["side"], ROBOT_BODY_COLOUR) for c in chains],
         labels=[f"{c['side']} arm, {STAGE_WORDS[stage]}" for c in chains]))  # fmt: skip
+    working = {c["side"] for c in chains}
+    if mode is None or mode == "H2G1" or (mode == "H2G2" and stage == "midair"):
+        return
+    resting = []
+    for side in getattr(arms, "sides", ()):
+        arm = arms.arm(side)
+        if side not in working and getattr(arm, "rest", None) is not None:
+            resting.append({"arm": side, "joints": {stage: arm.chain.as_dict(arm.rest)}})
+    if not resting:
+        return
+    prims, colours, chains = arm_primitives(arms, resting, stage)
+    log_body(rec, f"{entity}/rest", prims, colours, static=False, show_labels=False)
+    rec.log(f"{entity}/rest/chain", rr.LineStrips3D(
+        [c["points"] for c in chains], radii=0.005,
+        colors=[ARM_COLOURS.get(c["side"], ROBOT_BODY_COLOUR) for c in chains],
+        labels=[f"{c['side']} arm at rest, {STAGE_WORDS[stage]}" for c in chains]))

@@ -794,3 +794,27 @@ def test_an_infeasible_plan_says_and_draws_the_same_handover_location(tmp_path):
     points = np.asarray(rows[0]["Points3D:positions"])
     radii = np.asarray(rows[0]["Points3D:radii"])
     np.testing.assert_allclose(points[np.argmax(radii)], point["position"], atol=1e-4)
+
+
+def test_the_arm_that_waits_is_drawn_at_its_rest(kb, tmp_path):
+    import yourdfpy
+
+    from handover.engine.store import builtin_kb_dir
+
+    # The screwdriver is handed over by the right arm; the left waits at its rest, drawn at
+    # both stages under .../rest, its chain ending where the URDF puts its flange there.
+    result, ctx, path = _real(kb, tmp_path, "screwdriver", "h1g1", "table")
+    assert [g["arm"] for g in result.robot_grasps] == ["right"]
+    robot = result.robot
+    urdf = yourdfpy.URDF.load(str(builtin_kb_dir() / robot["urdf"]))
+    urdf.update_cfg(robot["arms"]["left"]["rest"])
+    flange = (np.asarray(robot["base_pose"]) @ urdf.get_transform("left_flange",
+                                                                  urdf.base_link))[:3, 3]
+    cols = read_columns(path)
+    for stage, words in (("pickup", "at pick-up"), ("handover", "at the handover")):
+        (row,) = [r for r in cols[f"world/robot/arms/{stage}/rest/chain"] if r["stage"] == 4]
+        assert row["LineStrips3D:labels"] == [f"left arm at rest, {words}"]
+        (strip,) = row["LineStrips3D:strips"]
+        np.testing.assert_allclose(strip[-1], flange, atol=1e-3)
+        working = by_stage(cols[f"world/robot/arms/{stage}/chain"], "LineStrips3D:labels")[4]
+        assert working == [f"right arm, {words}"]
