@@ -125,7 +125,9 @@ def held_contacts(ctx: PlanContext, phase: Phase, side: str, stage: str, q: np.n
     :class:`~handover.geometry.collision.ObjectCollider`'s ``capsules_collide`` and
     ``solids_collide``) or, at the handover, the receiver's hands that take it (their palm
     and finger boxes where the collision rules put them) and the arms reaching for it (from
-    the shoulder to the palm). Links in chain order, the object first."""
+    the shoulder to the palm); and the links of the other arm waiting at its rest that the
+    object touches (``rest:<side>:<link>``, as :func:`rest_blocked` names them). Links in
+    chain order, the object first."""
     from handover.geometry.armcollision import posed_boxes, posed_capsules, segment_distances
     from handover.geometry.proximity import point_segment_distances
 
@@ -152,6 +154,10 @@ def held_contacts(ctx: PlanContext, phase: Phase, side: str, stage: str, q: np.n
                 hit = collider.solids_collide(box_c[i], box_r[i], shapes.box_extents)
                 touched.update(shapes.box_link[hit].tolist())
         found = [(shapes.links[j], names[0]) for j in sorted(touched)]
+        if ctx.collider is not None and other_arm_idle(phase, stage):
+            for other in arms.sides:  # the arm waiting at its rest, where the object passes
+                if other != side and arms.arm(other).rest is not None:
+                    found += _rest_on_object(ctx, other, objects[i], names[0])
         if stage == "handover":
             for boxes, centre, reach, arm in _hand_boxes(ctx, phase, int(pk[i])):
                 gap = point_segment_distances(centre, cap_a[i], cap_b[i]) - shapes.cap_radius
@@ -163,6 +169,23 @@ def held_contacts(ctx: PlanContext, phase: Phase, side: str, stage: str, q: np.n
                     found += list(dict.fromkeys(hits))
         out.append(tuple(found))
     return out
+
+def _rest_on_object(ctx: PlanContext, other: str, pose: np.ndarray,
+                    name: str) -> list[tuple[str, str]]:
+    """``("rest:<other>:<link>", name)`` for the links of the arm ``other`` at its rest that
+    touch the object at ``pose`` (4, 4), world (memoised per arm and pose)."""
+    memo = ctx.memo.setdefault("rest_on_object", {})
+    key = (other, np.round(pose, 12).tobytes())
+    if key not in memo:
+        body = ctx.arms.rest_body(other)
+        collider = _placed(ctx, pose)
+        hit = list(np.asarray(body.capsule_names)[collider.capsules_collide(
+            body.p0, body.p1, body.radius)]) if len(body.capsule_names) else []
+        if len(body.box_names):
+            hit += list(np.asarray(body.box_names)[collider.solids_collide(
+                body.poses[:, :3, 3], body.poses[:, :3, :3], body.extents)])
+        memo[key] = [(f"rest:{other}:{link}", name) for link in dict.fromkeys(hit)]
+    return memo[key]
 
 def _placed(ctx: PlanContext, pose: np.ndarray):
     """The object's collider at ``pose`` (4, 4), world (memoised per pose)."""

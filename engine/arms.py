@@ -194,12 +194,13 @@ class ArmCheck:
                         f"ends {1e3 * self.position_error[t]:.0f} mm, "
                         f"{np.degrees(self.rotation_error[t]):.0f} deg off)")
             if self.hits and self.hits[t]:
-                waiting = sorted({link.split(":")[1] for link, _ in self.hits[t]
-                                  if link.startswith("rest:")})
-                if waiting:
+                resting = [(link, target) for link, target in self.hits[t]
+                           if link.startswith("rest:")]
+                if resting:
+                    waiting = sorted({link.split(":")[1] for link, _ in resting})
                     return (f"the {' and '.join(waiting)} arm cannot wait at its rest "
                             f"{STAGE_WORDS[stage]} while the {self.side} arm works: its "
-                            f"{hit_words(self.hits[t])}")
+                            f"{hit_words(resting)}")
                 return f"the {self.side} arm's {hit_words(self.hits[t])} {STAGE_WORDS[stage]}"
         return None
 

@@ -506,3 +506,34 @@ def test_an_arm_that_cannot_wait_at_its_rest_does_not_wait(links_kb, builtin_urd
     assert "the left arm cannot wait at its rest at pick-up while the right arm works: its " \
            "left_link3, left_link4 hit scene:left_post" in r["reason"], r["reason"]
     assert "the right arm cannot wait at its rest" in r["reason"], r["reason"]
+
+
+def test_the_object_held_must_not_pass_through_the_arm_that_waits(builtin_urdf):
+    # The screwdriver offered where the left arm rests (its elbow, from the URDF posed at the
+    # rest joints) while the right arm works: the exact check names the resting arm's link
+    # and the object; offered where the plan offers it, nothing of the resting arm is hit.
+    from dataclasses import replace
+
+    from handover.engine.armlinks import held_contacts
+    from handover.engine.arms import confirm
+
+    plan = Planner().plan("screwdriver", mode="h1g1")
+    ctx, attempt = plan.context, plan.attempt
+    (chosen,) = attempt.chosen
+    phase = chosen.phase
+    assert phase.arm == "right"
+    k = chosen.presentation
+    check = confirm(ctx, phase, "right", np.array([chosen.grasp]), np.array([k]))[0]
+    assert check.ok
+    q = check.q[check.stages.index("handover")]
+    here = held_contacts(ctx, phase, "right", "handover", q, np.array([k]))[0]
+    assert not [h for h in here if h[0].startswith("rest:")]
+    r = plan.to_dict()
+    builtin_urdf.update_cfg(r["robot"]["arms"]["left"]["rest"])
+    elbow = (base_pose(builtin_kb_dir()) @ builtin_urdf.get_transform(
+        "left_link4", builtin_urdf.base_link))[:3, 3]
+    poses = phase.hands.poses.copy()
+    poses[k, :3, 3] += elbow - poses[k, :3, :3] @ ctx.part_mesh.mesh.centroid - poses[k, :3, 3]
+    moved = phase.but(hands=replace(phase.hands, poses=poses, key=("moved",)))
+    there = held_contacts(ctx, moved, "right", "handover", q, np.array([k]))[0]
+    assert ("rest:left:left_link4", "object:screwdriver") in there, there
