@@ -212,13 +212,16 @@ class RobotArm:
     """One arm of the plan's robot (the JSON ``robot.arms[side]``).
 
     base_link, tip_link : the URDF chain. tcp : (4, 4) tip link -> grasp frame (m).
-    gripper : its gripper id. joints : the chain's moving joints, base to tip."""
+    gripper : its gripper id. joints : the chain's moving joints, base to tip. rest : joint
+    name -> value (rad; m for a prismatic joint) where it waits while the other arm works,
+    or None (placed nowhere)."""
 
     base_link: str
     tip_link: str
     tcp: np.ndarray
     gripper: str
     joints: tuple[str, ...]
+    rest: dict[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -305,7 +308,8 @@ class Plan:
                      base_pose=np.asarray(r["base_pose"], dtype=float),
                      arms={side: RobotArm(base_link=a["base_link"], tip_link=a["tip_link"],
                                           tcp=np.asarray(a["tcp"], dtype=float),
-                                          gripper=a["gripper"], joints=tuple(a["joints"]))
+                                          gripper=a["gripper"], joints=tuple(a["joints"]),
+                                          rest=a.get("rest"))
                            for side, a in r["arms"].items()})
 
     @property

@@ -309,6 +309,7 @@ def test_the_facade_exposes_the_robot_and_each_grasp_s_arm_and_joints(capsys):
         assert arm.tip_link == block["tip_link"] and arm.joints == tuple(block["joints"])
         assert arm.tcp.shape == (4, 4)
         np.testing.assert_array_equal(arm.tcp, block["tcp"])
+        assert arm.rest == block["rest"] and list(arm.rest) == list(arm.joints)
     grasps = plan.robot_grasps
     assert [g.arm for g in grasps] == [g["arm"] for g in data["robot_grasps"]]
     for g, rec in zip(grasps, data["robot_grasps"], strict=True):
