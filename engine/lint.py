@@ -374,7 +374,33 @@ def lint_robot(kb: KB, robot: RobotSpec, parse: bool = True) -> Iterator[KBIssue
         return
     from handover.engine.robotload import check_robot
 
-    yield from check_robot(kb, robot)
+    issues = check_robot(kb, robot)
+    yield from issues
+    if not any(i.severity == "error" for i in issues):
+        yield from _rest_issues(kb, robot)
+
+
+def _rest_issues(kb: KB, robot: RobotSpec) -> Iterator[KBIssue]:
+    """An arm's ``rest`` whose links touch the robot's own body (but the shoulder it turns
+    in) or the other arm at its rest: it could never wait there."""
+    if not any(arm.rest is not None for arm in robot.arms.values()):
+        return
+    from handover.engine.robot import RobotArms
+
+    arms = RobotArms.load(kb, robot)
+    for side in arms.sides:
+        rest = arms.arm(side).rest
+        if rest is None:
+            continue
+        found = list(arms.contacts(side, rest)[0])
+        for other in arms.sides:
+            if other < side and arms.arm(other).rest is not None:
+                found += arms.contacts(side, rest, other=(other, arms.arm(other).rest),
+                                       own_body=False)[0]
+        if found:
+            said = ", ".join(f"{link} hits {target}" for link, target in found[:4])
+            yield kb.issue(robot, f"robot '{robot.id}': the {side} arm's rest puts its links "
+                                  f"into the robot: {said}", "arms", side, "rest")
 
 
 # ---------------------------------------------------------------- test files

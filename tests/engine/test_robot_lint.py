@@ -281,3 +281,23 @@ def test_an_arm_s_rest(make_kb, rest, expected):
     issue = the_error(root)
     assert issue.line == line_of(text, "rest:")
     assert expected in issue.message
+
+
+def test_a_rest_inside_the_robot(make_kb):
+    # The arm's second link (a 0.7 m cylinder) turned straight down at rest reaches into a
+    # pedestal fixed to the base (z 0.25-0.45 m): it could never wait there. Level, it is
+    # clear.
+    urdf = ARM_URDF.replace('<link name="l2"/>', (
+        '<link name="l2"><collision><origin xyz="0.35 0 0" rpy="0 1.5707963267948966 0"/>'
+        '<geometry><cylinder radius="0.03" length="0.7"/></geometry></collision></link>'
+        '<link name="pedestal"><collision><origin xyz="0 0 0.35"/>'
+        '<geometry><box size="0.1 0.1 0.2"/></geometry></collision></link>'
+        '<joint name="fixed_pedestal" type="fixed"><parent link="base"/>'
+        '<child link="pedestal"/></joint>'))
+    down = ROBOT + "    rest: {j1: 0.0, j2: 1.5707963}\n"
+    issue = the_error(make_kb({"robots/arm.yaml": down, "robots/arm.urdf": urdf}))
+    assert issue.line == line_of(down, "rest:")
+    assert "the right arm's rest puts its links into the robot: l2 hits pedestal" in \
+        issue.message
+    level = ROBOT + "    rest: {j1: 0.0, j2: 0.0}\n"
+    load_kb(make_kb({"robots/arm.yaml": level, "robots/arm.urdf": urdf}))
