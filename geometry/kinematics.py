@@ -41,7 +41,7 @@ _DAMPING_ERROR = 0.1
 _DAMPING_MIN = 0.1
 # Runs from given starts (ik_from, shared restarts): a run more than 1 cm or 3 degrees off that
 # gains less than 10 % in this many iterations is stuck (on a joint limit, stretched out) and
-# stops.
+# stops, and so does one that at that pace would still be 10 cm or 1 rad off at the end.
 _PATIENCE = 10
 _EYE6 = np.eye(6)
 _STUCK_POSITION = 0.01  # m
@@ -435,11 +435,12 @@ class Kinematics:
             if patience and iteration % patience == 0:
                 cost = pe / pos_tol + re / rot_tol
                 far = (pe > _STUCK_POSITION) | (re > _STUCK_ROTATION)
-                # At its pace of the last `patience` iterations, would it still be 1 cm /
-                # 0.1 rad off when the iterations run out?
+                # At its pace of the last `patience` iterations, would it still be 10 cm /
+                # 1 rad off when the iterations run out? (A pessimistic projection: runs
+                # speed up near the target, so only the hopeless are stopped.)
                 pace = np.minimum(cost / before[active], 1.0)
                 left = (iterations - iteration) / patience
-                done |= far & ((pace > 0.9) | (cost * pace**left > 100.0))
+                done |= far & ((pace > 0.9) | (cost * pace**left > 1000.0))
                 before[active] = cost
             if iteration == iterations or done.all():
                 break
