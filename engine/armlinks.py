@@ -47,7 +47,8 @@ def hit_words(pairs) -> str:
     ``rest:<side>:<link>`` of :func:`rest_blocked` is said as its link)."""
     by_target: dict[str, list[str]] = {}
     for link, target in pairs:
-        link = link.split(":")[-1]
+        if link.startswith("rest:"):
+            link = link.split(":", 2)[2]
         by_target.setdefault(target, []).append(link)
     said = [f"{', '.join(links)} {'hit' if len(links) > 1 else 'hits'} {target}"
             for target, links in list(by_target.items())[:3]]
@@ -72,41 +73,49 @@ def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
     if key not in memo:
         from handover.geometry.bodies import concatenate
 
-        body = ctx.world.without_receiving_arms(receiving)
-        spared = {f"body:robot:{name}" for name in ctx.arms.spared(side)}
-        body = body.subset([name not in spared for name in body.names])
+        body = _world_for(ctx, side, receiving)
         if idle:  # the other arm at rest, its links named as the robot's body
             body = concatenate([body, *(ctx.arms.rest_body(o).renamed("body:robot")
                                         for o in idle)])
         memo[key] = body
     return memo[key]
 
-def rest_blocked(ctx: PlanContext, phase: Phase, side: str,
-                 stage: str) -> tuple[tuple[str, str], ...]:
-    """Where the other arm waits at its ``rest`` while the arm on ``side`` works at ``stage``
-    (:func:`~handover.engine.armstages.other_arm_idle`): the ``("rest:<other>:<link>",
-    target)`` pairs of its links touching the scene, the receiver's body (without the
-    receiving arms at the handover) or the robot's own body but its mount. Not empty: that
-    arm cannot wait there, so nothing is planned that needs it to. Memoised."""
+def _world_for(ctx: PlanContext, side: str, receiving: tuple[str, ...]):
+    """The world's bodies without the receiving arms and without what the arm on ``side``
+    always touches (:meth:`~handover.engine.robot.RobotArms.spared`)."""
+    body = ctx.world.without_receiving_arms(receiving)
+    spared = {f"body:robot:{name}" for name in ctx.arms.spared(side)}
+    return body.subset([name not in spared for name in body.names])
+
+def rest_blocked(ctx: PlanContext, phase: Phase, side: str, stage: str,
+                 pk: np.ndarray) -> list[tuple[tuple[str, str], ...]]:
+    """Per row of presentation pk (n,): where the other arm waits at its ``rest`` while the
+    arm on ``side`` works at ``stage`` (:func:`~handover.engine.armstages.other_arm_idle`),
+    the ``("rest:<other>:<link>", target)`` pairs of its links touching the scene, the
+    receiver's body (without the receiving arms at the handover), the robot's own body but
+    its mount, or the object held at that stage. Not empty: that arm cannot wait there, so
+    the row is not held, whatever the working arm's joints (memoised per arm and pose)."""
+    pk = np.asarray(pk, dtype=np.int64).reshape(-1)
     if not other_arm_idle(phase, stage):
-        return ()
+        return [() for _ in pk]
     arms = ctx.arms
     memo = ctx.memo.setdefault("rest_blocked", {})
     receiving = tuple(phase.hands.receiving) if stage == "handover" else ()
-    out: list[tuple[str, str]] = []
-    for other in arms.sides:
-        if other == side or arms.arm(other).rest is None:
-            continue
+    others = [o for o in arms.sides if o != side and arms.arm(o).rest is not None]
+    world: list[tuple[str, str]] = []
+    for other in others:
         key = (other, receiving)
         if key not in memo:
-            body = ctx.world.without_receiving_arms(receiving)
-            spared = {f"body:robot:{name}" for name in arms.spared(other)}
-            body = body.subset([name not in spared for name in body.names])
-            found = arms.contacts(other, arms.arm(other).rest, bodies=[body],
+            found = arms.contacts(other, arms.arm(other).rest,
+                                  bodies=[_world_for(ctx, other, receiving)],
                                   own_body=False)[0]
             memo[key] = tuple((f"rest:{other}:{link}", target) for link, target in found)
-        out += memo[key]
-    return tuple(out)
+        world += memo[key]
+    objects = objects_at(ctx, phase, stage, pk)
+    name = f"object:{ctx.situation.obj.id}"
+    return [tuple(world + [h for other in others for h in _rest_on_object(
+        ctx, other, pose, name)]) if ctx.collider is not None else tuple(world)
+        for pose in objects]
 
 def held_names(ctx: PlanContext, phase: Phase, stage: str) -> tuple[str, ...]:
     """The targets :func:`held_contacts` tests at ``stage``: the object held
@@ -125,9 +134,7 @@ def held_contacts(ctx: PlanContext, phase: Phase, side: str, stage: str, q: np.n
     :class:`~handover.geometry.collision.ObjectCollider`'s ``capsules_collide`` and
     ``solids_collide``) or, at the handover, the receiver's hands that take it (their palm
     and finger boxes where the collision rules put them) and the arms reaching for it (from
-    the shoulder to the palm); and the links of the other arm waiting at its rest that the
-    object touches (``rest:<side>:<link>``, as :func:`rest_blocked` names them). Links in
-    chain order, the object first."""
+    the shoulder to the palm). Links in chain order, the object first."""
     from handover.geometry.armcollision import posed_boxes, posed_capsules, segment_distances
     from handover.geometry.proximity import point_segment_distances
 
@@ -154,10 +161,6 @@ def held_contacts(ctx: PlanContext, phase: Phase, side: str, stage: str, q: np.n
                 hit = collider.solids_collide(box_c[i], box_r[i], shapes.box_extents)
                 touched.update(shapes.box_link[hit].tolist())
         found = [(shapes.links[j], names[0]) for j in sorted(touched)]
-        if ctx.collider is not None and other_arm_idle(phase, stage):
-            for other in arms.sides:  # the arm waiting at its rest, where the object passes
-                if other != side and arms.arm(other).rest is not None:
-                    found += _rest_on_object(ctx, other, objects[i], names[0])
         if stage == "handover":
             for boxes, centre, reach, arm in _hand_boxes(ctx, phase, int(pk[i])):
                 gap = point_segment_distances(centre, cap_a[i], cap_b[i]) - shapes.cap_radius

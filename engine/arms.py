@@ -265,14 +265,15 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
             def held(at, qs, stage=stage):  # the object held, the hands taking it
                 return held_contacts(ctx, phase, side, stage, qs, pk[rows[at]])
 
-            blocked = rest_blocked(ctx, phase, side, stage)
-            if blocked:  # the other arm cannot wait where it should: no row here
-                for r in np.flatnonzero(ok[:, t] & pursued):
-                    hits[r][t] = blocked
-                continue
-            clear_links(arms, side, body, poses[stage], np.flatnonzero(ok[:, t] & pursued),
-                         (q[:, t], swapped[:, t], pos_err[:, t], rot_err[:, t]),
-                         hits, t, held)  # fmt: skip
+            reached = np.flatnonzero(ok[:, t] & pursued)
+            # Where the other arm cannot wait at its rest, no joint values of this one help.
+            blocked = rest_blocked(ctx, phase, side, stage, pk[rows[reached]])
+            for r, why in zip(reached, blocked, strict=True):
+                hits[r][t] = why
+            clear_links(arms, side, body, poses[stage],
+                        reached[[not why for why in blocked]],
+                        (q[:, t], swapped[:, t], pos_err[:, t], rot_err[:, t]),
+                        hits, t, held)  # fmt: skip
         against = tuple(dict.fromkeys(against))
         for r, u in enumerate(todo):
             memo[unique[u]] = ArmCheck(side, names, np.stack([poses[s][r] for s in names])

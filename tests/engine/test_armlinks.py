@@ -510,30 +510,34 @@ def test_an_arm_that_cannot_wait_at_its_rest_does_not_wait(links_kb, builtin_urd
 
 def test_the_object_held_must_not_pass_through_the_arm_that_waits(builtin_urdf):
     # The screwdriver offered where the left arm rests (its elbow, from the URDF posed at the
-    # rest joints) while the right arm works: the exact check names the resting arm's link
-    # and the object; offered where the plan offers it, nothing of the resting arm is hit.
+    # rest joints) while the right arm works: the row is blocked, naming the resting arm's
+    # link and the object, whatever the right arm's joints; offered where the plan offers
+    # it, nothing of the resting arm is hit. The words a failed check says, too.
     from dataclasses import replace
 
-    from handover.engine.armlinks import held_contacts
-    from handover.engine.arms import confirm
+    from handover.engine.armlinks import rest_blocked
+    from handover.engine.arms import ArmCheck
 
     plan = Planner().plan("screwdriver", mode="h1g1")
     ctx, attempt = plan.context, plan.attempt
     (chosen,) = attempt.chosen
     phase = chosen.phase
     assert phase.arm == "right"
-    k = chosen.presentation
-    check = confirm(ctx, phase, "right", np.array([chosen.grasp]), np.array([k]))[0]
-    assert check.ok
-    q = check.q[check.stages.index("handover")]
-    here = held_contacts(ctx, phase, "right", "handover", q, np.array([k]))[0]
-    assert not [h for h in here if h[0].startswith("rest:")]
+    k = np.array([chosen.presentation])
+    assert rest_blocked(ctx, phase, "right", "handover", k) == [()]
     r = plan.to_dict()
     builtin_urdf.update_cfg(r["robot"]["arms"]["left"]["rest"])
     elbow = (base_pose(builtin_kb_dir()) @ builtin_urdf.get_transform(
         "left_link4", builtin_urdf.base_link))[:3, 3]
     poses = phase.hands.poses.copy()
-    poses[k, :3, 3] += elbow - poses[k, :3, :3] @ ctx.part_mesh.mesh.centroid - poses[k, :3, 3]
+    pose = poses[k[0]]
+    pose[:3, 3] += elbow - pose[:3, :3] @ ctx.part_mesh.mesh.centroid - pose[:3, 3]
     moved = phase.but(hands=replace(phase.hands, poses=poses, key=("moved",)))
-    there = held_contacts(ctx, moved, "right", "handover", q, np.array([k]))[0]
+    (there,) = rest_blocked(ctx, moved, "right", "handover", k)
     assert ("rest:left:left_link4", "object:screwdriver") in there, there
+    assert rest_blocked(ctx, moved.but(mode="H2G1"), "right", "handover", k) == [()]
+    check = ArmCheck("right", ("handover",), pose[None], np.zeros((1, 7)), np.array([True]),
+                     np.array([False]), np.zeros(1), np.zeros(1), (there,))
+    assert check.failure().startswith("the left arm cannot wait at its rest at the handover "
+                                      "while the right arm works: its ")
+    assert "left_link4" in check.failure() and "rest:" not in check.failure()
