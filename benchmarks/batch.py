@@ -30,7 +30,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from handover.engine import batch  # noqa: E402
-from handover.engine.loader import load_kb  # noqa: E402
+from handover.engine.load.loader import load_kb  # noqa: E402
 
 
 def make_meshes(folder: Path, count: int, seed: int = 0) -> None:

@@ -105,8 +105,8 @@ def oblique_table(gripper: Gripper, cases: list[tuple[str, Callable[[], gm.PartM
 def builtin_objects() -> list[tuple[str, Callable[[], gm.PartMesh]]]:
     """The built-in KB's objects, or nothing (with a note) if the KB does not load."""
     try:
-        from handover.engine.assets import object_part_mesh
-        from handover.engine.loader import load_kb
+        from handover.engine.assets.objects import object_part_mesh
+        from handover.engine.load.loader import load_kb
 
         kb = load_kb(None)
     except Exception as e:  # noqa: BLE001 - a benchmark reports and goes on
@@ -120,8 +120,8 @@ def builtin_objects() -> list[tuple[str, Callable[[], gm.PartMesh]]]:
 
 def kb_gripper() -> Gripper:
     try:
-        from handover.engine.assets import gripper_from_spec
-        from handover.engine.loader import load_kb
+        from handover.engine.assets.objects import gripper_from_spec
+        from handover.engine.load.loader import load_kb
 
         kb = load_kb(None)
         if "parallel_jaw" in kb.grippers:

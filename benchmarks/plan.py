@@ -36,10 +36,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from handover.engine.graspdb import GraspDB, cached_candidates  # noqa: E402
-from handover.engine.loader import load_kb  # noqa: E402
+from handover.engine.assets.graspdb import GraspDB, cached_candidates  # noqa: E402
+from handover.engine.load.loader import load_kb  # noqa: E402
 from handover.engine.planner import plan  # noqa: E402
-from handover.engine.query import Query  # noqa: E402
+from handover.engine.plan.query import Query  # noqa: E402
 
 RADIUS = 0.015  # m: a 3 cm ball; a larger one is too deep for 2 cm of finger past the contacts
 
@@ -95,9 +95,9 @@ def bench_objects(kb, modes: list[str], runs: int) -> None:
 
 
 def bench_explain(kb, runs: int) -> None:
-    from handover.engine.explain import QUICK_REASONS
-    from handover.engine.modes import attempt_mode
-    from handover.engine.prepare import prepare
+    from handover.engine.plan.explain import QUICK_REASONS
+    from handover.engine.plan.modes import attempt_mode
+    from handover.engine.plan.prepare import prepare
 
     common = kb.cultures["common"]
     far = next(r for r in common.rules if r.kind == "clearance").model_copy(
@@ -141,7 +141,7 @@ def bench_explain(kb, runs: int) -> None:
 def _generation_times(path: Path, gripper, runs: int) -> tuple[float, float, int]:
     """Median seconds to build the collider and to generate candidates on a freshly loaded
     mesh (trimesh caches facets and the ray scene on a mesh: a reused one would flatter)."""
-    from handover.engine import assets
+    from handover.engine.assets import objects as assets
     from handover.geometry.collision import ObjectCollider
 
     t_col, t_gen, count = [], [], 0
@@ -160,7 +160,7 @@ def _generation_times(path: Path, gripper, runs: int) -> tuple[float, float, int
 def bench_scaling(kb, max_subdiv: int, runs: int) -> None:
     import trimesh
 
-    from handover.engine import assets
+    from handover.engine.assets import objects as assets
 
     gripper = assets.gripper_from_spec(kb.gripper(kb.robot("idro").gripper))
     print(f"\n## Scaling with mesh size (icosphere, radius {RADIUS * 100:g} cm; median seconds)")

@@ -31,15 +31,15 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
 
 import numpy as np  # noqa: E402
 
-from handover.engine.attempt import Attempt, Hands, Phase  # noqa: E402
-from handover.engine.compiler import CompiledRule  # noqa: E402
-from handover.engine.context import PlanContext  # noqa: E402
-from handover.engine.evaluate import Decision  # noqa: E402
-from handover.engine.presentation import presentation_rotations  # noqa: E402
-from handover.engine.receiver_sites import ReceiverRegion, ReceiverSites  # noqa: E402
-from handover.engine.record import write_recording  # noqa: E402
-from handover.engine.result import PlanResult  # noqa: E402
-from handover.engine.schema import parse_rule  # noqa: E402
+from handover.engine.plan.attempt import Attempt, Hands, Phase  # noqa: E402
+from handover.engine.plan.compiler import CompiledRule  # noqa: E402
+from handover.engine.plan.context import PlanContext  # noqa: E402
+from handover.engine.plan.evaluate import Decision  # noqa: E402
+from handover.engine.plan.presentation import presentation_rotations  # noqa: E402
+from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites  # noqa: E402
+from handover.engine.report.rerun.writer import write_recording  # noqa: E402
+from handover.engine.report.result import PlanResult  # noqa: E402
+from handover.engine.spec.schema import parse_rule  # noqa: E402
 from handover.geometry.candidates import SOURCE_ANTIPODAL, CandidateSet  # noqa: E402
 from handover.geometry.frames import perpendicular, unit  # noqa: E402
 from handover.geometry.gripper import Gripper  # noqa: E402
@@ -177,9 +177,9 @@ def knife(folder: Path) -> str:
     """Plan time and recording time of the real knife plan (first recording of a process
     pays rerun's import; this one runs after the synthetic ones, so it does not)."""
     try:
-        from handover.engine.loader import load_kb
+        from handover.engine.load.loader import load_kb
         from handover.engine.planner import plan
-        from handover.engine.query import Query
+        from handover.engine.plan.query import Query
 
         kb = load_kb(None)
         t = time.perf_counter()

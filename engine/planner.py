@@ -20,17 +20,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from handover.engine.attempt import Attempt
-from handover.engine.query import DEFAULTS, Query
+from handover.engine.plan.attempt import Attempt
+from handover.engine.plan.query import DEFAULTS, Query
 
 if TYPE_CHECKING:
     import trimesh
 
-    from handover.engine.compiler import CompiledRule, ConstraintGraph
-    from handover.engine.context import PlanContext
-    from handover.engine.loader import KB
-    from handover.engine.place import PlacementPlan
-    from handover.engine.result import PlanResult
+    from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
+    from handover.engine.plan.context import PlanContext
+    from handover.engine.load.loader import KB
+    from handover.engine.plan.place import PlacementPlan
+    from handover.engine.report.result import PlanResult
 
 __all__ = ["plan", "decide", "Decided", "refusing_rules", "fallback_rules", "Planner", "Plan",
            "RobotGrasp", "HumanGrasp", "Robot", "RobotArm"]
@@ -41,21 +41,21 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
     """Plan a handover, choosing the mode (``auto``) or using the forced one; or, when the
     rules say so, set the object down or refuse (see :func:`decide`).
 
-    db : the grasp database (``handover.engine.graspdb.GraspDB``) or None to generate.
+    db : the grasp database (``handover.engine.assets.graspdb.GraspDB``) or None to generate.
     mesh : an object given as a mesh (object frame, metres) instead of ``query.object``.
     what_if : when no handover is feasible, list the verified changes that would make one
-    feasible (``result.what_if``, :mod:`handover.engine.whatif`).
+    feasible (``result.what_if``, :mod:`handover.engine.plan.whatif`).
     Returns the :class:`Plan` (any outcome) with its context and chosen attempt.
     """
-    from handover.engine.assemble import build_result
-    from handover.engine.prepare import prepare
+    from handover.engine.report.assemble import build_result
+    from handover.engine.plan.prepare import prepare
 
     ctx = prepare(kb, query, db, mesh=mesh)
     d = decide(kb, ctx, query.mode)
     result = build_result(ctx, d.attempt, d.tried, d.mode_reason, why_not, outcome=d.outcome,
                           placement=d.placement, refused=d.refused, fallback=d.fallback)
     if what_if:  # a handover has nothing to change: []
-        from handover.engine.whatif import what_if as changes
+        from handover.engine.plan.whatif import what_if as changes
 
         result.what_if = changes(kb, query, ctx, d.attempt, d.tried, db=db, mesh=mesh)
     if d.placement is not None and d.placement.feasible:
@@ -81,7 +81,7 @@ class Decided:
 def refusing_rules(kb: KB, ctx: PlanContext) -> tuple[ConstraintGraph, list[CompiledRule]]:
     """The compiled graph (H1G1) and its active hard ``refuse`` rules that hold whatever the
     mode (a ``refuse`` rule with a ``modes`` condition only removes that mode's rows)."""
-    from handover.engine.compiler import compile
+    from handover.engine.plan.compiler import compile
 
     cg = compile(kb, ctx, "H1G1")
     return cg, [c for c in cg.order if c.rule.kind == "refuse" and c.rule.hard
@@ -90,8 +90,8 @@ def refusing_rules(kb: KB, ctx: PlanContext) -> tuple[ConstraintGraph, list[Comp
 
 def refusal_text(ctx: PlanContext, c: CompiledRule) -> str:
     """Why rule ``c`` refuses: its id, file:line, the conditions that hold, and its why."""
-    from handover.engine.applies import check
-    from handover.engine.compiler import query_facts
+    from handover.engine.spec.applies import check
+    from handover.engine.plan.compiler import query_facts
 
     _, holds = check(c.rule.applies, query_facts(ctx, "H1G1"))
     return (f"rule {c.id} ({c.source}) refuses to hand {ctx.situation.obj.id} to this "
@@ -105,8 +105,8 @@ def fallback_rules(kb: KB, ctx: PlanContext, tried: list[Attempt]) -> list[Compi
     named in its reason. Rules in KB order, each once."""
     import re
 
-    from handover.engine.blocking import blocking_sets
-    from handover.engine.compiler import compile
+    from handover.engine.plan.blocking import blocking_sets
+    from handover.engine.plan.compiler import compile
 
     found: dict[str, CompiledRule] = {}
     cg = compile(kb, ctx, "H1G1")
@@ -135,13 +135,13 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
 
     - ``refuse``: an active hard ``refuse`` rule applies: no mode is tried; when every such
       rule names ``fallback: place`` the object is set down instead (``place``) if it can be.
-    - ``handover``: a mode is feasible (:func:`engine.modes.choose`).
+    - ``handover``: a mode is feasible (:func:`engine.plan.modes.choose`).
     - ``place``: no mode is feasible, a hard rule naming ``fallback: place`` blocked it
-      (:func:`fallback_rules`) and a placement is found (:mod:`engine.place`).
+      (:func:`fallback_rules`) and a placement is found (:mod:`engine.plan.place`).
     - ``infeasible``: otherwise; the reason says what was tried.
     """
-    from handover.engine.modes import PLANNERS, choose
-    from handover.engine.place import plan_placement
+    from handover.engine.plan.modes import PLANNERS, choose
+    from handover.engine.plan.place import plan_placement
 
     cg, refusing = refusing_rules(kb, ctx)
     if refusing:
@@ -348,7 +348,7 @@ class Plan:
 
     def record(self, path: str | Path) -> Path:
         """Write the rerun recording of this plan to ``path`` (``.rrd``)."""
-        from handover.engine.record import write_recording
+        from handover.engine.report.rerun.writer import write_recording
 
         write_recording(self.result, self.context, path, self.attempt)
         return Path(path)
@@ -368,8 +368,8 @@ class Planner:
     """
 
     def __init__(self, kb: str | Path | KB | None = None, db: str | Path | bool | None = None):
-        from handover.engine.graspdb import open_db
-        from handover.engine.loader import KB, load_kb
+        from handover.engine.assets.graspdb import open_db
+        from handover.engine.load.loader import KB, load_kb
 
         self.kb = kb if isinstance(kb, KB) else load_kb(kb, urdf=False)
         self.db = open_db(None if db is True else db, disabled=db is False)

@@ -122,7 +122,7 @@ def armless_kb(tmp_path: Path) -> Path:
     """The built-in KB copied with the robot's arms taken off (a floating gripper per hand)."""
     import shutil
 
-    from handover.engine.store import builtin_kb_dir
+    from handover.engine.store.kb import builtin_kb_dir
 
     root = tmp_path / "armless_kb"
     shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
@@ -151,8 +151,8 @@ def arms_off():
 @pytest.fixture(scope="session")
 def builtin_kb():
     """The built-in knowledge base, loaded once (do not modify it)."""
-    from handover.engine.loader import load_kb
-    from handover.engine.store import builtin_kb_dir
+    from handover.engine.load.loader import load_kb
+    from handover.engine.store.kb import builtin_kb_dir
 
     return load_kb(builtin_kb_dir())
 

@@ -1,8 +1,10 @@
-"""The source layout: no import cycle among the engine's modules, geometry never imports the
-engine, and no module over 500 lines unless its docstring says why.
+"""The source layout: the engine's layers, each importing only itself and the layers below
+it; no import cycle at all in the engine or in geometry; geometry never imports the engine; at
+most a dozen modules at the engine's top level; no module over 500 lines unless its docstring
+says why.
 
-Imports are read with :mod:`ast` (nothing is imported): module-level and function-level
-imports both count; imports under ``if TYPE_CHECKING:`` do not (they never run).
+Imports are read with :mod:`ast` (nothing is imported): module-level, function-level and
+``if TYPE_CHECKING:`` imports all count (a type named in an annotation is a dependency too).
 """
 
 from __future__ import annotations
@@ -31,23 +33,14 @@ def _modules(package: str, folder: Path) -> dict[str, Path]:
     return out
 
 
-def _is_type_checking(test: ast.expr) -> bool:
-    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
-        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
-    )
-
-
 def _imported(tree: ast.Module, module: str, is_package: bool, modules: set[str]) -> set[str]:
-    """Every name ``tree`` imports at run time, relative imports resolved: ``import X.Y``
+    """Every name ``tree`` imports (anywhere, ``TYPE_CHECKING`` blocks included), relative
+    imports resolved: ``import X.Y``
     gives ``X.Y``; ``from X import y`` gives ``X.y`` when that is a module, else ``X``."""
     names: set[str] = set()
     package = module if is_package else module.rpartition(".")[0]
 
     def visit(node: ast.AST) -> None:
-        if isinstance(node, ast.If) and _is_type_checking(node.test):
-            for child in node.orelse:
-                visit(child)
-            return
         if isinstance(node, ast.Import):
             names.update(alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
@@ -113,11 +106,77 @@ def too_long(packages: dict[str, Path]) -> list[str]:
     return out
 
 
-def test_no_import_cycle_in_engine() -> None:
-    cycles = import_cycles(import_graph(PACKAGES), "handover.engine")
-    assert not cycles, "import cycles among engine modules:\n" + "\n".join(
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("handover.engine", "handover.engine.errors", "handover.engine.files"),
+    ("handover.engine.spec",),
+    ("handover.engine.store",),
+    ("handover.engine.assets",),
+    ("handover.engine.load",),
+    ("handover.engine.plan",),
+    ("handover.engine.report",),
+    ("handover.engine.planner",),
+    ("handover.engine.tools",),
+    ("handover.engine.cli", "handover.engine.service"),
+)
+"""The engine's layers, lowest first: a module may import its own layer and those below it.
+
+0 the package, the errors and exit codes, whole-file writes; 1 ``spec``: the KB's data model
+and the rule kinds' fields; 2 ``store``: YAML with positions, validation, the KB store,
+cultures; 3 ``assets``: specs to geometry (meshes, grippers, robots), the grasp database;
+4 ``load``: ``load_kb`` and the checks across documents (a robot's URDF needs the assets);
+5 ``plan``: one query, from its context to the chosen attempt; 6 ``report``: the result
+record, the trace, the rerun recording; 7 ``planner``: the facade; 8 ``tools``: batch,
+compare, KB tests; 9 the ``handover`` command and the plan service. ``handover.geometry`` lies
+below them all and imports none of them."""
+
+MAX_TOP_LEVEL = 12
+
+
+def layer_of(module: str, layers: tuple[tuple[str, ...], ...] = LAYERS) -> int | None:
+    """The index of the layer holding ``module`` (its longest matching prefix), None when no
+    layer names it."""
+    best, found = -1, None
+    for index, prefixes in enumerate(layers):
+        for prefix in prefixes:
+            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > best:
+                best, found = len(prefix), index
+    return found
+
+
+def layer_violations(graph: nx.DiGraph, prefix: str,
+                     layers: tuple[tuple[str, ...], ...] = LAYERS) -> list[str]:
+    """Imports among the modules under ``prefix`` that go to a higher layer, and modules
+    that no layer names."""
+    out = []
+    for module in sorted(n for n in graph if n.startswith(prefix)):
+        mine = layer_of(module, layers)
+        if mine is None:
+            out.append(f"{module} is in no layer (add it to LAYERS)")
+            continue
+        for target in sorted(graph.successors(module)):
+            theirs = layer_of(target, layers)
+            if target.startswith(prefix) and theirs is not None and theirs > mine:
+                out.append(f"{module} (layer {mine}) imports {target} (layer {theirs})")
+    return out
+
+
+def test_engine_layers_import_only_downward() -> None:
+    bad = layer_violations(import_graph(PACKAGES), "handover.engine")
+    assert not bad, "\n".join(bad)
+
+
+@pytest.mark.parametrize("prefix", ["handover.engine", "handover.geometry"])
+def test_no_import_cycle(prefix: str) -> None:
+    cycles = import_cycles(import_graph(PACKAGES), prefix)
+    assert not cycles, f"import cycles under {prefix}:\n" + "\n".join(
         " <-> ".join(c) for c in cycles
     )
+
+
+def test_engine_top_level_is_small() -> None:
+    top = sorted(p.name for p in (ROOT / "engine").iterdir()
+                 if p.suffix == ".py" or (p / "__init__.py").exists())
+    assert len(top) <= MAX_TOP_LEVEL, top
 
 
 def test_geometry_never_imports_engine() -> None:
@@ -144,7 +203,7 @@ def _write(folder: Path, files: dict[str, str]) -> Path:
     return folder
 
 
-def test_cycle_found_through_function_import_not_type_checking(tmp_path: Path) -> None:
+def test_cycle_found_through_function_and_type_checking_imports(tmp_path: Path) -> None:
     folder = _write(
         tmp_path / "eng",
         {
@@ -162,9 +221,9 @@ def test_cycle_found_through_function_import_not_type_checking(tmp_path: Path) -
     graph = import_graph({"handover.engine": folder})
     assert import_cycles(graph, "handover.engine") == [
         ["handover.engine.a", "handover.engine.b"]
-    ]
+    ]  # a <-> b through a function-level import
     assert graph.has_edge("handover.engine.d", "handover.engine.c")
-    assert not graph.has_edge("handover.engine.c", "handover.engine.a")
+    assert graph.has_edge("handover.engine.c", "handover.engine.a")  # under TYPE_CHECKING
     assert graph.has_edge("handover.engine.sub", "handover.engine.d")
     assert graph.has_edge("handover.engine.sub.e", "handover.engine.sub")  # named itself
     assert set(graph.successors("handover.engine.sub.f")) == {"handover.engine.sub.e"}
@@ -189,3 +248,37 @@ def test_long_module_needs_a_reason(tmp_path: Path, doc: str, flagged: bool) -> 
     folder = _write(tmp_path / "eng", {"__init__.py": "", "big.py": doc + "x = 1\n" * 600})
     found = too_long({"handover.engine": folder})
     assert bool(found) is flagged, found
+
+
+def test_an_upward_import_is_a_layer_violation(tmp_path: Path) -> None:
+    folder = _write(
+        tmp_path / "eng",
+        {
+            "__init__.py": "",
+            "spec/__init__.py": "",
+            "spec/model.py": "from typing import TYPE_CHECKING\n"
+            "if TYPE_CHECKING:\n    from handover.engine.plan.context import Ctx\n",
+            "plan/__init__.py": "",
+            "plan/context.py": "from handover.engine.spec.model import M\n",
+            "stray.py": "",
+        },
+    )
+    graph = import_graph({"handover.engine": folder})
+    layers = (("handover.engine",), ("handover.engine.spec",), ("handover.engine.plan",))
+    bad = layer_violations(graph, "handover.engine", layers)
+    assert "handover.engine.spec.model (layer 1) imports handover.engine.plan.context (layer 2)" \
+        in bad
+    assert not any(b.startswith("handover.engine.plan.context ") for b in bad)
+    # a module no layer names is reported, not let through (here stray.py is the package's)
+    assert layer_of("handover.engine.stray", layers) == 0
+    assert layer_violations(graph, "handover.engine", layers[1:])[0].endswith("in no layer "
+                                                                              "(add it to LAYERS)")
+
+
+def test_a_cycle_in_geometry_is_seen(tmp_path: Path) -> None:
+    geo = _write(tmp_path / "geo", {"__init__.py": "", "a.py": "from .b import x\n",
+                                    "b.py": "def f():\n    from . import a\n"})
+    graph = import_graph({"handover.geometry": geo})
+    assert import_cycles(graph, "handover.geometry") == [
+        ["handover.geometry.a", "handover.geometry.b"]
+    ]

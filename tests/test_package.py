@@ -43,8 +43,8 @@ def test_the_wheel_holds_exactly_one_top_level_package(wheel):
     for init in inits:
         rel = init.relative_to(ROOT).as_posix()
         assert f"handover/{rel}" in names, rel
-    assert "handover/engine/kinds/contact.py" in names
-    assert "handover/engine/modes/h2g1.py" in names
+    assert "handover/engine/spec/kinds/contact.py" in names
+    assert "handover/engine/plan/modes/h2g1.py" in names
     assert "handover/geometry/collision.py" in names
     assert "handover/kb/etiquette/common.yaml" in names
     assert "handover/kb/schema/etiquette.json" in names

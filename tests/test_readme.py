@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 
 import handover
-import handover.engine.applies
+import handover.engine.spec.applies
 import handover.engine.planner
 
 README = Path(__file__).resolve().parents[1] / "README.md"
@@ -31,7 +31,7 @@ def test_the_readme_from_python_section_runs():
 
 
 def test_the_facade_docstrings_run():
-    for module in (handover, handover.engine.planner, handover.engine.applies):
+    for module in (handover, handover.engine.planner, handover.engine.spec.applies):
         finder = doctest.DocTestFinder()
         for test in finder.find(module):
             if test.examples:

@@ -22,7 +22,7 @@ import trimesh
 import yaml
 
 import handover.engine.files
-import handover.engine.record
+import handover.engine.report.rerun.writer
 import handover.geometry.mesh
 from handover.engine.cli.app import main
 from handover.engine.errors import (
@@ -34,10 +34,10 @@ from handover.engine.errors import (
     EXIT_USAGE,
     UsageError,
 )
-from handover.engine.schema import DOCUMENT_KINDS
-from handover.engine.store import builtin_kb_dir
-from handover.engine.validate import validate_document
-from handover.engine.yamlpos import load_yaml_with_marks
+from handover.engine.spec.schema import DOCUMENT_KINDS
+from handover.engine.store.kb import builtin_kb_dir
+from handover.engine.store.validate import validate_document
+from handover.engine.store.yamlpos import load_yaml_with_marks
 
 HANDOVER = Path(sys.executable).parent / "handover"
 OBJECTS = sorted(p.stem for p in (builtin_kb_dir() / "objects").glob("*.yaml"))
@@ -567,7 +567,7 @@ def test_ties_go_to_the_lower_row(builtin_kb):
     """The ranking is score descending, then row index: equal scores are common (a ball, a
     symmetric book), and the choice among them must not depend on anything else."""
     from handover.engine.planner import plan
-    from handover.engine.query import Query
+    from handover.engine.plan.query import Query
 
     ties = 0
     for obj in ("ball", "book", "hammer", "scissors"):
@@ -582,7 +582,7 @@ def test_ties_go_to_the_lower_row(builtin_kb):
 
 
 def test_batch_rows_hold_the_grasps_plan_prints(capsys, tmp_path):
-    from handover.engine.batch import read_rows
+    from handover.engine.tools.batch import read_rows
 
     out = tmp_path / "rows.parquet"
     code, _, _ = run(capsys, "batch", "--objects", "knife,hammer", "--out", str(out),
@@ -635,7 +635,7 @@ def test_a_failed_write_keeps_the_old_file(capsys, tmp_path, monkeypatch):
         Path(tmp).write_bytes(b"half a recording")
         raise RuntimeError("the disk went away")
 
-    monkeypatch.setattr(handover.engine.record, "_write", half_written)
+    monkeypatch.setattr(handover.engine.report.rerun.writer, "_write", half_written)
     code, _, err = run(capsys, "plan", "pen", "--rrd", str(rrd), "--no-db")
     assert code == EXIT_INTERNAL and "the disk went away" in err
     assert rrd.read_bytes() == b"old recording"

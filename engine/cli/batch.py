@@ -55,9 +55,9 @@ def batch(
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from handover.engine.batch import expand, run_batch
-    from handover.engine.graspdb import open_db
-    from handover.engine.loader import load_kb
+    from handover.engine.tools.batch import expand, run_batch
+    from handover.engine.assets.graspdb import open_db
+    from handover.engine.load.loader import load_kb
 
     console = Console(stderr=True, highlight=False)
     kb = load_kb(state.kb_dir, urdf=False)
@@ -146,7 +146,7 @@ def render_summary(report, console, db_root: Path | None, limit: int = 40) -> No
         f"{report.skipped} already done. {len(report.rows)} rows in {report.out}."
     )
     console.print(f"grasp database: {db_root if db_root is not None else 'off (--no-db)'}")
-    from handover.engine.batch import rule_summary
+    from handover.engine.tools.batch import rule_summary
 
     use = rule_summary(rows)
     if use:

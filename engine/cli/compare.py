@@ -1,5 +1,5 @@
 """``handover compare``: one handover across cultures, receivers, tasks and grippers, side
-by side, with a rule-by-rule diff (computed by :mod:`handover.engine.compare`)."""
+by side, with a rule-by-rule diff (computed by :mod:`handover.engine.tools.compare`)."""
 
 from __future__ import annotations
 
@@ -40,13 +40,13 @@ def compare(
     Exit codes: 0 compared (whatever the outcomes), 2 usage error, 3 invalid KB.
     """
     from handover import Planner
-    from handover.engine.compare import compare as run_compare
+    from handover.engine.tools.compare import compare as run_compare
 
     report = run_compare(Planner(state.kb_dir), object_, cultures=_list(culture),
                          receivers=_list(receiver), tasks=_list(task), grippers=_list(gripper),
                          scene=scene)
     if json_out:
-        from handover.engine.result import dumps
+        from handover.engine.report.result import dumps
 
         typer.echo(dumps(report), nl=False)
         return

@@ -1,6 +1,6 @@
 """``handover grasps``: every geometric grasp candidate on an object or a mesh file.
 
-The candidates come from :func:`handover.engine.grasps.list_grasps`; this module parses the
+The candidates come from :func:`handover.engine.tools.grasps.list_grasps`; this module parses the
 options and renders them (a table, or the JSON of ``GraspListing.to_dict``).
 """
 
@@ -14,7 +14,7 @@ from handover.engine.cli.app import app, state
 from handover.engine.cli.plan import MESH_SCALE_HELP, check_mesh_scale
 
 if TYPE_CHECKING:
-    from handover.engine.grasps import GraspListing
+    from handover.engine.tools.grasps import GraspListing
 
 TABLE_ROWS = 15
 
@@ -44,9 +44,9 @@ def grasps(
     JSON numbers are rounded to 6 decimals (micrometres), like ``handover plan --json``.
     Exit codes: 0 done, 2 unknown id or bad option, 3 invalid KB, 5 bad mesh.
     """
-    from handover.engine.grasps import list_grasps
-    from handover.engine.loader import load_kb
-    from handover.engine.result import dumps
+    from handover.engine.tools.grasps import list_grasps
+    from handover.engine.load.loader import load_kb
+    from handover.engine.report.result import dumps
 
     check_mesh_scale(mesh_scale)
     kb = load_kb(state.kb_dir, urdf=False)

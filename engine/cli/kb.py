@@ -1,7 +1,7 @@
 """``handover kb ...``: validate, list, show and describe (JSON Schema) the knowledge base.
 
 Every command reads the KB folder of ``--kb`` / ``$HANDOVER_KB`` (default: the built-in one).
-What is shown is computed by :mod:`handover.engine.kbshow`; this module renders it. Heavy
+What is shown is computed by :mod:`handover.engine.tools.kbshow`; this module renders it. Heavy
 modules (pydantic models, YAML, rich) are imported inside the commands.
 """
 
@@ -19,13 +19,13 @@ if TYPE_CHECKING:
     from rich.console import Console
 
     from handover.engine.errors import KBIssue
-    from handover.engine.store import KB
+    from handover.engine.store.kb import KB
 
 __all__ = ["validate", "list_kb", "show", "schema"]
 
 
 def _load() -> KB:
-    from handover.engine.loader import load_kb
+    from handover.engine.load.loader import load_kb
 
     return load_kb(state.kb_dir)
 
@@ -66,7 +66,7 @@ def validate(
     Exit code 0 when valid (warnings are printed), 3 with every error as file:line:col.
     """
     from handover.engine.errors import KBError
-    from handover.engine.store import KIND_ATTRS
+    from handover.engine.store.kb import KIND_ATTRS
 
     try:
         kb = _load()
@@ -112,7 +112,7 @@ def list_kb(
     json_out: bool = typer.Option(False, "--json", help="Print one JSON object."),
 ) -> None:
     """List objects, cultures, receivers, scenes, grippers, hands and robots."""
-    from handover.engine.kbshow import listing
+    from handover.engine.tools.kbshow import listing
 
     data = listing(_load())
     if json_out:
@@ -167,7 +167,7 @@ def show(
     file:line and the rules it overrides. Also shows a culture (its resolved rules), a
     receiver, scene, gripper, hand or robot.
     """
-    from handover.engine.kbshow import show_item
+    from handover.engine.tools.kbshow import show_item
 
     data = show_item(_load(), item_id, kind, culture)
     which = data["kind"]
@@ -308,8 +308,8 @@ def schema(
     regenerate those files with ``handover kb schema -o kb/schema``.
     """
     from handover.engine.files import write_atomic, write_error
-    from handover.engine.schema import DOCUMENT_KINDS
-    from handover.engine.validate import document_schema
+    from handover.engine.spec.schema import DOCUMENT_KINDS
+    from handover.engine.store.validate import document_schema
 
     def text(k: str | None) -> str:
         return json.dumps(document_schema(k), indent=2, sort_keys=False, ensure_ascii=False) + "\n"

@@ -1,6 +1,6 @@
 """``handover kb test``: run the KB's test cases (``tests/*.yaml``) and report like a test
-runner; ``--coverage`` adds rule coverage. Computed by :mod:`handover.engine.kbtest` and
-:mod:`handover.engine.coverage`; this module renders.
+runner; ``--coverage`` adds rule coverage. Computed by :mod:`handover.engine.tools.kbtest` and
+:mod:`handover.engine.tools.coverage`; this module renders.
 
 Exit codes: 0 every case passed, 1 a case failed, 3 an invalid KB or test file, 2 usage.
 """
@@ -34,8 +34,8 @@ def test(
     Exit codes: 0 all cases passed, 1 some case failed, 3 invalid KB or test file.
     """
     from handover.engine.errors import UsageError
-    from handover.engine.kbtest import case_files, run_tests
-    from handover.engine.loader import load_kb
+    from handover.engine.tools.kbtest import case_files, run_tests
+    from handover.engine.load.loader import load_kb
 
     kb = load_kb(state.kb_dir, urdf=False)
     report = run_tests(kb, case_files(kb, list(paths or [])), select=select)
@@ -44,11 +44,11 @@ def test(
         raise UsageError(f"no test cases in {where}" + (f" matching '{select}'" if select else ""))
     cov = None
     if coverage:
-        from handover.engine.coverage import rule_coverage
+        from handover.engine.tools.coverage import rule_coverage
 
         cov = rule_coverage(kb, report.cases)
     if json_out:
-        from handover.engine.result import dumps
+        from handover.engine.report.result import dumps
 
         data: dict[str, Any] = {"cases": [c.to_dict() for c in report.cases],
                                 "passed": report.passed, "failed": report.failed}

@@ -28,7 +28,7 @@ def check_mesh_scale(mesh_scale: float) -> float:
 
 def _query(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0,
            robot=None):
-    from handover.engine.query import DEFAULTS, Query
+    from handover.engine.plan.query import DEFAULTS, Query
 
     return Query(
         mesh_scale=check_mesh_scale(mesh_scale),
@@ -77,8 +77,8 @@ def plan(
     from rich.console import Console
 
     from handover.engine.errors import EXIT_INFEASIBLE
-    from handover.engine.graspdb import open_db
-    from handover.engine.loader import load_kb
+    from handover.engine.assets.graspdb import open_db
+    from handover.engine.load.loader import load_kb
     from handover.engine.planner import plan as run_plan
 
     kb = load_kb(state.kb_dir, urdf=False)
@@ -100,7 +100,7 @@ def plan(
     elif data["outcome"] in ("place", "refuse"):
         render_outcome(data, Console(highlight=False, soft_wrap=False), explain=explain)
     else:
-        from handover.engine.trace import render_plan
+        from handover.engine.report.trace import render_plan
 
         render_plan(data, Console(highlight=False, soft_wrap=False), explain=explain)
     if what_if and not json_out:
@@ -136,7 +136,7 @@ def render_outcome(result: dict, console, explain: bool = False) -> None:
     with the rule's why; with ``explain`` the placement grasp's rule trace."""
     from rich.markup import escape
 
-    from handover.engine.trace import _trace_tree
+    from handover.engine.report.trace import _trace_tree
 
     q, r = result["query"], result["receiver"]
     console.print(f"[bold]{result['object']}[/] to a {r['role']} receiver aged {r['age']:g} "
@@ -188,10 +188,10 @@ def explain_graph(
     evaluation order."""
     from rich.console import Console
 
-    from handover.engine.compiler import compile, graph_to_dot
-    from handover.engine.loader import load_kb
-    from handover.engine.prepare import prepare
-    from handover.engine.trace import render_graph
+    from handover.engine.plan.compiler import compile, graph_to_dot
+    from handover.engine.load.loader import load_kb
+    from handover.engine.plan.prepare import prepare
+    from handover.engine.report.trace import render_graph
 
     kb = load_kb(state.kb_dir, urdf=False)
     ctx = prepare(kb, _query(object_, task, receiver, culture, scene, "auto", None))

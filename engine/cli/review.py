@@ -39,7 +39,7 @@ def viewer_command(path: Path, env: Mapping[str, str] | None = None) -> list[str
 
 
 def render_summary(data: dict, trace_lines: int | None = None) -> str:
-    """The summary of :func:`engine.recording.read_recording` as text."""
+    """The summary of :func:`engine.report.rerun.reader.read_recording` as text."""
     out = [
         f"recording {data['file']} ({data['application_id']}, "
         f"recording id {data['recording_id']}), default blueprint: "
@@ -87,8 +87,8 @@ def review(
     """
     import subprocess
 
-    from handover.engine.recording import read_recording
-    from handover.engine.result import dumps
+    from handover.engine.report.rerun.reader import read_recording
+    from handover.engine.report.result import dumps
 
     data = read_recording(file)  # validates the file first, whatever is asked
     if not (summary or json_out):

@@ -16,9 +16,9 @@ import pytest
 import yaml
 import yourdfpy
 
-from handover.engine.loader import load_kb
+from handover.engine.load.loader import load_kb
 from handover.engine.planner import Planner
-from handover.engine.store import builtin_kb_dir
+from handover.engine.store.kb import builtin_kb_dir
 
 TORSO_LINKS = ("base_link", "torso", "head")  # the URDF's links fixed to its root
 
@@ -373,8 +373,8 @@ def test_a_grasp_low_on_the_post_puts_the_wrist_into_the_base(links_kb, builtin_
     # of 5 cm radius about the approach, 15-22 cm behind the grasp, over the plinth).
     # Whatever the arm's other joints do, the exact check finds it in the plinth, names the
     # link and the object, and passes the row over.
-    from handover.engine.arms import confirm
-    from handover.engine.attempt import Phase, Roles
+    from handover.engine.plan.arms.solve import confirm
+    from handover.engine.plan.attempt import Phase, Roles
 
     ctx = trophy_plan.context
     r = trophy_plan.to_dict()
@@ -515,8 +515,8 @@ def test_the_object_held_must_not_pass_through_the_arm_that_waits(builtin_urdf):
     # it, nothing of the resting arm is hit. The words a failed check says, too.
     from dataclasses import replace
 
-    from handover.engine.armlinks import rest_blocked
-    from handover.engine.arms import ArmCheck
+    from handover.engine.plan.arms.links import rest_blocked
+    from handover.engine.plan.arms.solve import ArmCheck
 
     plan = Planner().plan("screwdriver", mode="h1g1")
     ctx, attempt = plan.context, plan.attempt

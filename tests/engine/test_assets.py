@@ -1,4 +1,4 @@
-"""KB specs to geometry objects (engine.assets)."""
+"""KB specs to geometry objects (engine.assets.objects)."""
 
 from __future__ import annotations
 
@@ -9,14 +9,14 @@ import pytest
 import trimesh
 from numpy.testing import assert_allclose
 
-from handover.engine.assets import (
+from handover.engine.assets.objects import (
     gripper_from_spec,
     mesh_file_object,
     object_part_mesh,
     primitive_mesh,
 )
-from handover.engine.loader import load_kb
-from handover.engine.schema import GripperSpec, Primitive
+from handover.engine.load.loader import load_kb
+from handover.engine.spec.schema import GripperSpec, Primitive
 from handover.geometry.mesh import MeshError
 
 BRICK = """\
@@ -164,7 +164,7 @@ axes:
 
 
 def test_a_mug_from_a_cup_is_gripped_across_its_body_wall(tmp_path):
-    from handover.engine.assets import object_interior
+    from handover.engine.assets.objects import object_interior
     from handover.geometry.collision import ObjectCollider
     from handover.geometry.generate import generate_candidates
 

@@ -19,11 +19,11 @@ from hypothesis import strategies as st
 
 from handover import Planner
 from handover.engine.cli.app import main
-from handover.engine.modes import attempt_mode, choose
-from handover.engine.prepare import prepare
-from handover.engine.query import Query
-from handover.engine.schema import Culture
-from handover.engine.store import builtin_kb_dir
+from handover.engine.plan.modes import attempt_mode, choose
+from handover.engine.plan.prepare import prepare
+from handover.engine.plan.query import Query
+from handover.engine.spec.schema import Culture
+from handover.engine.store.kb import builtin_kb_dir
 
 PREFERS_TWO_HANDS = """\
 id: two_hands_please
@@ -204,7 +204,7 @@ def test_the_heaviest_soft_mode_rule_wins_and_ties_go_to_kb_order(planner):
         kb.cultures["w"] = Culture.model_validate({"id": "w", "name": "W", "rules": [
             {"id": rid, "kind": "mode", "mode": mode, "hard": False, "weight": w,
              "why": "w"} for rid, mode, w in rules]})  # fmt: skip
-        from handover.engine.modes import required_mode
+        from handover.engine.plan.modes import required_mode
 
         return required_mode(kb, prepare(kb, Query(object="book", culture="w"), planner.db))
 

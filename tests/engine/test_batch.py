@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from handover.engine import batch
+from handover.engine.tools import batch
 from handover.engine.errors import UsageError
-from handover.engine.loader import load_kb
+from handover.engine.load.loader import load_kb
 
 GOOD = ("bar.stl", "can.stl", "ball.ply")
 BROKEN = ("empty.stl", "garbage.obj", "flat.stl")
@@ -225,7 +225,7 @@ def test_out_that_is_not_a_batch_output_is_refused(kb, tmp_path):
 
 
 def test_batch_fills_the_grasp_database(kb, meshes, tmp_path):
-    from handover.engine.graspdb import GraspDB
+    from handover.engine.assets.graspdb import GraspDB
 
     db = tmp_path / "db"
     units = batch.expand(kb, str(meshes), receivers=["adult,child"])
@@ -246,7 +246,7 @@ def test_ray_missing_is_a_clear_error(kb, tmp_path, monkeypatch):
 
 def test_cli_batch(meshes, tmp_path, monkeypatch):
     from handover.engine.cli.app import main
-    from handover.engine.graspdb import GraspDB
+    from handover.engine.assets.graspdb import GraspDB
 
     out = tmp_path / "out.parquet"
     args = ["batch", "--objects", str(meshes), "--out", str(out), "--workers", "2",

@@ -18,9 +18,9 @@ import pytest
 import trimesh
 
 from handover import Planner
-from handover.engine.modes.support import wrist_point
-from handover.engine.schema import Culture
-from handover.engine.store import builtin_kb_dir
+from handover.engine.plan.modes.support import wrist_point
+from handover.engine.spec.schema import Culture
+from handover.engine.store.kb import builtin_kb_dir
 from handover.geometry.collision import BoxWorld, ObjectCollider
 from handover.geometry.gripper import Gripper
 

@@ -15,9 +15,9 @@ import pytest
 import yaml
 
 from handover.engine.cli.app import main
-from handover.engine.schema import DOCUMENT_KINDS
-from handover.engine.store import builtin_kb_dir
-from handover.engine.validate import document_schema
+from handover.engine.spec.schema import DOCUMENT_KINDS
+from handover.engine.store.kb import builtin_kb_dir
+from handover.engine.store.validate import document_schema
 
 HANDOVER = Path(sys.executable).parent / "handover"
 

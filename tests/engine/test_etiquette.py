@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from handover.engine.errors import UsageError
-from handover.engine.etiquette import (
+from handover.engine.store.cultures import (
     applies_to_object,
     culture_chain,
     object_extents,
@@ -13,8 +13,8 @@ from handover.engine.etiquette import (
     object_tags,
     resolve_culture,
 )
-from handover.engine.loader import load_kb
-from handover.engine.schema import Applies, ObjectSpec, RuleBase, parse_rule
+from handover.engine.load.loader import load_kb
+from handover.engine.spec.schema import Applies, ObjectSpec, RuleBase, parse_rule
 
 
 def rule(rid: str, **fields) -> RuleBase:

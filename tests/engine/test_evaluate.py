@@ -10,9 +10,9 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from handover.engine.blocking import blocking_sets
-from handover.engine.evaluate import Decision
-from handover.engine.kinds import Outcome
+from handover.engine.plan.blocking import blocking_sets
+from handover.engine.plan.evaluate import Decision
+from handover.engine.spec.kinds import Outcome
 
 
 def _decision(fails: np.ndarray) -> Decision:

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 import trimesh
 
-from handover.engine.loader import load_kb
+from handover.engine.load.loader import load_kb
 from handover.engine.planner import Planner
-from handover.engine.store import builtin_kb_dir
+from handover.engine.store.kb import builtin_kb_dir
 
 CUP = """\
 id: water_cup
@@ -172,7 +172,7 @@ def test_the_trace_shows_the_giver_contacts_and_their_parts(planner):
 
 
 def test_the_wine_glass_receiver_site_is_on_its_stem_or_bowl(kb_dir, planner):
-    from handover.engine.assets import object_part_mesh
+    from handover.engine.assets.objects import object_part_mesh
 
     plan = planner.plan("wine_glass")
     result = plan.to_dict()

@@ -1,4 +1,4 @@
-"""engine.grasps: the candidates ``handover grasps`` lists, from Python."""
+"""engine.tools.grasps: the candidates ``handover grasps`` lists, from Python."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from handover.engine.errors import UsageError
-from handover.engine.grasps import DEFAULT_GRIPPER, list_grasps
+from handover.engine.tools.grasps import DEFAULT_GRIPPER, list_grasps
 
 
 def test_listing_is_best_quality_first(builtin_kb):

@@ -10,9 +10,9 @@ import shutil
 import numpy as np
 import pytest
 
-from handover.engine.loader import load_kb
+from handover.engine.load.loader import load_kb
 from handover.engine.planner import Planner
-from handover.engine.store import builtin_kb_dir
+from handover.engine.store.kb import builtin_kb_dir
 
 HOT_PAN = """\
 id: hot_pan

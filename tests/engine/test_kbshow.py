@@ -1,15 +1,15 @@
-"""What ``kb show`` computes (engine.kbshow): the same reading of rules as the compiler."""
+"""What ``kb show`` computes (engine.tools.kbshow): the same reading of rules as the compiler."""
 
 from __future__ import annotations
 
 import pytest
 
-from handover.engine.compiler import compile
+from handover.engine.plan.compiler import compile
 from handover.engine.errors import UsageError
-from handover.engine.etiquette import resolve_culture
-from handover.engine.kbshow import item_kind, not_applicable, object_view, show_item
-from handover.engine.prepare import prepare
-from handover.engine.query import Query
+from handover.engine.store.cultures import resolve_culture
+from handover.engine.tools.kbshow import item_kind, not_applicable, object_view, show_item
+from handover.engine.plan.prepare import prepare
+from handover.engine.plan.query import Query
 
 
 def test_every_kind_judges_every_builtin_object(builtin_kb):
@@ -66,7 +66,7 @@ def test_a_culture_lists_the_hazard_tags_that_have_rules(builtin_kb):
 
 
 def test_an_object_lists_its_tags_that_have_rules(make_kb):
-    from handover.engine.loader import load_kb
+    from handover.engine.load.loader import load_kb
 
     kb = load_kb(make_kb({"objects/stick.yaml": """\
         id: stick

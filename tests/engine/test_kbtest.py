@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from handover.engine.cli.app import main
-from handover.engine.loader import load_kb
-from handover.engine.store import builtin_kb_dir
+from handover.engine.load.loader import load_kb
+from handover.engine.store.kb import builtin_kb_dir
 
 
 def run(capsys, *args: str) -> tuple[int, str, str]:

@@ -8,12 +8,12 @@ import json
 import numpy as np
 import pytest
 
-from handover.engine.attempt import Phase, Roles
-from handover.engine.kinds import FEATURES, KINDS
-from handover.engine.prepare import prepare
-from handover.engine.query import Query
-from handover.engine.schema import RULE_KINDS, parse_rule
-from handover.engine.validate import document_schema
+from handover.engine.plan.attempt import Phase, Roles
+from handover.engine.spec.kinds import FEATURES, KINDS
+from handover.engine.plan.prepare import prepare
+from handover.engine.plan.query import Query
+from handover.engine.spec.schema import RULE_KINDS, parse_rule
+from handover.engine.store.validate import document_schema
 
 
 @pytest.fixture(scope="module")

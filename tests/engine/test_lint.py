@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from handover.engine.errors import KBError
-from handover.engine.loader import load_kb
+from handover.engine.load.loader import load_kb
 
 
 def line_of(text: str, needle: str, nth: int = 0) -> int:
@@ -462,7 +462,7 @@ def test_a_keep_out_rule_s_tags_are_checked_like_any_rule_tag(make_kb):
 
 
 def test_the_builtin_vocabulary_has_rules_for_every_hazard(builtin_kb):
-    from handover.engine.lint import rule_tags
+    from handover.engine.load.lint import rule_tags
 
     hazards = ["sharp", "pointed", "needle", "hot", "liquid", "open_container", "fragile",
                "nozzle", "heavy", "small"]

@@ -19,8 +19,8 @@ import pytest
 import trimesh
 
 from handover import Planner
-from handover.engine.kinds.torque import load_shares, pair_lever
-from handover.engine.store import builtin_kb_dir
+from handover.engine.spec.kinds.torque import load_shares, pair_lever
+from handover.engine.store.kb import builtin_kb_dir
 
 # A 15 mm ultrabook. (At 20 mm the receiver's two hands find no fit on it: the hard
 # receiver_hand_fits rule rejects every two-handed presentation, and it goes in one hand.)

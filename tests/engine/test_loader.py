@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 from handover.engine.errors import KBError, UsageError
-from handover.engine.loader import load_kb
-from handover.engine.store import builtin_kb_dir, resolve_kb_dir
-from handover.engine.yamlpos import load_yaml_with_marks
+from handover.engine.load.loader import load_kb
+from handover.engine.store.kb import builtin_kb_dir, resolve_kb_dir
+from handover.engine.store.yamlpos import load_yaml_with_marks
 
 
 def line_of(text: str, needle: str, nth: int = 0) -> int:

@@ -22,7 +22,7 @@ import yaml
 
 from handover import Planner
 from handover.engine.cli.app import main
-from handover.engine.store import builtin_kb_dir
+from handover.engine.store.kb import builtin_kb_dir
 
 PARING_KNIFE = """\
 id: paring_knife
@@ -363,7 +363,7 @@ def test_the_same_query_gives_byte_identical_json(kb_dir, placed):
 
 
 def test_batch_has_an_outcome_column(tmp_path, kb_dir):
-    from handover.engine.batch import read_rows
+    from handover.engine.tools.batch import read_rows
 
     out = tmp_path / "rows.parquet"
     code = main(["--kb", str(kb_dir), "batch", "--objects", "paring_knife", "--out", str(out),
@@ -377,7 +377,7 @@ def test_batch_has_an_outcome_column(tmp_path, kb_dir):
 
 def test_the_recording_shows_a_placement_like_a_handover_and_a_refusal_as_text(
         tmp_path, planner, placed):
-    from handover.engine.recording import read_recording
+    from handover.engine.report.rerun.reader import read_recording
 
     path = placed.record(tmp_path / "placed.rrd")
     summary = read_recording(path)

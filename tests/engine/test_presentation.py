@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from handover.engine.presentation import (
+from handover.engine.plan.presentation import (
     axis_goals,
     handover_poses,
     presentation_rotations,
     principal_axes,
     unique_rotations,
 )
-from handover.engine.receiver_sites import (
+from handover.engine.plan.receiver_sites import (
     hand_axes,
     predict_receiver_sites,
     predict_two_hand_sites,
@@ -275,9 +275,9 @@ def _glass(name: str, tilt: float) -> str:
 def test_a_glass_written_in_a_tilted_frame_is_offered_upright_like_the_untilted_one(tmp_path):
     import shutil
 
-    from handover.engine.loader import load_kb
+    from handover.engine.load.loader import load_kb
     from handover.engine.planner import Planner
-    from handover.engine.store import builtin_kb_dir
+    from handover.engine.store.kb import builtin_kb_dir
 
     root = tmp_path / "kb"
     shutil.copytree(builtin_kb_dir(), root)

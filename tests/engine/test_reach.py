@@ -1,4 +1,4 @@
-"""The robot's arms in planning (the ``reach`` rule, engine.arms): the arm that gives is the
+"""The robot's arms in planning (the ``reach`` rule, engine.plan.arms.solve): the arm that gives is the
 one that reaches, an object beyond both arms is refused with the arm and the pose named, and
 the joint values a plan gives put the grasp frame where the plan says, checked by yourdfpy's
 own forward kinematics (not the planner's)."""
@@ -17,7 +17,7 @@ import yourdfpy
 from handover.engine.cli.app import main
 from handover.engine.errors import EXIT_INFEASIBLE, EXIT_OK
 from handover.engine.planner import Planner
-from handover.engine.store import builtin_kb_dir
+from handover.engine.store.kb import builtin_kb_dir
 
 FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])  # the grasp turned half a turn about a
 
@@ -165,7 +165,7 @@ def test_when_the_next_locations_fail_too_the_reason_says_what_each_lacked(monke
     # Allowed one move only, the seated adult's knife goes to the next best place, 6 cm
     # nearer the robot, where the midair pose hits the robot's torso: H2G2 is infeasible and
     # its reason says both why (the arms at the first place, the torso at the next).
-    from handover.engine.modes import common
+    from handover.engine.plan.modes import common
 
     monkeypatch.setattr(common, "RELOCATIONS", 1)
     r = Planner().plan("knife", receiver="seated_adult", mode="h2g2").to_dict()

@@ -16,17 +16,17 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from handover.engine.attempt import Attempt, Hands, Phase
-from handover.engine.compiler import CompiledRule
-from handover.engine.context import PlanContext
+from handover.engine.plan.attempt import Attempt, Hands, Phase
+from handover.engine.plan.compiler import CompiledRule
+from handover.engine.plan.context import PlanContext
 from handover.engine.errors import UsageError
-from handover.engine.evaluate import Decision
-from handover.engine.kinds import KINDS
-from handover.engine.receiver_sites import ReceiverRegion, ReceiverSites
-from handover.engine.record import write_recording
-from handover.engine.recordbodies import ARM_COLOURS
-from handover.engine.recording import read_recording
-from handover.engine.recordstages import (
+from handover.engine.plan.evaluate import Decision
+from handover.engine.spec.kinds import KINDS
+from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites
+from handover.engine.report.rerun.writer import write_recording
+from handover.engine.report.rerun.bodies import ARM_COLOURS
+from handover.engine.report.rerun.reader import read_recording
+from handover.engine.report.rerun.stages import (
     CLASS_ALIVE,
     CLASS_CHOSEN,
     CLASS_GENERATED,
@@ -37,8 +37,8 @@ from handover.engine.recordstages import (
     OUTCOME_COLOURS,
     stage_classes,
 )
-from handover.engine.result import PlanResult
-from handover.engine.schema import RULE_KINDS, parse_rule
+from handover.engine.report.result import PlanResult
+from handover.engine.spec.schema import RULE_KINDS, parse_rule
 from handover.geometry.candidates import SOURCE_FACET, CandidateSet
 from handover.geometry.gripper import Gripper
 from handover.geometry.hand import HumanHand
@@ -418,7 +418,7 @@ class OneJointArm:
     """A robot with one arm on its ``right``, written here: a mount at (0.2, 0, 1) m; link
     ``l1`` turns about z by the joint's angle there and carries a 0.2 m capsule along its z;
     the tip link, 0.3 m along l1's x, carries a 0.1 x 0.04 x 0.02 m box 0.05 m further out.
-    What :func:`write_recording` needs of :class:`~handover.engine.robot.RobotArms`."""
+    What :func:`write_recording` needs of :class:`~handover.engine.assets.robot.RobotArms`."""
 
     MOUNT = np.array([0.2, 0.0, 1.0])
 
@@ -495,7 +495,7 @@ def test_an_existing_file_is_replaced_whole_and_no_temporary_is_left(tmp_path):
 
 
 def test_failure_while_writing_leaves_the_old_file(tmp_path, monkeypatch):
-    import handover.engine.record as record
+    import handover.engine.report.rerun.writer as record
 
     result, ctx, attempt = synthetic_plan()
     path = tmp_path / "plan.rrd"
@@ -527,7 +527,7 @@ def test_reading_a_missing_or_foreign_file_is_a_usage_error(tmp_path, content):
 
 
 def test_recording_does_not_import_rerun_with_the_engine():
-    code = ("import sys, handover.engine.record, handover.engine.recording, "
+    code = ("import sys, handover.engine.report.rerun.writer, handover.engine.report.rerun.reader, "
             "handover.engine.planner, handover.engine.cli; "
             "print('rerun' in sys.modules)")  # fmt: skip
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
@@ -540,14 +540,14 @@ def test_recording_does_not_import_rerun_with_the_engine():
 
 @pytest.fixture(scope="module")
 def kb():
-    from handover.engine.loader import load_kb
+    from handover.engine.load.loader import load_kb
 
     return load_kb(None)
 
 
 def _real(kb, tmp_path: Path, obj: str, mode: str, scene: str):
     from handover.engine.planner import plan
-    from handover.engine.query import Query
+    from handover.engine.plan.query import Query
 
     planned = plan(kb, Query(object=obj, mode=mode, scene=scene))
     path = tmp_path / f"{obj}-{mode}.rrd"
@@ -652,7 +652,7 @@ def test_the_arm_is_drawn_at_its_joints_at_pick_up_and_at_the_handover(kb, tmp_p
     block), and its tip link where the gripper pose minus the tcp offset is."""
     import yourdfpy
 
-    from handover.engine.store import builtin_kb_dir
+    from handover.engine.store.kb import builtin_kb_dir
 
     result, _, path = _real(kb, tmp_path, "knife", "auto", "table")
     data = result.to_dict()  # as the JSON gives it
@@ -729,7 +729,7 @@ def test_real_h2g2_plan_records_pick_midair_and_handover(kb, tmp_path):
 
 def test_the_recording_draws_both_bodies_and_the_handover_locations(kb, tmp_path):
     from handover.engine.planner import plan
-    from handover.engine.query import Query
+    from handover.engine.plan.query import Query
 
     # A mug: with the shipped arms no pair of arms holds the knife for a seated receiver
     # (its plan is infeasible, see test_world), and this test wants a handover to draw.
@@ -772,10 +772,10 @@ rules:
 def test_an_infeasible_plan_says_and_draws_the_same_handover_location(tmp_path):
     import shutil
 
-    from handover.engine.loader import load_kb
+    from handover.engine.load.loader import load_kb
     from handover.engine.planner import plan
-    from handover.engine.query import Query
-    from handover.engine.store import builtin_kb_dir
+    from handover.engine.plan.query import Query
+    from handover.engine.store.kb import builtin_kb_dir
 
     root = tmp_path / "kb"
     shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
@@ -799,7 +799,7 @@ def test_an_infeasible_plan_says_and_draws_the_same_handover_location(tmp_path):
 def test_the_arm_that_waits_is_drawn_at_its_rest(kb, tmp_path):
     import yourdfpy
 
-    from handover.engine.store import builtin_kb_dir
+    from handover.engine.store.kb import builtin_kb_dir
 
     # The screwdriver is handed over by the right arm; the left waits at its rest, drawn at
     # both stages under .../rest, its chain ending where the URDF puts its flange there.

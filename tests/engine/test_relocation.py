@@ -20,7 +20,7 @@ import yaml
 import yourdfpy
 
 from handover.engine.cli.app import main
-from handover.engine.store import builtin_kb_dir
+from handover.engine.store.kb import builtin_kb_dir
 
 FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])  # a parallel-jaw grasp turned half a turn about a
 
@@ -76,7 +76,7 @@ def test_h2g1_moves_the_handover_where_both_arms_hold_the_pair(capsys):
 def test_without_the_move_the_same_request_had_no_plan(capsys, monkeypatch):
     """The move is what makes it feasible: allowed none, the arms hold no pair and the
     reason says which arm could not reach what."""
-    from handover.engine.modes import h2g1
+    from handover.engine.plan.modes import h2g1
 
     monkeypatch.setattr(h2g1, "H2G1_RELOCATIONS", 0)
     code, r = _plan(capsys, "bottle", "--receiver", "child_10", "--mode", "h2g1")
@@ -88,13 +88,13 @@ def test_explaining_an_attempt_at_moved_locations_judges_them_there(builtin_kb, 
     # A mode that moved the presentations off their first locations (``avoid``) and still
     # failed is explained where it was judged: lifting a location rule places the receiver's
     # hands again with the same locations tried last, not back at the first ones.
-    from handover.engine import blocking
-    from handover.engine.attempt import Phase
-    from handover.engine.compiler import compile as compile_graph
-    from handover.engine.evaluate import evaluate
-    from handover.engine.hands import hands_for
-    from handover.engine.prepare import prepare
-    from handover.engine.query import Query
+    from handover.engine.plan import blocking
+    from handover.engine.plan.attempt import Phase
+    from handover.engine.plan.compiler import compile as compile_graph
+    from handover.engine.plan.evaluate import evaluate
+    from handover.engine.plan.hands import hands_for
+    from handover.engine.plan.prepare import prepare
+    from handover.engine.plan.query import Query
 
     ctx = prepare(builtin_kb, Query(object="mug"))
     cg = compile_graph(builtin_kb, ctx, "H1G1")

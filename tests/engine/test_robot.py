@@ -1,4 +1,4 @@
-"""The robot's arms from the KB (engine.robot): grasp poses reached by IK checked by an
+"""The robot's arms from the KB (engine.assets.robot): grasp poses reached by IK checked by an
 independent forward kinematics (yourdfpy's, or the DH product of the ``ur5`` fixture),
 reachability by map and IK, the reach cache on disk, collisions named, and a user's own
 one-arm robot."""
@@ -12,11 +12,11 @@ import pytest
 import yourdfpy
 from numpy.testing import assert_allclose
 
-from handover.engine import robot as engine_robot
-from handover.engine.assets import gripper_from_spec
-from handover.engine.graspdb import GraspDB, MemoryDB
-from handover.engine.loader import load_kb
-from handover.engine.robot import RobotArms, reach_dir, robot_arms
+from handover.engine.assets import robot as engine_robot
+from handover.engine.assets.objects import gripper_from_spec
+from handover.engine.assets.graspdb import GraspDB, MemoryDB
+from handover.engine.load.loader import load_kb
+from handover.engine.assets.robot import RobotArms, reach_dir, robot_arms
 from handover.geometry.frames import rotation_from_euler_deg, transform_from
 from handover.geometry.kinematics import rotation_angle
 from handover.geometry.reach import ReachMap
@@ -276,7 +276,7 @@ def test_the_readme_shows_the_shipped_robot(builtin_kb):
 def test_the_shipped_robot_s_body_is_its_urdf_s_fixed_links(builtin_kb):
     """idro.yaml writes its body out so planning need not parse the URDF: the shapes must be
     the URDF's links fixed to its root."""
-    from handover.engine.robotload import robot_model, urdf_body, yaml_body
+    from handover.engine.assets.robot_load import robot_model, urdf_body, yaml_body
 
     spec = builtin_kb.robot("idro")
     caps_y, boxes_y = yaml_body(spec)

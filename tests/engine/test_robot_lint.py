@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from handover.engine.errors import KBError
-from handover.engine.loader import load_kb
+from handover.engine.load.loader import load_kb
 
 HANDOVER = Path(sys.executable).parent / "handover"
 

@@ -29,7 +29,7 @@ from scipy.spatial.transform import Rotation
 from handover import Planner
 from handover.engine.cli.app import main
 from handover.engine.errors import EXIT_INFEASIBLE, EXIT_OK
-from handover.engine.store import builtin_kb_dir
+from handover.engine.store.kb import builtin_kb_dir
 
 HANDOVER = Path(sys.executable).parent / "handover"
 FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])  # a grasp turned half a turn about a: the same grasp
@@ -234,7 +234,7 @@ def test_infeasible_and_placed_plans_still_name_the_robot(capsys, moved_kb, tmp_
     reach = [e for e in r["placement"]["rules"] if e["rule"] == "arm_reaches"]
     assert reach and reach[0]["status"] == "pass"
     assert "where it is set down" in str(reach[0]["threshold"])
-    from handover.engine.recording import read_recording
+    from handover.engine.report.rerun.reader import read_recording
 
     entities = {e["path"]: e["stages"] for e in read_recording(rrd)["entities"]}
     assert entities["world/robot/arms/place/capsules"] == [4]
@@ -268,7 +268,7 @@ def test_a_one_armed_user_robot_s_block_and_recorded_arm(capsys, tmp_path, ur5):
     the tcp is."""
     from rerun.chunk import RrdReader
 
-    from handover.engine.recording import read_recording
+    from handover.engine.report.rerun.reader import read_recording
 
     kb = tmp_path / "kb"
     shutil.copytree(builtin_kb_dir(), kb, ignore=shutil.ignore_patterns("schema", "__*"))

@@ -19,8 +19,8 @@ import yaml
 
 from handover import Planner
 from handover.engine.cli.app import main
-from handover.engine.loader import load_kb
-from handover.engine.store import builtin_kb_dir
+from handover.engine.load.loader import load_kb
+from handover.engine.store.kb import builtin_kb_dir
 
 HANDOVER = Path(sys.executable).parent / "handover"
 KB = load_kb()

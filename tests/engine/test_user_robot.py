@@ -17,7 +17,7 @@ import yaml
 
 from handover.engine.cli.app import main
 from handover.engine.errors import EXIT_INFEASIBLE, EXIT_INVALID_KB, EXIT_OK, EXIT_USAGE
-from handover.engine.store import builtin_kb_dir
+from handover.engine.store.kb import builtin_kb_dir
 
 # The mobile base stands just behind the table's robot-side edge (0.30 m in front of the
 # robot's origin in the built-in scene `table`), turned 15 degrees: its 0.5 m box, rotated,

@@ -12,7 +12,7 @@ import yaml
 
 from handover.engine.cli.app import main
 from handover.engine.planner import Planner
-from handover.engine.store import builtin_kb_dir
+from handover.engine.store.kb import builtin_kb_dir
 
 # A chef's knife whose handle is 10 cm long: an adult's hand takes 9 cm of it, and the
 # standard gripper's fingers (22 mm wide, 5 mm clearance each side) do not fit in the rest.

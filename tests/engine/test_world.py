@@ -14,7 +14,7 @@ import trimesh
 from handover import Planner
 from handover.engine.cli.app import main
 from handover.engine.errors import EXIT_INFEASIBLE, EXIT_INVALID_KB
-from handover.engine.store import builtin_kb_dir
+from handover.engine.store.kb import builtin_kb_dir
 from handover.geometry.human import human_body
 
 OBJECTS = sorted(p.stem for p in (builtin_kb_dir() / "objects").glob("*.yaml"))

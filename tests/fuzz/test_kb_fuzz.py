@@ -14,9 +14,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from handover.engine.errors import KBError
-from handover.engine.loader import load_kb
-from handover.engine.schema import DOCUMENT_KINDS
-from handover.engine.store import builtin_kb_dir
+from handover.engine.load.loader import load_kb
+from handover.engine.spec.schema import DOCUMENT_KINDS
+from handover.engine.store.kb import builtin_kb_dir
 
 FOLDERS = sorted(DOCUMENT_KINDS)
 FIELD_NAMES = sorted(

@@ -29,7 +29,7 @@ and the files are written with every digit: a difference between the plans is th
 planner's, not rounding's. Shapes whose receiver region has two equal principal extents (a
 square box or plate, a disc) used to be left out: the SVD's axis for them, and so the way the
 receiver's hand was predicted to wrap around them, was chosen by the frame. Their hand now
-wraps the rim tangent the presentation gives (``engine.receiver_sites.hand_axes``), and they are
+wraps the rim tangent the presentation gives (``engine.plan.receiver_sites.hand_axes``), and they are
 in: boxes with equal sides, and a square plate larger than two hands in all 24 frames. Only
 regions within 0.1 % of the isotropy threshold (``ISOTROPY``) are left out, where rounding
 may classify them differently in each frame.
@@ -45,7 +45,7 @@ zero normal (an internal error).
 
 Beyond the 24 axis-permuting rotations, an object with named axes (``up``, ``tip``,
 ``handle``, ...) plans the same handover in *any* rotated frame: the presentations solved from
-its axes (``engine.presentation``) put them where the rules want them whatever the frame, and
+its axes (``engine.plan.presentation``) put them where the rules want them whatever the frame, and
 the frame-aligned presentations that meet a rule only roughly are left out. Tested on KB
 objects built here (a tumbler of water, a knife, a book) written in frames turned by a random
 rotation, by 30 degrees about a frame axis, or with ``up`` along [0.577, 0.577, 0.577]: the
@@ -84,12 +84,12 @@ from hypothesis.control import currently_in_test_context
 
 from handover.engine.cli.app import main
 from handover.engine.errors import EXIT_BAD_MESH, EXIT_INFEASIBLE, EXIT_INVALID_KB, EXIT_OK
-from handover.engine.loader import load_kb
+from handover.engine.load.loader import load_kb
 from handover.engine.planner import plan
-from handover.engine.presentation import ISOTROPY
-from handover.engine.query import Query
-from handover.engine.schema import SceneSpec
-from handover.engine.store import builtin_kb_dir
+from handover.engine.plan.presentation import ISOTROPY
+from handover.engine.plan.query import Query
+from handover.engine.spec.schema import SceneSpec
+from handover.engine.store.kb import builtin_kb_dir
 from handover.geometry.frames import rotation_from_euler_deg
 from handover.geometry.mesh import MeshError
 
@@ -372,7 +372,7 @@ def test_a_cylinder_plans_the_same_in_any_frame(tmp_path_factory, mesh, transfor
 def test_a_square_plate_plans_the_same_in_any_frame(tmp_path, turn):
     """A square plate larger than two hands: its receiver region has no long axis (the SVD
     picks one by the frame), so the receiver's hand wraps the rim tangent the presentation
-    gives (``engine.receiver_sites.hand_axes``), the same in every frame."""
+    gives (``engine.plan.receiver_sites.hand_axes``), the same in every frame."""
     import trimesh
 
     mesh = trimesh.creation.box(extents=[0.24, 0.24, 0.012])
@@ -449,7 +449,7 @@ def euler_deg(rotation: np.ndarray) -> list[float]:
 def rotated_object(name: str, template: dict, rotation: np.ndarray):
     """The template's object written in a frame turned by ``rotation``: every primitive's
     place and turn and every named axis turned with it."""
-    from handover.engine.schema import ObjectSpec
+    from handover.engine.spec.schema import ObjectSpec
 
     prims = []
     for prim in template["primitives"]:

@@ -1,0 +1,134 @@
+"""The stages at which a robot grasp is held, and the gripper's poses there (world, m).
+
+A grasp is held at up to three gripper poses in the world, its *stages*:
+
+- ``pickup``: the object at its initial pose, ``ctx.initial @ G``;
+- ``midair``: H2G2's regrasp pose, the handover pose :data:`MIDAIR_BACKOFF` nearer the robot;
+- ``handover``: the object at its presentation's location, ``hands.poses[k] @ G``;
+- ``place`` (instead of the others after pick-up, when the object is set down on the
+  table): the object where it rests, ``hands.poses[k] @ G`` of the placement's phase;
+
+where ``G`` is the candidate's gripper pose in the object frame. Which stages a grasp goes
+through is read from its :class:`~handover.engine.plan.attempt.Phase` (:func:`stages`). Used by
+:mod:`handover.engine.plan.arms.solve` and :mod:`handover.engine.plan.arms.links`.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from handover.engine.plan.attempt import Phase
+    from handover.engine.plan.context import PlanContext
+
+__all__ = ["STAGES", "STAGE_WORDS", "MIDAIR_BACKOFF", "FLIP", "stages", "screened_stages",
+           "stage_poses", "pose_words", "objects_at", "finger_sign", "canonical_first", "row_keys"]
+
+STAGES = ("pickup", "midair", "handover")
+
+STAGE_WORDS = {"pickup": "at pick-up", "midair": "at the midair regrasp",
+               "handover": "at the handover", "place": "where it is set down"}
+
+MIDAIR_BACKOFF = 0.2
+"""m: H2G2's midair pose is the handover pose moved this far back toward the robot (here,
+where the arms judge it, and :func:`handover.engine.plan.modes.h2g2.midair_pose`)."""
+
+FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])
+"""Half a turn about the approach ``a``: the same grasp with the fingers swapped."""
+
+def stages(phase: Phase) -> tuple[str, ...]:
+    """The stages a grasp judged in ``phase`` is held at, in time order: pick-up when it
+    takes the object off the table, the midair regrasp in H2G2, the handover when the
+    receiver's hands are there."""
+    if phase.mode == "place":  # set down on the table: picked up, then placed
+        return ("pickup", "place")
+    on = (phase.pickup, phase.mode == "H2G2", phase.receiver_present)
+    return tuple(s for s, yes in zip(STAGES, on, strict=True) if yes)
+
+def other_arm_idle(phase: Phase, stage: str) -> bool:
+    """Whether the robot's other arm waits at rest while this grasp's arm holds the object at
+    ``stage``: always in H1G1 and a placement; in H2G2 but at the midair regrasp (at pick-up
+    the second arm has not come yet, at the handover the first has let go); never in H2G1,
+    whose arms work together."""
+    if phase.mode == "H2G1":
+        return False
+    return not (phase.mode == "H2G2" and stage == "midair")
+
+def screened_stages(phase: Phase) -> tuple[str, ...]:
+    """The stages :func:`screen` judges: :func:`stages`, except for H2G2's first grasp before
+    its pair is chosen (no arm yet): its midair pose depends on the second grasp's
+    presentation, so only pick-up is screened there; the pair's check judges the rest."""
+    names = stages(phase)
+    if getattr(phase, "arm", None) is None and phase.mode == "H2G2" and not \
+            phase.receiver_present:
+        return tuple(s for s in names if s != "midair")
+    return names
+
+def objects_at(ctx: PlanContext, phase: Phase, stage: str, pk: np.ndarray) -> np.ndarray:
+    """(R, 4, 4) object -> world at ``stage`` for presentations pk."""
+    if stage == "pickup":
+        return np.broadcast_to(ctx.initial, (len(pk), 4, 4))
+    poses = phase.hands.poses[pk]
+    if stage == "midair":
+        poses = poses.copy()
+        poses[:, :3, 3] -= MIDAIR_BACKOFF * np.asarray(ctx.situation.toward, dtype=float)
+    return poses
+
+def stage_poses(ctx: PlanContext, phase: Phase, gi: np.ndarray,
+                pk: np.ndarray) -> dict[str, np.ndarray]:
+    """Stage -> (R, 4, 4) world gripper poses of rows ``(gi, pk)`` (both (R,) int)."""
+    grips = ctx.gripper_poses()[gi]
+    return {s: objects_at(ctx, phase, s, pk) @ grips for s in stages(phase)}
+
+def pose_words(pose: np.ndarray) -> str:
+    """'x, y, z with approach (ax, ay, az)' of a gripper pose (4, 4), world, m."""
+    p, a = np.round(pose[:3, 3], 2) + 0.0, np.round(pose[:3, 2], 2) + 0.0  # no "-0.00"
+    return (f"{p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f} with approach "
+            f"({a[0]:.2f}, {a[1]:.2f}, {a[2]:.2f})")
+
+
+def finger_sign(poses: np.ndarray) -> np.ndarray:
+    """(n,) +-1: the sign of the first component (x, then y, then z) of each gripper pose's
+    closing direction ``o`` that is not ~0 (poses (n, 4, 4), world). The fingers are alike,
+    so a grasp and the same grasp turned half a turn about ``a`` (``pose @ FLIP``) are one
+    grasp; multiplying ``o`` by this sign names it the same way whatever frame the object's
+    mesh is written in."""
+    o = np.asarray(poses, dtype=float)[:, :3, 1]
+    first = np.argmax(np.abs(o) > 1e-6, axis=1)
+    return np.sign(o[np.arange(len(o)), first])
+
+
+def canonical_first(poses: np.ndarray, distance=None, side: str | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
+    """The poses (n, 4, 4) to try first and second for each grasp, and (n,) bool, whether the
+    first is the pose as planned turned half a turn about ``a`` (fingers swapped): with
+    ``distance(side, poses) -> (n,)`` (an arm's :meth:`~handover.engine.assets.robot.RobotArms.
+    seed_distance`), the finger order nearer its seed poses first; on a tie (within 1e-9 m)
+    or without it, the one whose closing direction has :func:`finger_sign` +1. Either way a
+    property of the grasp in the world: inverse kinematics meets the same physical grasp the
+    same way in any frame."""
+    poses = np.asarray(poses, dtype=float)
+    turned = finger_sign(poses) < 0
+    if distance is not None and len(poses):
+        here = np.round(distance(side, poses), 9)
+        flipped = np.round(distance(side, poses @ FLIP), 9)
+        turned = np.where(here == flipped, turned, flipped < here)
+    first = np.where(turned[:, None, None], poses @ FLIP, poses)
+    second = np.where(turned[:, None, None], poses, poses @ FLIP)
+    return np.stack([first, second]), turned
+
+
+def row_keys(side: str, phase: Phase, gi: np.ndarray, pk: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], list[tuple]]:
+    """Rows ``(gi, pk)`` as (R,) int arrays, the stages of ``phase`` and each row's memo key
+    for the arm on ``side``: (arm, grasp, presentation (-1 when only pick-up, where the
+    presentation does not matter), stages, the receiver's hands)."""
+    gi = np.asarray(gi, dtype=np.int64).reshape(-1)
+    pk = np.asarray(pk, dtype=np.int64).reshape(-1)
+    names = stages(phase)
+    keys = [(side, int(i), int(k) if names != ("pickup",) else -1, names, phase.hands.key)
+            for i, k in zip(gi, pk, strict=True)]
+    return gi, pk, names, keys
+

@@ -1,0 +1,314 @@
+"""Everything a plan evaluates rules against, computed once per query.
+
+A :class:`PlanContext` holds the object's mesh with parts, its geometric grasp candidates
+(rows ``i``), the presentations (``k``) with the receiver's predicted site in each, the
+object's initial pose in the scene, and the models of gripper, human hand and scene.
+Rules read features of rows ``(i, k)``; see :mod:`handover.engine.plan.features`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from handover.engine.spec.applies import Facts
+from handover.engine.plan.attempt import Hands, Roles
+from handover.engine.plan.presentation import presentation_rotations, principal_axes, rule_goals
+from handover.engine.plan.query import Situation
+from handover.engine.plan.receiver_sites import (
+    predict_receiver_sites,
+    predict_two_hand_sites,
+    receiver_region,
+)
+from handover.engine.plan.world import Locations, World, build_world, candidate_locations, place
+
+if TYPE_CHECKING:
+    from collections.abc import Sequence
+
+    from handover.engine.assets.robot import RobotArms
+    from handover.engine.spec.schema import RuleBase
+    from handover.geometry.candidates import CandidateSet
+    from handover.geometry.collision import BoxWorld
+    from handover.geometry.gripper import Gripper, PosedBoxes
+    from handover.geometry.hand import HumanHand
+    from handover.geometry.mesh import PartMesh
+
+__all__ = ["ObjectFacts", "PlanContext", "build_context", "initial_pose", "scene_boxes"]
+
+
+@dataclass(frozen=True)
+class ObjectFacts:
+    """Query-level facts that rule conditions (``Applies``) read.
+
+    tags : object tags plus every part's tags. size : m, largest extent of the oriented
+    bounding box; min_width : m, its smallest extent (informative: whether one gripper spans
+    the object is decided from the grasp candidates, :meth:`PlanContext.single_grasps`).
+    payload : kg, one robot hand's. max_opening : m, the gripper's.
+    """
+
+    tags: frozenset[str]
+    mass: float
+    size: float
+    min_width: float
+    payload: float
+    max_opening: float
+
+
+@dataclass
+class PlanContext:
+    """The evaluated world of one query (see module docstring). Immutable in meaning: what
+    a rule decides depends on the context and the attempt's
+    :class:`~handover.engine.plan.attempt.Phase`; ``memo`` only holds pure functions of the
+    context (gripper poses, the scene collision of a grasp at pick-up, hand boxes keyed by
+    the hands' identity), computed on first use.
+
+    rotations : (K, 3, 3) object -> world at the handover (where each is offered depends on
+    the mode's rules: :meth:`hands`). initial : (4, 4) object -> world at pick-up.
+    part_tags : tags of each part index of ``part_mesh``.
+    warnings : what the preparation found worth telling (units of a mesh file).
+    kb_root : the KB folder (files the KB names, e.g. a robot's URDF, are relative to it).
+    """
+
+    situation: Situation
+    part_mesh: PartMesh
+    part_tags: list[set[str]]
+    candidates: CandidateSet
+    generation: dict[str, Any]
+    gripper: Gripper
+    hand: HumanHand
+    rotations: np.ndarray
+    initial: np.ndarray
+    scene: BoxWorld
+    scene_box_list: list
+    facts: ObjectFacts
+    collider: Any = None
+    kb_root: Any = None
+    warnings: list[str] = field(default_factory=list)
+    memo: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return len(self.candidates)
+
+    @property
+    def k(self) -> int:
+        return len(self.rotations)
+
+    def gripper_poses(self) -> np.ndarray:
+        """(N, 4, 4): the candidates' gripper poses in the object frame (computed once)."""
+        if "poses" not in self.memo:
+            self.memo["poses"] = self.candidates.poses()
+        return self.memo["poses"]
+
+    def gripper_boxes(self) -> PosedBoxes:
+        """The gripper's boxes at every candidate, object frame (posed once)."""
+        if "gripper_boxes" not in self.memo:
+            self.memo["gripper_boxes"] = self.gripper.posed_boxes(
+                self.gripper_poses(), self.candidates.width
+            )
+        return self.memo["gripper_boxes"]
+
+    def single_grasps(self, forbid: frozenset[str] = frozenset()) -> int:
+        """How many single-gripper candidates lie within the gripper's opening with both
+        contacts on parts the robot may hold (no part tagged with one of ``forbid``, the
+        tags the giver's hard contact rules forbid). Zero means no single gripper can take
+        the object: a mug too wide for the gripper still has its handle, a saucepan its
+        handle; a tray wider than any opening with no rim to pinch has none. Memoised per
+        ``forbid``."""
+        memo = self.memo.setdefault("single_grasps", {})
+        if forbid not in memo:
+            c = self.candidates
+            held = np.array([not (t & forbid) for t in self.part_tags] or [True], dtype=bool)
+            ok = (c.width <= self.gripper.max_opening + 1e-12) if len(c) else np.zeros(0, bool)
+            if len(c):
+                ok &= held[c.parts].all(axis=1)
+            memo[forbid] = int(ok.sum())
+        return memo[forbid]
+
+    def giver_forbid(self, mode: str | None) -> frozenset[str]:
+        """The tags the giver's hard contact rules forbid in ``mode``, as the compiler found
+        them for this query (:func:`~handover.engine.plan.compiler.query_facts`; empty before)."""
+        return self.memo.get("giver_forbid", {}).get(mode, frozenset())
+
+    def d_obj(self) -> np.ndarray:
+        """(K, 3): robot->receiver direction in the object frame, per presentation."""
+        if "d_obj" not in self.memo:
+            self.memo["d_obj"] = np.einsum("kji,j->ki", self.rotations, self.situation.toward)
+        return self.memo["d_obj"]
+
+    def hands(self, roles: Roles, count: int = 1, location_rules: tuple = (),
+              avoid: tuple[int, ...] = ()) -> Hands:
+        """Where the receiver's ``count`` hands (1 or 2) go in every presentation, given
+        which parts the people may hold, and where each presentation is offered under the
+        compiled ``location_rules``, the candidate locations ``avoid`` tried last
+        (:func:`~handover.engine.plan.world.place`; memoised by roles, count, the rules and
+        ``avoid``)."""
+        memo = self.memo.setdefault("hands", {})
+        key = (roles, count, tuple(c.rule.model_dump_json() for c in location_rules))
+        avoid = tuple(sorted({int(v) for v in avoid}))
+        if avoid:
+            key = (*key, ("avoid", avoid))
+        if key not in memo:
+            memo[key] = _hands(self, roles, count, location_rules, key, avoid)
+        return memo[key]
+
+    @property
+    def world(self) -> World:
+        """The bodies at the handover: scene boxes, the receiver's and the robot's bodies."""
+        if "world" not in self.memo:
+            self.memo["world"] = build_world(self.situation, self.scene_box_list, self.kb_root)
+        return self.memo["world"]
+
+    @property
+    def arms(self) -> RobotArms | None:
+        """The robot's arms (:func:`handover.engine.assets.robot.plan_arms`), None for a robot
+        without a URDF (a floating gripper per hand) or a context without a KB folder."""
+        if "arms" not in self.memo:
+            from handover.engine.assets.robot import plan_arms
+
+            self.memo["arms"] = plan_arms(self.kb_root, self.situation.robot)
+        return self.memo["arms"]
+
+    def locations(self, hand: str) -> Locations:
+        """The candidate handover locations around the receiver's ``hand`` (memoised)."""
+        memo = self.memo.setdefault("locations", {})
+        if hand not in memo:
+            memo[hand] = candidate_locations(self, self.world, hand)
+        return memo[hand]
+
+
+def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
+           key: tuple, avoid: tuple[int, ...] = ()) -> Hands:
+    """See :meth:`PlanContext.hands`. The giver's graspable region (parts the robot may
+    hold) gives ``s_range``, whose robot-side half the ``giver_side`` rule measures (seed
+    3.1: "the half of the graspable region near the robot")."""
+    mesh = ctx.part_mesh.mesh
+    centroids = np.asarray(mesh.triangles_center)
+    face_part = np.asarray(ctx.part_mesh.face_part)
+    graspable = np.array([not (t & roles.giver_forbid) for t in ctx.part_tags] or [True],
+                         dtype=bool)
+    giver_faces = graspable[face_part]
+    if not giver_faces.any():  # no face the robot may hold: the whole object is its region
+        giver_faces = np.ones(len(face_part), bool)
+    proj = centroids[giver_faces] @ ctx.d_obj().T  # (F', K)
+    s_range = np.stack([proj.min(axis=0), proj.max(axis=0)], axis=1)
+    region = receiver_region(centroids, face_part, ctx.part_tags, set(roles.want),
+                             set(roles.receiver_forbid))
+    s = ctx.situation
+    if count == 2:
+        sites = tuple(predict_two_hand_sites(region, ctx.rotations, s.toward,
+                                             s.hand.grip_width))
+    else:
+        sites = (predict_receiver_sites(
+            region, ctx.rotations, s.toward, grip_width=s.hand.grip_width,
+            where=s.task.receiver_site if s.task is not None else "middle",
+            finger_thickness=s.hand.finger_thickness, hand=ctx.hand, mesh=mesh,
+        ),)
+    receiving = (s.receiver.dominant_hand,) if count == 1 else (
+        s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")
+    placed = place(ctx, region, sites, list(location_rules), receiving, avoid)
+    return Hands(key=key, region=region, sites=sites, s_range=s_range, poses=placed.poses,
+                 location=placed.location, located=placed.located, measured=placed.measured,
+                 hits=placed.hits, receiving=receiving,
+                 locations=ctx.locations(receiving[0]), avoid=avoid)
+
+
+def _rotation_deg(angles) -> np.ndarray:
+    from handover.geometry.frames import rotation_from_euler_deg
+
+    return rotation_from_euler_deg(np.asarray(angles, dtype=float))
+
+
+def initial_pose(situation: Situation, vertices: np.ndarray) -> np.ndarray:
+    """The object's pose at pick-up (4, 4), object -> world: the scene's placement rotation,
+    then its lowest point on the support surface top (or the floor) at the placement's x, y.
+    A scene with no placement puts the object 0.5 m in front of the robot."""
+    scene = situation.scene
+    placement = scene.object
+    rot = _rotation_deg(placement.rotation_deg) if placement else np.eye(3)
+    xy = np.asarray(placement.position if placement else (0.5, 0.0), dtype=float)
+    z0 = float(scene.support.position[2]) if scene.support else 0.0
+    lowest = float((vertices @ rot.T)[:, 2].min())
+    pose = np.eye(4)
+    pose[:3, :3] = rot
+    pose[:3, 3] = [xy[0], xy[1], z0 - lowest]
+    return pose
+
+
+def scene_boxes(situation: Situation) -> list[tuple[str, np.ndarray, np.ndarray]]:
+    """The scene's boxes (name, extents (3,), pose (4, 4) world): the table top and each
+    obstacle."""
+    scene = situation.scene
+    boxes = []
+    if scene.support is not None:
+        s = scene.support
+        pose = np.eye(4)
+        pose[:3, 3] = [s.position[0], s.position[1], s.position[2] - s.thickness / 2.0]
+        boxes.append(("table", np.array([s.size[0], s.size[1], s.thickness]), pose))
+    for ob in scene.obstacles:
+        pose = np.eye(4)
+        pose[:3, :3] = _rotation_deg(ob.rotation_deg)
+        pose[:3, 3] = ob.position
+        boxes.append((ob.id, np.asarray(ob.extents, dtype=float), pose))
+    return boxes
+
+
+def build_context(
+    situation: Situation,
+    part_mesh: PartMesh,
+    part_tags: list[set[str]],
+    candidates: CandidateSet,
+    generation: dict[str, Any],
+    gripper: Gripper,
+    hand: HumanHand,
+    rules: Sequence[RuleBase] = (),
+) -> PlanContext:
+    """Compute presentations, initial pose, scene and the object's facts for one query.
+    Where the receiver's hands go depends on the rules of each mode: see
+    :meth:`PlanContext.hands`. ``rules``: the culture's rules, whose axis rules add the
+    presentations solved from the object's named axes
+    (:func:`~handover.engine.plan.presentation.rule_goals`)."""
+    from handover.geometry.collision import BoxWorld
+
+    vertices = np.asarray(part_mesh.mesh.vertices, dtype=float)
+    boxes = scene_boxes(situation)
+    extents = _obb_extents(vertices)
+    tags = set(situation.obj.tags).union(*part_tags) if part_tags else set(situation.obj.tags)
+    facts = ObjectFacts(
+        tags=frozenset(tags),
+        mass=float(situation.obj.mass),
+        size=float(extents.max()),
+        min_width=float(extents.min()),
+        payload=float(situation.robot.payload_per_hand),
+        max_opening=float(gripper.max_opening),
+    )
+    s = situation
+    goals = rule_goals(rules, s.task, s.obj.axes, s.directions, Facts(
+        tags=facts.tags, mass=facts.mass, size=facts.size, min_width=facts.min_width,
+        payload=facts.payload, max_opening=facts.max_opening, role=s.receiver.role,
+        age=s.receiver.years, task=s.task_id, mode=None))
+    rotations = presentation_rotations(s.toward, goals, principal_axes(part_mesh.mesh.triangles))
+    return PlanContext(
+        situation=situation,
+        part_mesh=part_mesh,
+        part_tags=part_tags,
+        candidates=candidates,
+        generation=generation,
+        gripper=gripper,
+        hand=hand,
+        rotations=rotations,
+        initial=initial_pose(situation, vertices),
+        scene=BoxWorld(boxes),
+        scene_box_list=boxes,
+        facts=facts,
+    )
+
+
+def _obb_extents(vertices: np.ndarray) -> np.ndarray:
+    """(3,) m: extents of the object's principal-axes bounding box, sorted descending."""
+    centred = vertices - vertices.mean(axis=0)
+    _, _, vt = np.linalg.svd(centred, full_matrices=False)
+    local = centred @ vt.T
+    return np.sort(np.ptp(local, axis=0))[::-1]

@@ -1,0 +1,382 @@
+"""Features the rule kinds read: quantities computed on candidate rows, vectorised.
+
+Each function takes the plan context and, where the answer depends on the attempt, its
+:class:`~handover.engine.plan.attempt.Phase` explicitly. Memoised values (the scene collision of a
+grasp at pick-up, the receiver's hand boxes of one presentation) are pure functions of their
+key, so memoising them never changes an outcome.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from handover.engine.plan.attempt import Hands
+    from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites
+    from handover.geometry.bodies import Body
+    from handover.geometry.interior import Interior
+
+__all__ = [
+    "tag_mask",
+    "axis_world",
+    "collision_scene",
+    "hand_model",
+    "hand_models",
+    "receiver_hand_boxes",
+    "collision_receiver_hand",
+    "collision_other_gripper",
+    "COLLISION_BITS",
+    "collision_targets",
+    "collision_handover",
+    "handover_targets",
+    "open_interior",
+    "keep_out_gripper",
+    "keep_out_receiver_hand",
+    "HandFit",
+    "hand_fit",
+    "SITE_RAYS",
+]
+
+# Bits of a collision rule's measured value: which targets were hit. At the handover, bit
+# ``HANDOVER_BIT + p`` is the world's target primitive p (``scene:table``, ``body:...``).
+COLLISION_BITS = {"scene": 1, "receiver_hand": 2, "other_gripper": 4}
+HANDOVER_BIT = 3
+LABELS = {"scene": "scene at pick-up", "receiver_hand": "receiver_hand",
+          "other_gripper": "other_gripper"}
+
+
+def collision_targets(measured: float, handover_names: tuple[str, ...] = ()) -> list[str]:
+    """The targets a collision rule's measured bit mask names (e.g. 3 -> scene at pick-up,
+    receiver_hand); ``handover_names``: the world's targets at the handover, in bit order."""
+    bits = int(measured) if np.isfinite(measured) else 0
+    out = [LABELS[name] for name, bit in COLLISION_BITS.items() if bits & bit]
+    out += [name for p, name in enumerate(handover_names) if bits & (1 << (HANDOVER_BIT + p))]
+    return out
+
+
+def handover_targets(ctx: PlanContext, hands: Hands) -> Body:
+    """What a gripper at the handover must not touch: the scene, the robot's body and the
+    receiver's body but the arms that take the object."""
+    return ctx.world.without_receiving_arms(hands.receiving)
+
+
+def _per_row(ctx: PlanContext, name: str, hands: Hands, gi: np.ndarray, pk: np.ndarray,
+             compute) -> np.ndarray:
+    """(R,) int64: ``compute(gi, pk)`` memoised per row (grasp, presentation) under
+    ``name`` and the hands' key: a row judged by an earlier mode or an explanation is not
+    judged again (the value is a pure function of the row and the hands)."""
+    memo = ctx.memo.setdefault(name, {})
+    known = memo.get(hands.key)
+    if known is None:
+        known = memo[hands.key] = np.full(ctx.n * ctx.k, -1, dtype=np.int64)
+    idx = np.asarray(gi, dtype=np.int64) * ctx.k + np.asarray(pk, dtype=np.int64)
+    todo = np.unique(idx[known[idx] < 0])
+    if len(todo):
+        known[todo] = compute(todo // ctx.k, todo % ctx.k)
+    return known[idx]
+
+
+def collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
+                       pk: np.ndarray) -> np.ndarray:
+    """(R,) int64 bit mask: which of :func:`handover_targets` the gripper at grasp ``gi``
+    touches with the object offered in presentation ``pk`` (bit ``HANDOVER_BIT + p``).
+    Memoised per row."""
+    return _per_row(ctx, "collision_handover", hands, gi, pk,
+                    lambda g, k: _collision_handover(ctx, hands, g, k))
+
+
+def _collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
+                        pk: np.ndarray) -> np.ndarray:
+    """:func:`collision_handover`, computed."""
+    targets = handover_targets(ctx, hands)
+    out = np.zeros(len(gi), dtype=np.int64)
+    if len(targets) == 0:
+        return out
+    weights = np.left_shift(np.int64(1), HANDOVER_BIT + np.arange(len(targets), dtype=np.int64))
+    posed = ctx.gripper_boxes()
+    origin, g_reach = gripper_spheres(ctx)
+    # Every gripper box lies within ``reach`` of the object frame's origin, and within
+    # ``g_reach`` of its grasp's origin: a target farther (the exact distance from a point to
+    # a capsule or box, not a bounding sphere: a table's sphere holds the whole room) is
+    # never touched, and is not box-tested.
+    reach = float(np.linalg.norm(origin[gi], axis=1).max()) + g_reach if len(gi) else 0.0
+    for k in np.unique(pk):  # the targets move into the object frame, not every gripper out
+        rows = np.flatnonzero(pk == k)
+        pose = hands.poses[k]
+        near = targets.point_distances(pose[:3, 3][None])[0] <= reach
+        if not near.any():
+            continue
+        local = targets.subset(near).moved(np.linalg.inv(pose))
+        rows = rows[(local.point_distances(origin[gi[rows]]) <= g_reach).any(axis=1)]
+        if not len(rows):
+            continue
+        sel = gi[rows]
+        hits = local.posed_hits(
+            posed._replace(centres=posed.centres[sel], rotations=posed.rotations[sel]))
+        out[rows] = hits.astype(np.int64) @ weights[near]
+    return out
+
+
+def tag_mask(ctx: PlanContext, tags) -> np.ndarray:
+    """(P,) bool: which parts carry any of ``tags``."""
+    want = set(tags)
+    return np.array([bool(t & want) for t in ctx.part_tags] or [False], dtype=bool)
+
+
+def axis_world(ctx: PlanContext, axis: str) -> np.ndarray:
+    """(K, 3) the object's named axis in the world, per presentation."""
+    v = np.asarray(ctx.situation.obj.axes[axis], dtype=float)
+    v = v / np.linalg.norm(v)
+    return ctx.rotations @ v
+
+
+def collision_scene(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
+    """(R,) bool: the gripper at grasp ``gi`` collides with the scene at pick-up (the object
+    at its initial pose). Memoised per candidate; computed only for candidates not yet
+    known."""
+    known = ctx.memo.setdefault("collision_scene", np.full(ctx.n, -1, dtype=np.int8))
+    todo = np.unique(gi[known[gi] < 0])
+    if len(todo):
+        poses = np.einsum("ij,njk->nik", ctx.initial, ctx.gripper_poses()[todo])
+        hit = ctx.scene.gripper_collides(ctx.gripper, poses, ctx.candidates.width[todo])
+        known[todo] = hit.astype(np.int8)
+    return known[gi].astype(bool)
+
+
+def hand_model(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites, k: int,
+               pose: np.ndarray) -> list:
+    """One receiver hand (palm and finger boxes, world) at ``sites`` in presentation ``k``
+    with the object at ``pose`` (4, 4); empty where that hand has no site."""
+    from handover.geometry.hand import BOX_NAMES
+
+    extents, poses, valid = hand_models(ctx, region, sites, np.array([k]), pose[None])
+    return [(name, extents[0, b], poses[0, b]) for b, name in enumerate(BOX_NAMES)
+            if valid[0, b]]
+
+
+def hand_models(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites,
+                ks: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`hand_model` of n rows at once: presentations ``ks`` (n,) int with the object
+    at ``poses`` (n, 4, 4). Returns extents (n, 4, 3) m, box poses (n, 4, 4, 4) world and
+    valid (n, 4) bool (``HumanHand.boxes_many``; no box valid where the hand has no site)."""
+    from handover.engine.plan.receiver_sites import hand_approach
+
+    ks = np.asarray(ks, dtype=np.int64)
+    rot, shift = poses[:, :3, :3], poses[:, :3, 3]
+    site = np.einsum("nij,nj->ni", rot, sites.site[ks]) + shift
+    local_axis = sites.axis[ks] if sites.axis is not None else np.broadcast_to(
+        np.asarray(region.axis, dtype=float), (len(ks), 3))
+    axis = np.einsum("nij,nj->ni", rot, local_axis)
+    if sites.approach is not None:  # turned to fit the part (receiver_sites.predict_receiver_sites)
+        approach = np.einsum("nij,nj->ni", rot, sites.approach[ks])
+    else:
+        approach = hand_approach(axis, ctx.situation.toward, np.array([0.0, 0.0, 1.0]))
+    thickness = np.asarray(sites.thickness, dtype=float)[ks]
+    depth = np.asarray(sites.depth, dtype=float)[ks] if sites.depth is not None else thickness
+    extents, boxes, valid = ctx.hand.boxes_many(site, axis, approach, thickness, depth,
+                                                cupped=sites.cupped)
+    valid &= np.asarray(sites.valid, dtype=bool)[ks][:, None]
+    return extents, boxes, valid
+
+
+def receiver_hand_boxes(ctx: PlanContext, hands: Hands, k: int) -> list:
+    """Every receiver hand's boxes (world) at its sites in presentation ``k`` (those of every
+    presentation are built together, once per hands)."""
+    from handover.geometry.hand import BOX_NAMES
+
+    memo = ctx.memo.setdefault("hand_boxes", {})
+    if hands.key not in memo:
+        ks = np.arange(len(hands.poses))
+        per_k: list[list] = [[] for _ in ks]
+        for sites in hands.sites:
+            extents, poses, valid = hand_models(ctx, hands.region, sites, ks, hands.poses)
+            for kk, b in zip(*np.nonzero(valid), strict=True):
+                per_k[kk].append((BOX_NAMES[b], extents[kk, b], poses[kk, b]))
+        memo[hands.key] = per_k
+    return memo[hands.key][k]
+
+
+def collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
+                            pk: np.ndarray) -> np.ndarray:
+    """(R,) bool: the gripper at grasp ``gi`` in presentation ``pk`` hits a receiver hand.
+    Memoised per row."""
+    return _per_row(ctx, "collision_receiver_hand", hands, gi, pk,
+                    lambda g, k: _collision_receiver_hand(ctx, hands, g, k)).astype(bool)
+
+
+def _collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
+                             pk: np.ndarray) -> np.ndarray:
+    """:func:`collision_receiver_hand`, computed."""
+    from handover.geometry.collision import BoxWorld
+
+    # The grippers are posed once in the object frame; each presentation's hands are moved
+    # into it (a few boxes per hand, instead of every gripper into the world), and every row
+    # is tested in one batch.
+    worlds: list[BoxWorld] = []
+    group = np.full(len(gi), -1, dtype=np.int64)
+    for k in np.unique(pk):
+        boxes = receiver_hand_boxes(ctx, hands, int(k))
+        if boxes:
+            group[pk == k] = len(worlds)
+            worlds.append(BoxWorld(boxes).moved(np.linalg.inv(hands.poses[k])))
+    out = np.zeros(len(gi), dtype=bool)
+    rows = np.flatnonzero(group >= 0)
+    if len(rows):
+        out[rows] = BoxWorld.grippers_hit_any(ctx.gripper_boxes(), gi[rows], worlds,
+                                              group[rows])
+    return out
+
+
+def gripper_spheres(ctx: PlanContext) -> tuple[np.ndarray, float]:
+    """(N, 3) grasp origins (object frame) and the radius (m) around each that holds every
+    box of its gripper (memoised)."""
+    if "gripper_spheres" not in ctx.memo:
+        posed = ctx.gripper_boxes()
+        origin = ctx.gripper_poses()[:, :3, 3]
+        if len(origin):
+            spread = np.linalg.norm(posed.centres - origin[:, None, :], axis=2).max()
+            reach = float(spread + 0.5 * np.linalg.norm(posed.extents, axis=1).max())
+        else:
+            reach = 0.0
+        ctx.memo["gripper_spheres"] = (origin, reach)
+    return ctx.memo["gripper_spheres"]
+
+
+def collision_other_gripper(ctx: PlanContext, other: int, gi: np.ndarray) -> np.ndarray:
+    """(R,) bool: the gripper at grasp ``gi`` hits the other gripper holding grasp ``other``
+    (both on the object, object frame)."""
+    from handover.geometry.collision import grippers_collide
+
+    poses, widths = ctx.gripper_poses(), ctx.candidates.width
+    partner = np.repeat(poses[other][None], len(gi), axis=0)
+    return grippers_collide(ctx.gripper, poses[gi], widths[gi], partner,
+                            np.full(len(gi), widths[other]), paired=True)
+
+
+def open_interior(ctx: PlanContext, tags: tuple[str, ...]) -> Interior:
+    """The openings no hand may enter (object frame): every opening of an object tagged with
+    one of ``tags``, else the cavities of the hollow primitives of the parts so tagged
+    (:func:`engine.assets.objects.object_interior`). Memoised per tags."""
+    from handover.engine.assets.objects import object_interior
+
+    memo = ctx.memo.setdefault("interior", {})
+    key = tuple(sorted(tags))
+    if key not in memo:
+        obj = ctx.situation.obj
+        parts = None if set(obj.tags) & set(tags) else {
+            name for name, part in obj.parts.items() if set(part.tags) & set(tags)}
+        memo[key] = object_interior(None, obj, ctx.part_mesh, parts=parts)
+    return memo[key]
+
+
+def keep_out_gripper(ctx: PlanContext, interior: Interior, key: tuple,
+                     gi: np.ndarray) -> np.ndarray:
+    """(R,) int64 bit mask: which of the gripper's boxes (bit b: ``gripper_boxes().names[b]``)
+    at grasp ``gi`` reach into ``interior`` (object frame). Memoised per candidate under
+    ``key`` (the interior's tags)."""
+    posed = ctx.gripper_boxes()
+    memo = ctx.memo.setdefault("keep_out_gripper", {})
+    known = memo.setdefault(key, np.full(ctx.n, -1, dtype=np.int64))
+    todo = np.unique(gi[known[gi] < 0])
+    if len(todo):
+        mask = np.zeros(len(todo), dtype=np.int64)
+        for b in range(len(posed.names)):
+            enter = interior.boxes_enter(posed.centres[todo, b], posed.rotations[todo],
+                                         posed.extents[b] / 2.0)
+            mask |= np.where(enter, 1 << b, 0)
+        known[todo] = mask
+    return known[gi]
+
+
+def keep_out_receiver_hand(ctx: PlanContext, hands: Hands, interior: Interior,
+                           k: int) -> list[str]:
+    """The receiver's hand boxes (``"right palm"``, ...) that reach into ``interior`` in
+    presentation ``k``."""
+    names, boxes = [], []
+    for hand, sites in zip(hands.receiving, hands.sites, strict=False):
+        for name, ext, pose in hand_model(ctx, hands.region, sites, k, hands.poses[k]):
+            names.append(f"{hand} {name}")
+            boxes.append((ext, np.linalg.inv(hands.poses[k]) @ pose))
+    if not boxes:
+        return []
+    enter = interior.boxes_enter(np.array([b[1][:3, 3] for b in boxes]),
+                                 np.array([b[1][:3, :3] for b in boxes]),
+                                 np.array([b[0] for b in boxes]) / 2.0)
+    return [n for n, e in zip(names, enter, strict=True) if e]
+
+
+SITE_RAYS = 4
+"""Rays cast from a receiver's site across the part (the hand's +-y and +-z) to see that the
+part surrounds it."""
+
+
+@dataclass(frozen=True)
+class HandFit:
+    """How the receiver's hands sit on the object, per presentation (K,) (every hand: the
+    worst). site_gap : m, how far a site lies from the part it is on (0 inside the part, or
+    surrounded by it within the hand's section: the middle of a cup; for a cupping hand, the
+    point where its palm meets the object's face). palm_depth,
+    finger_depth : m, how deep the palm and the finger boxes reach into the object.
+    grips : per presentation, each hand's grip (:meth:`geometry.hand.HumanHand.grip`).
+    """
+
+    site_gap: np.ndarray
+    palm_depth: np.ndarray
+    finger_depth: np.ndarray
+    grips: tuple[tuple[str, ...], ...]
+
+
+def hand_fit(ctx: PlanContext, hands: Hands) -> HandFit:
+    """:class:`HandFit` of ``hands`` in every presentation (memoised per hands)."""
+    from handover.geometry.mesh import ray_first_hits
+    from handover.geometry.penetration import box_depths, surface_gaps
+
+    memo = ctx.memo.setdefault("hand_fit", {})
+    if hands.key in memo:
+        return memo[hands.key]
+    mesh = ctx.part_mesh.mesh
+    k_all = ctx.k
+    gap, palm, fingers = np.zeros(k_all), np.zeros(k_all), np.zeros(k_all)
+    grips: list[list[str]] = [[] for _ in range(k_all)]
+    for sites in hands.sites:
+        ks = np.flatnonzero(sites.valid)
+        centres, rots, halves, owner, is_palm = [], [], [], [], []
+        origins, dirs, reach, palm_points = [], [], [], []
+        for k in ks:
+            inv = np.linalg.inv(hands.poses[k])
+            boxes = hand_model(ctx, hands.region, sites, int(k), hands.poses[k])
+            for name, ext, pose in boxes:
+                local = inv @ pose
+                centres.append(local[:3, 3])
+                rots.append(local[:3, :3])
+                halves.append(ext / 2.0)
+                owner.append(k)
+                is_palm.append(name == "palm")
+            frame = inv @ boxes[0][2]  # every box shares the hand frame's rotation
+            t = float(sites.thickness[k])
+            d = float(sites.depth[k]) if sites.depth is not None else t
+            for axis, half in ((1, t), (2, d)):
+                for sign in (1.0, -1.0):
+                    origins.append(sites.site[k])
+                    dirs.append(sign * frame[:3, axis])
+                    reach.append(half / 2.0)
+            grips[k].append("cup" if sites.cupped else ctx.hand.grip(t, d))
+            # a cupping hand holds the object's face: its site is where the palm meets it
+            palm_points.append(sites.site[k] - (d / 2.0 if sites.cupped else 0.0) * frame[:3, 2])
+        if not len(ks):
+            continue
+        depth = box_depths(mesh, np.array(centres), np.array(rots), np.array(halves))
+        owner_a, palm_a = np.array(owner), np.array(is_palm)
+        np.maximum.at(palm, owner_a[palm_a], depth[palm_a])
+        np.maximum.at(fingers, owner_a[~palm_a], depth[~palm_a])
+        face, dist = ray_first_hits(mesh, np.array(origins), np.array(dirs))
+        within = (face >= 0) & (dist <= np.array(reach) + 1e-3)
+        surrounded = within.reshape(len(ks), SITE_RAYS).all(axis=1) & (not sites.cupped)
+        site_gap = np.where(surrounded, 0.0, surface_gaps(mesh, np.array(palm_points)))
+        gap[ks] = np.maximum(gap[ks], site_gap)
+    memo[hands.key] = HandFit(gap, palm, fingers, tuple(tuple(g) for g in grips))
+    return memo[hands.key]

@@ -1,0 +1,340 @@
+"""The handover modes, one module each (H1G1, H2G2, H2G1), and the choice among them.
+
+Each mode planner is a function ``(kb, ctx) -> Attempt`` registered in
+:data:`~handover.engine.plan.modes.common.PLANNERS`. An attempt is a value: it never changes the
+context, so trying H2G1 first and H1G1 next gives H1G1 the same result as forcing it.
+
+Every feasible attempt is checked before it is accepted: the trace of each chosen grasp,
+judged in the phase the planner chose it in, must pass every hard rule; otherwise the attempt
+is turned infeasible with the failing rule named. A plan whose own trace says a hard rule
+failed is never reported as feasible.
+
+Etiquette that bends (:func:`choose`): a soft mode rule's ``bends_to`` alternatives are tried
+after its own mode (one hand giving while the other gripper supports its wrist:
+:mod:`~handover.engine.plan.modes.support`), then one hand; the chosen attempt then carries what
+was relaxed (``extra["relaxed"]``, ``extra["warnings"]``, the marked trace entries) and the
+supporting gripper (``extra["support_grasps"]``, a ``stage: support`` trace entry).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from handover.engine.plan.attempt import Attempt, Chosen
+from handover.engine.plan.compiler import compile
+from handover.engine.plan.evaluate import trace_row
+from handover.engine.plan.modes import h1g1, h2g1, h2g2  # noqa: F401  (register the planners)
+from handover.engine.plan.modes.common import HANDS_NEEDED, PLANNERS, hand_at
+from handover.engine.plan.modes.h2g2 import FIRST_NOTE, first_rules
+
+if TYPE_CHECKING:
+    from handover.engine.plan.compiler import CompiledRule
+    from handover.engine.plan.context import PlanContext
+    from handover.engine.spec.kinds.mode import Bend
+    from handover.engine.load.loader import KB
+
+__all__ = ["PLANNERS", "choose", "attempt_mode", "chosen_traces", "required_mode",
+           "closest_attempt", "progress"]
+
+
+def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
+    """The trace of every chosen grasp, each judged in its own phase (H2G2's first grasp by
+    its pick-up rules only)."""
+    trace: list[dict] = []
+    cg = attempt.graph
+    for c in attempt.chosen:
+        if c.stage == "pick":
+            entries = trace_row(cg, ctx, c.phase, c.grasp, c.presentation,
+                                rules=first_rules(cg.hard),
+                                note=FIRST_NOTE)
+        else:
+            entries = trace_row(cg, ctx, c.phase, c.grasp, c.presentation)
+        trace.extend({"grasp": c.grasp, "hand": c.hand, "stage": c.stage, **e}
+                     for e in entries)
+    return trace
+
+
+def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
+    """Run one mode's planner and check its answer: a feasible attempt keeps its chosen
+    grasps only if each passes every hard rule in its trace (``extra["trace"]``)."""
+    robot = ctx.situation.robot
+    if len(robot.hands) < HANDS_NEEDED[mode]:
+        return Attempt(mode, False, f"{mode}: needs {HANDS_NEEDED[mode]} robot hands; robot "
+                       f"'{robot.id}' ({robot.source}) has {' and '.join(robot.hands)} only")
+    out_of_reach = beyond_reach(ctx)
+    if out_of_reach:
+        return Attempt(mode, False, f"{mode}: {out_of_reach}")
+    attempt = PLANNERS[mode](kb, ctx)
+    if not attempt.feasible:
+        return replace(attempt, reason=_reason_with_targets(ctx, attempt))
+    return _checked(ctx, attempt)
+
+
+def _checked(ctx: PlanContext, attempt: Attempt) -> Attempt:
+    """A feasible ``attempt`` with its trace, or rejected when a chosen grasp fails a hard
+    rule in it."""
+    trace = chosen_traces(ctx, attempt)
+    failed = [e for e in trace if e["hard"] and e["status"] == "fail"]
+    if failed:
+        names = ", ".join(f"{e['rule']} ({e['hand']} hand, grasp {e['grasp']})" for e in failed)
+        return attempt.rejected(f"{attempt.mode}: the chosen grasps fail hard rules in their "
+                                f"own trace: {names}")
+    return replace(attempt, extra=attempt.extra | {"trace": trace})
+
+
+def progress(attempt: Attempt) -> tuple[float, int]:
+    """How far an infeasible attempt got: (the fewest hard rules any of its rows fails, on
+    the exact table; how many rows fail that few). Rows that passed every hard rule in a
+    mode that failed later: (0, rows kept) when it got to pairing grasps (``pairs_checked``),
+    else (1, rows kept): failing to find a pair (or a first grasp) counts as one rule more.
+    (inf, 0) when nothing was judged (the mode was not tried, or the robot lacks hands)."""
+    d = attempt.decision
+    if d is None or d.n_rows == 0:
+        return float("inf"), 0
+    if d.kept.any():
+        paired = attempt.extra.get("pairs_checked", 0) > 0
+        return (0.0 if paired else 1.0), int(d.kept.sum())
+    counts = d.exact().fails.sum(axis=1)
+    fewest = int(counts.min())
+    return float(fewest), int((counts == fewest).sum())
+
+
+def closest_attempt(tried: list[Attempt]) -> Attempt:
+    """The attempt whose reason speaks for an infeasible plan: the one that got furthest
+    (:func:`progress`: the fewest rules failed, then the most rows failing that few), ties
+    in the catalogue's order (H1G1, H2G2, H2G1). A mode a rule kept from being tried never
+    speaks while one was tried."""
+    rank = {m: n for n, m in enumerate(PLANNERS)}
+
+    def key(a: Attempt) -> tuple:
+        fewest, rows = progress(a)
+        return bool(a.extra.get("not_tried")), fewest, -rows, rank.get(a.mode, len(rank))
+
+    return min(tried, key=key)
+
+
+def _reason_with_targets(ctx: PlanContext, attempt: Attempt) -> str | None:
+    """An infeasible attempt's reason, with what its collision rules hit and, when nothing
+    could be offered anywhere, why not."""
+    from handover.engine.plan.features import handover_targets
+    from handover.engine.plan.world import location_reason
+
+    reason = attempt.reason
+    if attempt.phase is None or attempt.graph is None:
+        return reason
+    hands = attempt.phase.hands
+    if attempt.decision is not None:
+        hits = attempt.decision.collision_hits(handover_targets(ctx, hands).names)
+        for rule_id, tally in hits.items():
+            if reason and rule_id in reason and f"{rule_id} [geometry" not in reason:
+                listed = ", ".join(f"{t} ({n})" for t, n in list(tally.items())[:4])
+                reason = f"{reason}; {rule_id} hit {listed}"
+    where = location_reason(ctx, hands,
+                            [c for c in attempt.graph.order if c.rule.kind == "location"])
+    if where:
+        reason = f"{reason}. Where to offer it: {where}"
+    from handover.engine.plan.arms.solve import reach_reason
+
+    arms = reach_reason(ctx, replace(attempt, reason=reason))
+    if arms:
+        reason = f"{reason}. {arms}"
+    return reason
+
+
+def beyond_reach(ctx: PlanContext) -> str | None:
+    """Whether the object to pick up lies beyond the robot's ``reach`` (horizontal distance
+    from its base axis), said with the distance; None when it is within. (Where the object is
+    offered, the ``location`` rules judge.)"""
+    from handover.engine.plan.world import robot_axis
+
+    robot = ctx.situation.robot
+    distance = float(np.linalg.norm(ctx.initial[:2, 3] - robot_axis(robot)))
+    if distance > robot.reach + 1e-9:
+        return (f"the object at pick-up is {distance:.2f} m from the robot, beyond its reach "
+                f"of {robot.reach:g} m ({robot.source})")
+    return None
+
+
+def required_mode(kb: KB, ctx: PlanContext) -> tuple[str | None, str, str | None, str]:
+    """The mode the KB requires (the first active hard mode rule) and the one it prefers
+    (the highest-weighted active soft mode rule), each with the rule that says so, for this
+    query. Returns (required, why, preferred, why)."""
+    cg = compile(kb, ctx, "H1G1")
+    required, preferred = cg.mode_rules()
+
+    def said(c) -> str:
+        return f"rule {c.id} ({c.source}) asks for {c.rule.mode}: {c.rule.why}"
+
+    return (required.rule.mode if required else None, said(required) if required else "",
+            preferred.rule.mode if preferred else None, said(preferred) if preferred else "")
+
+
+def _steps(required: CompiledRule | None,
+           preferred: CompiledRule | None) -> list[tuple[str, Bend | None]]:
+    """The modes auto tries, in order, each with the alternative (``bends_to`` entry) it
+    stands for, or None. A mode a hard rule requires is the only one; otherwise the preferred
+    mode first, then what it bends to, then one hand, then the rest in catalogue order."""
+    if required is not None:
+        return [(required.rule.mode, None)]
+    order = list(PLANNERS)
+    if preferred is None:
+        return [(m, None) for m in order]
+    order.remove(preferred.rule.mode)
+    steps: list[tuple[str, Bend | None]] = [(preferred.rule.mode, None)]
+    if preferred.rule.bends_to:
+        steps += [(b.mode, b) for b in preferred.rule.bends_to]
+        order.sort(key=lambda m: m != "H1G1")  # then one hand
+    return steps + [(m, None) for m in order]
+
+
+def choose(kb: KB, ctx: PlanContext, asked: str) -> tuple[Attempt, list[Attempt], str]:
+    """Try the modes ``asked`` for (``auto``, or one forced mode) and return the attempt to
+    report, every attempt tried (in the catalogue's order) and why that mode.
+
+    auto: a mode a hard rule requires is the only one tried (the others are reported as
+    ruled out by that rule; a strict rule does not bend, and its failure names it);
+    otherwise the mode a soft rule prefers first, then the alternatives that rule
+    ``bends_to`` (e.g. one hand giving, the other supporting its wrist), then H1G1, H2G2,
+    H2G1. When a preference gives way, the attempt says which rule was relaxed, why and what
+    was used instead (``extra["relaxed"]``, its warning and its trace entries). A soft mode
+    rule marked ``safety`` never bends: it is required."""
+    asked = asked.lower()
+    if asked != "auto":
+        mode = asked.upper()
+        attempt = attempt_mode(kb, ctx, mode)
+        return attempt, [attempt], f"forced by --mode {asked}"
+
+    required, preferred = compile(kb, ctx, "H1G1").mode_rules()
+    if required is None and preferred is not None and preferred.rule.safety:
+        required, preferred = preferred, None
+    tried: list[Attempt] = []
+    if required is not None:
+        tried += [Attempt(m, False, f"{m}: not tried, {_said(required)}",
+                          extra={"not_tried": True})
+                  for m in PLANNERS if m != required.rule.mode]
+    plain: dict[str, Attempt] = {}
+    rank = {m: n for n, m in enumerate(PLANNERS)}
+    reported: set[str] = set()  # modes tried as themselves (no support)
+    for mode, bend in _steps(required, preferred):
+        supported = bend is not None and bend.support is not None
+        if not supported and mode in reported:
+            continue  # already tried as an alternative
+        if mode not in plain:  # each mode is planned once; a support reuses its rows
+            plain[mode] = attempt_mode(kb, ctx, mode)
+        attempt = plain[mode]
+        if supported:
+            attempt = _with_support(ctx, attempt, bend, preferred)
+            attempt = replace(attempt, extra=attempt.extra | {
+                "alternative": preferred.rule.bends_to.index(bend)})
+        else:
+            reported.add(mode)
+        if required is not None and not attempt.feasible:
+            attempt = replace(attempt, reason=f"{mode} required by {required.id} "
+                              f"({required.source}), a hard rule that does not bend: "
+                              f"{attempt.reason}")
+        tried.append(attempt)
+        if attempt.feasible:
+            if required is not None:
+                why = _said(required)
+            elif preferred is not None and preferred.rule.mode == mode and bend is None:
+                why = _said(preferred)
+            elif preferred is not None:
+                attempt, why = _relaxed(attempt, preferred, bend, tried)
+            elif mode == "H1G1":
+                why = "one hand, one grasp is tried first and is feasible"
+            else:
+                why = f"{mode} tried because " + "; ".join(
+                    a.reason or "" for a in tried if not a.feasible and a.mode != mode)
+            return attempt, tried, why
+    tried.sort(key=lambda a: rank[a.mode])
+    return closest_attempt(tried), tried, "no mode is feasible"
+
+
+def _said(c: CompiledRule) -> str:
+    return f"rule {c.id} ({c.source}) asks for {c.rule.mode}: {c.rule.why}"
+
+
+def _with_support(ctx: PlanContext, base: Attempt, bend: Bend, rule: CompiledRule) -> Attempt:
+    """The one-hand attempt ``base`` with the robot's other gripper supporting the giving
+    wrist (:mod:`~handover.engine.plan.modes.support`): the best row where a support fits, or
+    infeasible with why not."""
+    from handover.engine.plan.modes.support import find_support
+
+    label = f"{base.mode} with the other gripper at the giving {bend.support} ({rule.id} " \
+        "bends_to)"
+    hands = ctx.situation.robot.hands
+    if not base.feasible:
+        return replace(base, reason=f"{label}: {base.reason}")
+    if len(hands) < 2:
+        return base.rejected(f"{label}: needs 2 robot hands; robot "
+                             f"'{ctx.situation.robot.id}' has {hands[0]} only")
+    support, why_not = find_support(ctx, base)
+    if support is None:
+        return base.rejected(f"{label}: {why_not}")
+    d = base.decision
+    i, k = int(d.gi[support.row]), int(d.pk[support.row])
+    pose_k = base.phase.hands.poses[k]
+    hand = hand_at(pose_k, ctx.candidates.centre[i], hands)
+    other = next(h for h in hands if h != hand)
+    chosen = replace(base, chosen=(Chosen(hand, i, k, base.phase),),
+                     score=float(d.score[support.row]))
+    checked = _checked(ctx, chosen)
+    if not checked.feasible:
+        return replace(checked, reason=f"{label}: {checked.reason}")
+    record = {
+        "hand": other, "id": None, "stage": "support", "pose": support.pose,
+        "pose_world": pose_k @ support.pose, "width": support.width, "contacts": [],
+        "parts": [], "score": None, "quality": None, "roll_deg": None,
+        "supports": {"hand": hand, "grasp": i, "at": bend.support, "point": support.wrist,
+                     "point_world": pose_k[:3, :3] @ support.wrist + pose_k[:3, 3],
+                     "clear_of": [n for n, ok in support.checked.items() if ok]},
+    }
+    entry = {
+        "grasp": None, "hand": other, "stage": "support", "rule": rule.id, "kind": "mode",
+        "hard": False, "status": "pass", "measured": None, "unit": "",
+        "threshold": f"collision-free at the giving {bend.support}", "score": None,
+        "weight": rule.rule.weight, "within": True, "why": bend.why, "source": rule.source,
+        "culture": rule.culture, "overrides": [], "safety": False,
+        "note": (f"the {other} gripper supports the {hand} gripper's {bend.support}, clear of "
+                 + ", ".join(n for n, ok in support.checked.items() if ok)),
+    }
+    return replace(checked, extra=checked.extra | {
+        "support_grasps": [record], "trace": checked.extra["trace"] + [entry],
+        "support_poses_tried": support.tried})
+
+
+def _relaxed(attempt: Attempt, rule: CompiledRule, bend: Bend | None,
+             tried: list[Attempt]) -> tuple[Attempt, str]:
+    """``attempt`` (feasible, not the mode ``rule`` prefers) with what was relaxed: its
+    warning (unless the preference was for one hand, a matter of simplicity rather than
+    manners), its trace entries of ``rule`` marked, and why this mode."""
+    wanted = rule.rule.mode
+    because = next((a.reason for a in tried if a.mode == wanted and not a.feasible),
+                   None) or f"{wanted} is infeasible"
+    failed_alts = [a.reason for a in tried[:-1] if a.extra.get("alternative") is not None]
+    used = bend.describe() if bend is not None else attempt.mode
+    relaxed = {"rule": rule.id, "source": rule.source, "culture": rule.culture,
+               "asked": wanted, "because": because, "used": used,
+               "accepted_because": None if bend is None else bend.why,
+               "alternative": None if bend is None else rule.rule.bends_to.index(bend),
+               "alternatives_failed": failed_alts}
+    why = (f"rule {rule.id} ({rule.source}) prefers {wanted}, infeasible here ({because}); "
+           f"relaxed to {used}" + (f", as {rule.culture} etiquette accepts: {bend.why}"
+                                   if bend is not None else ""))
+    if failed_alts:
+        why += "; " + "; ".join(failed_alts)
+    trace = [dict(e, relaxed={"asked": wanted, "because": because, "used": used})
+             if e.get("rule") == rule.id and e.get("stage", "handover") == "handover" else e
+             for e in attempt.extra.get("trace", [])]
+    extra = attempt.extra | {"relaxed": relaxed, "trace": trace}
+    if wanted != "H1G1":
+        extra["warnings"] = list(attempt.extra.get("warnings", [])) + [
+            f"etiquette relaxed: {rule.id} ({rule.source}) asks for {wanted}, which is "
+            f"infeasible here ({because}); given {used} instead"
+            + (f" ({rule.culture}'s accepted alternative)" if bend is not None else "")
+            + (f" (the accepted alternative{'s' if len(failed_alts) > 1 else ''} did not "
+               "fit, see modes_tried)" if failed_alts else "")]
+    return replace(attempt, extra=extra), why

@@ -1,0 +1,242 @@
+"""H2G1: the robot gives the object with both hands (seed section 3.3).
+
+For a large or heavy object, or when etiquette asks for two hands (an elder or a superior in
+some cultures), the robot holds the object at its far left and far right and presents it.
+The receiver's hands are predicted first: two hands for a large object, one for the
+etiquette case (which it is is read from the KB: two hands when the mode rule that asked for
+H2G1 is about mass or size). Their hand models are obstacles for both robot grippers.
+
+Every rule of the culture applies to each robot grasp at the presentation. At pick-up, one
+hand must be able to take the object from the table (the other joins it in the air, as a
+person lifts a book with one hand and then offers it with both), or both hands when the
+object is heavier than one hand's payload. Every rule of the culture applies to each robot
+grasp. The left hand's gripper has its palm
+in the outer ``SIDE_BAND`` of the object's extent on the robot's left, or beyond it (it
+holds the left end, or comes from the left), the right hand's on its right, both in the
+same presentation. Pairs are kept when the two grippers do not collide and each
+hand's share of the weight is within its payload and its torque limit, and scored for balance:
+the mean of the two grasps' rule scores, and how close the line between the grasps passes to
+the centre of mass.
+
+The weight is shared in the presented pose: the centre of mass lies between the two grasp
+centres along the horizontal line joining them, and each gripper carries its share by the
+lever rule (:func:`~handover.engine.spec.kinds.torque.load_shares`): a laptop held at its two
+sides puts about half its weight on each gripper, not all of it on both.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from handover.engine.plan.arms.pairs import choose_pair_h2g1, side_reaches
+from handover.engine.plan.arms.solve import reach_rule
+from handover.engine.plan.attempt import Attempt, Chosen, Hands, Phase
+from handover.engine.plan.compiler import ConstraintGraph, compile
+from handover.engine.plan.evaluate import evaluate
+from handover.engine.plan.explain import infeasible_reason
+from handover.engine.plan.features import collision_scene
+from handover.engine.plan.hands import hands_for
+from handover.engine.spec.kinds.torque import load_shares, pair_lever
+from handover.engine.plan.modes.common import (
+    H2G1_RELOCATIONS,
+    RETRY_CHECKS,
+    register,
+    relocated,
+)
+
+if TYPE_CHECKING:
+    from handover.engine.plan.context import PlanContext
+    from handover.engine.load.loader import KB
+
+__all__ = ["plan_h2g1", "receiver_hand_count", "SIDE_BAND", "BALANCE_WEIGHT"]
+
+# Fraction of the object's left-right extent, at each end, where that side's hand may grasp.
+SIDE_BAND = 0.25
+# Weight of balance against the rules' mean score in a pair's score.
+BALANCE_WEIGHT = 0.5
+# How many of the best rows per side and presentation are paired.
+SIDE_POOL = 48
+# With arms: how many of the best pairs of each presentation are offered to the arms.
+ARM_PAIRS = 16
+
+
+def receiver_hand_count(cg: ConstraintGraph) -> tuple[int, str]:
+    """How many hands the receiver uses, and why: two when an active mode rule asking for
+    H2G1 is about the object's mass or size (the large-object case), else one (etiquette)."""
+    for c in cg.order:
+        if c.rule.kind == "mode" and c.rule.mode == "H2G1" and c.rule.applies.is_about_load():
+            return 2, f"{c.id} ({c.source}): a large or heavy object takes two hands"
+    for c in cg.order:
+        if c.rule.kind == "mode" and c.rule.mode == "H2G1":
+            return 1, f"{c.id} ({c.source}): etiquette; the receiver takes it in one hand"
+    return 1, "no rule asks for two hands; the receiver takes it in one hand"
+
+
+def _palm_centres(ctx: PlanContext) -> np.ndarray:
+    """(N, 3) m, object frame: the centre of each candidate gripper's palm. A hand is on the
+    object's left when its palm is: at the left end of a tray, or coming from the left onto
+    a mug."""
+    g = ctx.gripper
+    back = g.finger_length / 2.0 + g.palm[2] / 2.0
+    poses = ctx.gripper_poses()
+    return poses[:, :3, 3] - back * poses[:, :3, 2]
+
+
+def _overloaded(ctx: PlanContext, cg: ConstraintGraph, gl: np.ndarray, gr: np.ndarray, k: int,
+                com: np.ndarray) -> np.ndarray:
+    """(L, R) bool: pairs (left grasp ``gl``, right grasp ``gr``, object frame, presentation
+    ``k``) where a gripper's share of the weight, in the presented pose, exceeds one hand's
+    payload or its torque an active hard torque rule's limit."""
+    rot = ctx.rotations[k]
+    com_w = rot @ com
+    left = (ctx.candidates.centre[gl] @ rot.T)[:, None, :]
+    right = (ctx.candidates.centre[gr] @ rot.T)[None, :, :]
+    share_l = load_shares(com_w, left, right)  # (L, R)
+    lever = pair_lever(com_w, left, right)
+    mass, payload = ctx.facts.mass, ctx.facts.payload
+    over = (np.maximum(share_l, 1.0 - share_l) * mass > payload + 1e-12)
+    for c in cg.hard:
+        if c.rule.kind == "torque":
+            worst = np.maximum(share_l, 1.0 - share_l)
+            over |= c.rule.torques(ctx, worst, lever) > c.rule.max_nm + 1e-12
+    return over
+
+
+@register("H2G1", hands=2)
+def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
+    """Plan a two-handed handover; see the module docstring. When the arms hold none of the
+    best pairs where the location rules offer the object, the presentations that had pairs
+    move to their next best locations (:func:`~handover.engine.plan.modes.common.relocated`)."""
+    cg = compile(kb, ctx, "H2G1")
+    count, count_why = receiver_hand_count(cg)
+    extra = {"receiver_hands": count, "receiver_hands_why": count_why}
+    return relocated(_plan(ctx, cg, hands_for(cg, ctx, count), extra),
+                     lambda avoid: hands_for(cg, ctx, count, avoid=avoid),
+                     lambda hands: _plan(ctx, cg, hands, extra, RETRY_CHECKS),
+                     H2G1_RELOCATIONS)
+
+
+def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict,
+          checks: int | None = None) -> Attempt:
+    """H2G1 with the receiver's ``hands`` where they are (see :func:`plan_h2g1`); at most
+    ``checks`` exact (arm, grasp) checks of the pairs (default
+    :data:`~handover.engine.plan.arms.solve.CONFIRM_LIMIT`)."""
+    from handover.geometry.collision import grippers_collide
+
+    # Rows are judged at the presentation; pick-up is a property of the pair (below).
+    phase = Phase("H2G1", hands=hands, pickup=False, receiver_present=True)
+    decision = evaluate(cg, ctx, phase)
+    extra = dict(extra)
+    facts = ctx.facts
+    if facts.mass / 2.0 > facts.payload:
+        return Attempt("H2G1", False,
+                       f"H2G1: half the mass ({facts.mass / 2:g} kg) exceeds one hand's payload "
+                       f"({facts.payload:g} kg)", cg, decision, phase, extra=extra)
+    ranking = decision.ranking()
+    if len(ranking) == 0:
+        return Attempt("H2G1", False, infeasible_reason(decision, "H2G1"), cg, decision, phase,
+                       extra=extra)
+
+    up = np.array([0.0, 0.0, 1.0])
+    lateral = np.cross(up, ctx.situation.toward)  # the robot's left
+    l_obj = np.einsum("kji,j->ki", ctx.rotations, lateral)
+    verts = np.asarray(ctx.part_mesh.mesh.vertices)
+    t_all = verts @ l_obj.T  # (V, K)
+    t_min, t_max = t_all.min(axis=0), t_all.max(axis=0)
+    gi, pk = decision.gi[ranking], decision.pk[ranking]
+    t = np.einsum("ri,ri->r", _palm_centres(ctx)[gi], l_obj[pk])
+    span = np.maximum(t_max - t_min, 1e-9)[pk]
+    left = t >= t_max[pk] - SIDE_BAND * span
+    right = t <= t_min[pk] + SIDE_BAND * span
+    if reach_rule(cg, ctx) is not None:  # each side's rows: those its own arm's map holds
+        left &= side_reaches(ctx, phase, "left", gi, pk)
+        right &= side_reaches(ctx, phase, "right", gi, pk)
+    com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
+    poses, widths = ctx.gripper_poses(), ctx.candidates.width
+    both_pick = facts.mass > facts.payload  # too heavy for one hand to lift alone
+    best = None
+    found: list[tuple] = []  # with arms: the best pairs of each presentation, for the arms
+    arms = reach_rule(cg, ctx) is not None
+    checked = colliding = unpickable = overloaded = 0
+    for k in np.unique(pk):  # at most 24 presentations; pairs within one are vectorised
+        li = ranking[(pk == k) & left][:SIDE_POOL]
+        ri = ranking[(pk == k) & right][:SIDE_POOL]
+        if not len(li) or not len(ri):
+            continue
+        gl, gr = decision.gi[li], decision.gi[ri]
+        hit = grippers_collide(ctx.gripper, poses[gl], widths[gl], poses[gr], widths[gr],
+                               paired=False)
+        checked += hit.size
+        colliding += int(hit.sum())
+        cl, cr = ctx.candidates.centre[gl], ctx.candidates.centre[gr]
+        seg = cr[None, :, :] - cl[:, None, :]  # (L, R, 3)
+        rel = com[None, None, :] - cl[:, None, :]
+        cross = np.linalg.norm(np.cross(seg, rel), axis=2)
+        off = cross / np.maximum(np.linalg.norm(seg, axis=2), 1e-9)  # COM to the grasp line
+        balance = 1.0 - np.clip(off / max(facts.size / 2.0, 1e-9), 0.0, 1.0)
+        mean = 0.5 * (decision.score[li][:, None] + decision.score[ri][None, :])
+        score = (1 - BALANCE_WEIGHT) * mean + BALANCE_WEIGHT * balance
+        heavy = _overloaded(ctx, cg, gl, gr, int(k), com) & ~hit
+        overloaded += int(heavy.sum())
+        pick_l = ~collision_scene(ctx, gl)  # free of table and obstacles at pick-up
+        pick_r = ~collision_scene(ctx, gr)
+        lifts = (pick_l[:, None] & pick_r[None, :]) if both_pick else (
+            pick_l[:, None] | pick_r[None, :])
+        unpickable += int((~hit & ~heavy & ~lifts).sum())
+        score = np.where(hit | heavy | ~lifts, -np.inf, score)
+        if arms:
+            flat_all = np.argsort(-score, axis=None, kind="stable")[:ARM_PAIRS]
+            for fl in flat_all:
+                a, b = divmod(int(fl), score.shape[1])
+                if np.isfinite(score[a, b]):
+                    found.append((float(score[a, b]), int(gl[a]), int(gr[b]), int(k),
+                                  float(off[a, b])))
+        flat = int(np.argmax(score))
+        a, b = divmod(flat, score.shape[1])
+        if np.isfinite(score[a, b]) and (best is None or score[a, b] > best[0] + 1e-12):
+            best = (float(score[a, b]), int(gl[a]), int(gr[b]), int(k), float(off[a, b]))
+    extra.update(pairs_checked=checked, pairs_colliding=colliding,
+                 pairs_not_liftable=unpickable)
+    if overloaded:
+        extra["pairs_overloaded"] = overloaded
+    if best is None:
+        lift = "both hands" if both_pick else "either hand"
+        heavy = (f", {overloaded} where a gripper's share of the weight exceeds its payload "
+                 f"or torque limit" if overloaded else "")
+        return Attempt("H2G1", False,
+                       f"H2G1: no pair of grasps at the far left and far right ({checked} pairs "
+                       f"checked, {colliding} with colliding grippers{heavy}, {unpickable} "
+                       f"that {lift} cannot take from the table)", cg, decision, phase,
+                       extra=extra)
+    arm = {"left": None, "right": None}
+    if arms:  # the best pair the left and right arms hold exactly
+        found.sort(key=lambda p: -p[0])  # stable: presentations in order on a tie
+        idx = np.unique([i for p in found for i in p[1:3]])
+        free = dict(zip(idx.tolist(), (~collision_scene(ctx, idx)).tolist(), strict=True))
+        best, lifts, failures = choose_pair_h2g1(ctx, phase, found, free, both_pick,
+                                                 limit=checks)
+        if best is None:
+            rule = reach_rule(cg, ctx).id
+            said = "; ".join(failures[:3]) or "no arm's map holds the grasps of any pair"
+            return Attempt("H2G1", False, f"H2G1: the arms hold none of the best pairs of "
+                           f"grasps ({rule}): " + said, cg, decision, phase,
+                           extra=extra | {"arm_failures": failures})
+        arm = {"left": "left", "right": "right"}
+    score, i_left, i_right, k, off = best
+    picks = ~collision_scene(ctx, np.array([i_left, i_right]))
+    extra["balance_offset_m"] = off
+    extra["pickup_hands"] = [h for h, ok in zip(("left", "right"), picks, strict=True) if ok]
+    if not both_pick:  # one hand lifts it; the other joins at the presentation
+        extra["pickup_hands"] = extra["pickup_hands"][:1]
+    if arms:
+        extra["pickup_hands"] = lifts
+    lifts = extra["pickup_hands"]
+    chosen = (
+        Chosen("left", i_left, k, phase.but(pickup="left" in lifts, other_grasp=i_right,
+                                            arm=arm["left"])),
+        Chosen("right", i_right, k, phase.but(pickup="right" in lifts, other_grasp=i_left,
+                                              arm=arm["right"])),
+    )
+    return Attempt("H2G1", True, None, cg, decision, phase, chosen, score, extra=extra)

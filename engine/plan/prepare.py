@@ -1,0 +1,94 @@
+"""Prepare a query: resolve it against the KB, build the object's mesh with its parts and its
+grasp candidates (from the grasp database when it has them), and the plan context."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from handover.engine.plan.context import PlanContext, build_context
+from handover.engine.plan.query import Query, resolve_situation
+
+if TYPE_CHECKING:
+    import trimesh
+
+    from handover.engine.load.loader import KB
+    from handover.engine.spec.schema import ObjectSpec
+
+__all__ = ["prepare", "mesh_file_spec", "DEFAULT_DENSITY"]
+
+# A mesh file with no KB entry: its mass from its volume at the density of wood/plastic.
+DEFAULT_DENSITY = 700.0  # kg/m^3
+
+
+def mesh_file_spec(path: Path, scale: float = 1.0) -> ObjectSpec:
+    """A KB object for a mesh file with no KB entry: one untagged part named ``body``
+    (``scale``: the file's units to metres)."""
+    from handover.engine.spec.schema import Geometry, MeshGeometry, ObjectSpec, Part
+
+    stem = re.sub(r"[^a-z0-9_\-]+", "_", path.stem.lower()).strip("_-") or "mesh"
+    if not stem[0].isalpha():
+        stem = "m_" + stem
+    return ObjectSpec(
+        id=stem[:64],
+        name=path.name,
+        mass=0.3,  # replaced from the mesh volume in prepare()
+        geometry=Geometry(mesh=MeshGeometry(file=str(path), scale=scale, default_part="body")),
+        parts={"body": Part(tags=[])},
+    )
+
+
+def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None) -> PlanContext:
+    """Resolve the query, build the object's mesh and candidates, and the plan context.
+
+    db : a ``handover.engine.assets.graspdb.GraspDB`` to read candidates from (and store them in),
+        or None to generate them.
+    mesh : the object as a mesh (object frame, metres; one untagged part ``body``) instead of
+        the KB object or mesh file ``query.object`` names.
+    """
+    from handover.engine.assets import objects as assets
+    from handover.engine.assets.graspdb import cached_candidates
+    from handover.geometry.collision import ObjectCollider
+    from handover.geometry.hand import HumanHand
+    from handover.geometry.mesh import MESH_SUFFIXES
+
+    path = Path(query.object)
+    obj = None
+    if mesh is not None or path.suffix.lower() in MESH_SUFFIXES:
+        obj = mesh_file_spec(path, query.mesh_scale)  # a missing file: MeshError on loading
+    situation = resolve_situation(kb, query, obj)
+    hints: list[str] = []
+    if obj is not None:
+        part_mesh = (assets.mesh_object(mesh, scale=query.mesh_scale) if mesh is not None
+                     else assets.mesh_file_object(path, scale=query.mesh_scale))
+        hints = [h for h in [assets.units_hint(part_mesh, query.mesh_scale)] if h]
+        volume = float(abs(part_mesh.mesh.volume)) if part_mesh.mesh.is_volume else 0.0
+        mass = volume * DEFAULT_DENSITY if volume > 0 else 0.3
+        situation.obj = situation.obj.model_copy(update={"mass": max(mass, 1e-3)})
+    else:
+        part_mesh = assets.object_part_mesh(kb, situation.obj)
+    part_tags = [
+        set(situation.obj.parts[name].tags) if name in situation.obj.parts else set()
+        for name in part_mesh.part_names
+    ]
+    gripper = assets.gripper_from_spec(situation.gripper, kb)
+    collider = ObjectCollider(part_mesh.mesh)
+    candidates, stats = cached_candidates(part_mesh, gripper, {"seed": 0}, db,
+                                          collider=collider)
+    spec = situation.hand
+    hand = HumanHand(
+        palm=tuple(spec.palm),
+        finger_length=spec.finger_length,
+        finger_thickness=spec.finger_thickness,
+        grip_width=spec.grip_width,
+    )
+    from handover.engine.store.cultures import resolve_culture
+
+    rules = [r.rule for r in resolve_culture(kb, situation.query.culture)]
+    ctx = build_context(situation, part_mesh, part_tags, candidates, stats, gripper, hand,
+                        rules)
+    ctx.collider = collider
+    ctx.kb_root = kb.root
+    ctx.warnings.extend(hints)
+    return ctx

@@ -1,0 +1,169 @@
+"""The plan result: the contract other tools read (see ARCHITECTURE.md, "The JSON result").
+
+A :class:`PlanResult` is plain data (dicts, lists, floats) so that JSON, the text trace and
+the rerun recording all render the same thing. ``to_json`` rounds floats to micrometres and
+microradians and sorts nothing that has an order of its own, so the same query gives
+byte-identical JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["PlanResult", "to_jsonable", "dumps", "OUTCOMES"]
+
+DECIMALS = 6
+OUTCOMES = ("handover", "place", "refuse", "infeasible")
+"""What a plan can come to; ``feasible`` is true for the first two."""
+
+
+def to_jsonable(value: Any) -> Any:
+    """Numpy arrays and scalars to lists and floats, rounded to ``DECIMALS``; NaN/inf to None."""
+    if isinstance(value, dict):
+        return {str(k): to_jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return to_jsonable(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        f = float(value)
+        if not math.isfinite(f):
+            return None
+        r = round(f, DECIMALS)
+        return 0.0 if r == 0 else r  # no "-0.0"
+    return value
+
+
+def dumps(data: Any) -> str:
+    """Deterministic JSON text (indent 2, key order as built, trailing newline)."""
+    return json.dumps(to_jsonable(data), indent=2, ensure_ascii=False) + "\n"
+
+
+@dataclass
+class PlanResult:
+    """A plan, feasible or not. Field meanings: ARCHITECTURE.md; extras documented here.
+
+    modes_tried : [{"mode", "feasible", "reason"}] in the order tried.
+    mode_reason : why this mode was chosen (or forced).
+    presentation : {"index", "rotation", "axes_world": {axis: [x, y, z]}}.
+    alternatives : the next best rows [{"grasp", "presentation", "score"}].
+    rules : every compiled rule with source and activity (the graph's rule nodes).
+    why_not : explanations of candidates asked about (``--why-not``).
+    handover_point : where the object is offered: the receiver's grasp site (world), the
+    chosen location's measures, why there. bodies : the receiver's and the robot's bodies
+    (capsules and boxes, world).
+    outcome : ``handover`` (a plan), ``place`` (set down on the table within the receiver's
+    reach: ``placement``), ``refuse`` (a rule forbids handing it to this receiver: ``refused``
+    and ``reason``) or ``infeasible`` (nothing works: ``reason``). ``feasible`` is true for
+    ``handover`` and ``place``.
+    placement : with ``place``: {"object_pose" (4, 4) world, "position" (3,) world (the
+    object's centre of mass), "rest", "receiver_site", "measured", "robot_grasp" (as a
+    ``robot_grasps`` entry), "why", "rules" (the placement grasp's trace), "considered"}.
+    refused : with ``refuse`` (and ``place`` after a refusal): the refusing rules [{"rule",
+    "source", "why", "fallback"}].
+    robot : the robot's arms (:meth:`handover.engine.assets.robot.RobotArms.describe`), whatever the
+    outcome, or None for a robot without arms (a floating gripper per hand; also for a KB
+    without a folder, whose plans do not load arms): {"id", "urdf" (posix path relative to
+    the KB folder), "base_pose" (4, 4) the URDF's root link in the world, "arms": {side:
+    {"base_link", "tip_link", "tcp" (4, 4) tip link -> grasp frame, "gripper", "joints"
+    [names, chain order]}}}. A robot grasp's ``arm`` and ``joints`` ({stage: {joint name:
+    rad (m for prismatic)}}, stages ``pickup``, ``midair``, ``handover``) satisfy
+    ``base_pose @ T(root <- base_link) @ FK(joints)[tip_link] @ tcp`` = the grasp's pose at
+    that stage (``initial_pose @ pose`` at pick-up, ``regrasp.midair_pose @ pose`` midair,
+    ``pose_world`` at the handover), turned half a turn about ``a`` at the stages its
+    ``fingers_swapped`` names.
+    """
+
+    object: str
+    query: dict
+    mode: str | None
+    feasible: bool
+    reason: str | None
+    object_pose: Any
+    receiver: dict
+    robot_grasps: list[dict]
+    human_grasps: list[dict]
+    gripper: dict
+    candidates: dict
+    trace: list[dict]
+    regrasp: dict | None = None
+    initial_pose: Any = None
+    modes_tried: list[dict] = field(default_factory=list)
+    mode_reason: str = ""
+    presentation: dict | None = None
+    alternatives: list[dict] = field(default_factory=list)
+    rules: list[dict] = field(default_factory=list)
+    why_not: list[dict] = field(default_factory=list)
+    scene: dict = field(default_factory=dict)
+    handover_point: dict | None = None
+    bodies: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    outcome: str = ""
+    placement: dict | None = None
+    refused: list[dict] = field(default_factory=list)
+    what_if: list[dict] | None = None
+    robot: dict | None = None
+
+    def __post_init__(self) -> None:
+        if not self.outcome:  # a result built without one: from ``feasible``
+            self.outcome = "handover" if self.feasible else "infeasible"
+        if self.outcome not in OUTCOMES:
+            raise ValueError(f"outcome must be one of {', '.join(OUTCOMES)}, got "
+                             f"{self.outcome!r}")
+        if self.feasible != (self.outcome in ("handover", "place")):
+            raise ValueError(f"outcome {self.outcome!r} contradicts feasible={self.feasible}")
+
+    def to_dict(self) -> dict:
+        out = {
+            "object": self.object,
+            "query": self.query,
+            "outcome": self.outcome,
+            "mode": self.mode,
+            "feasible": self.feasible,
+            "reason": self.reason,
+            "object_pose": self.object_pose,
+            "receiver": self.receiver,
+            "robot_grasps": self.robot_grasps,
+            "human_grasps": self.human_grasps,
+        }
+        if self.regrasp is not None:
+            out["regrasp"] = self.regrasp
+        if self.placement is not None:
+            out["placement"] = self.placement
+        if self.refused:
+            out["refused"] = self.refused
+        out.update(
+            {
+                "gripper": self.gripper,
+                "robot": self.robot,
+                "candidates": self.candidates,
+                "trace": self.trace,
+                "initial_pose": self.initial_pose,
+                "modes_tried": self.modes_tried,
+                "mode_reason": self.mode_reason,
+                "presentation": self.presentation,
+                "alternatives": self.alternatives,
+                "rules": self.rules,
+                "scene": self.scene,
+                "handover_point": self.handover_point,
+                "bodies": self.bodies,
+                "warnings": self.warnings,
+            }
+        )
+        if self.why_not:
+            out["why_not"] = self.why_not
+        if self.what_if is not None:
+            out["what_if"] = self.what_if
+        return to_jsonable(out)
+
+    def to_json(self) -> str:
+        return dumps(self.to_dict())
