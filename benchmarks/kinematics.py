@@ -82,8 +82,8 @@ def main() -> None:
 
     print("\n== the planner's inverse kinematics (RobotArms.solve: from the nearest of 4,096 "
           "sampled poses, restarts batched)")
-    from handover.engine.load.loader import load_kb
     from handover.engine.assets.robot import RobotArms
+    from handover.engine.load.loader import load_kb
     from handover.engine.store.kb import builtin_kb_dir
 
     arms = RobotArms.load(load_kb(builtin_kb_dir()), "idro")

@@ -26,9 +26,9 @@ from handover.engine.plan.query import DEFAULTS, Query
 if TYPE_CHECKING:
     import trimesh
 
+    from handover.engine.load.loader import KB
     from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
     from handover.engine.plan.context import PlanContext
-    from handover.engine.load.loader import KB
     from handover.engine.plan.place import PlacementPlan
     from handover.engine.report.result import PlanResult
 
@@ -47,8 +47,8 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
     feasible (``result.what_if``, :mod:`handover.engine.plan.whatif`).
     Returns the :class:`Plan` (any outcome) with its context and chosen attempt.
     """
-    from handover.engine.report.assemble import build_result
     from handover.engine.plan.prepare import prepare
+    from handover.engine.report.assemble import build_result
 
     ctx = prepare(kb, query, db, mesh=mesh)
     d = decide(kb, ctx, query.mode)
@@ -90,8 +90,8 @@ def refusing_rules(kb: KB, ctx: PlanContext) -> tuple[ConstraintGraph, list[Comp
 
 def refusal_text(ctx: PlanContext, c: CompiledRule) -> str:
     """Why rule ``c`` refuses: its id, file:line, the conditions that hold, and its why."""
-    from handover.engine.spec.applies import check
     from handover.engine.plan.compiler import query_facts
+    from handover.engine.spec.applies import check
 
     _, holds = check(c.rule.applies, query_facts(ctx, "H1G1"))
     return (f"rule {c.id} ({c.source}) refuses to hand {ctx.situation.obj.id} to this "

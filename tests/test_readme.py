@@ -7,8 +7,8 @@ import re
 from pathlib import Path
 
 import handover
-import handover.engine.spec.applies
 import handover.engine.planner
+import handover.engine.spec.applies
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 

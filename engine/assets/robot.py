@@ -46,8 +46,8 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from handover.engine.errors import KBError, UsageError
 from handover.engine.assets.robot_load import Arm, assemble, body_targets, frame_pose, kb_relative
+from handover.engine.errors import KBError, UsageError
 from handover.engine.spec.robotspec import SIDES, RobotSpec
 from handover.geometry.armcollision import Targets, arms_hits, world_hits
 from handover.geometry.bodies import Body

@@ -55,9 +55,9 @@ def batch(
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from handover.engine.tools.batch import expand, run_batch
     from handover.engine.assets.graspdb import open_db
     from handover.engine.load.loader import load_kb
+    from handover.engine.tools.batch import expand, run_batch
 
     console = Console(stderr=True, highlight=False)
     kb = load_kb(state.kb_dir, urdf=False)

@@ -44,9 +44,9 @@ def grasps(
     JSON numbers are rounded to 6 decimals (micrometres), like ``handover plan --json``.
     Exit codes: 0 done, 2 unknown id or bad option, 3 invalid KB, 5 bad mesh.
     """
-    from handover.engine.tools.grasps import list_grasps
     from handover.engine.load.loader import load_kb
     from handover.engine.report.result import dumps
+    from handover.engine.tools.grasps import list_grasps
 
     check_mesh_scale(mesh_scale)
     kb = load_kb(state.kb_dir, urdf=False)

@@ -34,8 +34,8 @@ def test(
     Exit codes: 0 all cases passed, 1 some case failed, 3 invalid KB or test file.
     """
     from handover.engine.errors import UsageError
-    from handover.engine.tools.kbtest import case_files, run_tests
     from handover.engine.load.loader import load_kb
+    from handover.engine.tools.kbtest import case_files, run_tests
 
     kb = load_kb(state.kb_dir, urdf=False)
     report = run_tests(kb, case_files(kb, list(paths or [])), select=select)

@@ -76,8 +76,8 @@ def plan(
     """
     from rich.console import Console
 
-    from handover.engine.errors import EXIT_INFEASIBLE
     from handover.engine.assets.graspdb import open_db
+    from handover.engine.errors import EXIT_INFEASIBLE
     from handover.engine.load.loader import load_kb
     from handover.engine.planner import plan as run_plan
 
@@ -188,8 +188,8 @@ def explain_graph(
     evaluation order."""
     from rich.console import Console
 
-    from handover.engine.plan.compiler import compile, graph_to_dot
     from handover.engine.load.loader import load_kb
+    from handover.engine.plan.compiler import compile, graph_to_dot
     from handover.engine.plan.prepare import prepare
     from handover.engine.report.trace import render_graph
 

@@ -14,10 +14,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from handover.engine.spec.applies import check
+from handover.engine.plan import judge
 from handover.engine.plan.compiler import ConstraintGraph, giver_forbid, query_facts
 from handover.engine.plan.evaluate import Decision, evaluate
 from handover.engine.plan.hands import hands_for
+from handover.engine.spec.applies import check
 
 __all__ = ["blocking_sets", "verified_sets", "minimal_patterns", "SETS_CHECKED"]
 
@@ -157,7 +158,7 @@ def _without(cg: ConstraintGraph, ctx, removed: set[str]) -> ConstraintGraph:
         holds, why = check(c.rule.applies, facts)
         if bool(holds) == c.active:
             continue
-        reason = c.rule.not_applicable(ctx) if holds else why  # as the compiler says
+        reason = judge.not_applicable(c.rule, ctx) if holds else why  # as the compiler says
         now[c.id] = (reason is None, reason)
     if not now:
         return replace(cg, order=order)

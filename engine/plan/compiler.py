@@ -20,15 +20,16 @@ from typing import TYPE_CHECKING
 
 import networkx as nx
 
-from handover.engine.spec.applies import Facts, check
-from handover.engine.plan.attempt import Roles
 from handover.engine.errors import KBError, KBIssue
+from handover.engine.plan import judge
+from handover.engine.plan.attempt import Roles
+from handover.engine.spec.applies import Facts, check
 from handover.engine.spec.kinds import FEATURES
 from handover.engine.spec.schema import RuleBase
 
 if TYPE_CHECKING:
-    from handover.engine.plan.context import PlanContext
     from handover.engine.load.loader import KB
+    from handover.engine.plan.context import PlanContext
 
 __all__ = ["CompiledRule", "ConstraintGraph", "compile", "query_facts", "giver_forbid",
            "graph_to_dot"]
@@ -176,7 +177,7 @@ def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  #
         holds, why = check(rr.rule.applies, facts)
         reason = None if holds else why
         if holds:
-            reason = rr.rule.not_applicable(ctx)
+            reason = judge.not_applicable(rr.rule, ctx)
         item = CompiledRule(
             rule=rr.rule,
             culture=rr.culture,

@@ -13,7 +13,6 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from handover.engine.spec.applies import Facts
 from handover.engine.plan.attempt import Hands, Roles
 from handover.engine.plan.presentation import presentation_rotations, principal_axes, rule_goals
 from handover.engine.plan.query import Situation
@@ -23,6 +22,7 @@ from handover.engine.plan.receiver_sites import (
     receiver_region,
 )
 from handover.engine.plan.world import Locations, World, build_world, candidate_locations, place
+from handover.engine.spec.applies import Facts
 
 if TYPE_CHECKING:
     from collections.abc import Sequence

@@ -24,9 +24,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.plan import judge
 from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
 from handover.engine.plan.features import collision_targets, handover_targets
-from handover.engine.spec.kinds import Outcome
+from handover.engine.plan.judge import Outcome
 
 if TYPE_CHECKING:
     from handover.engine.plan.attempt import Phase
@@ -181,7 +182,7 @@ def evaluate_rule(c: CompiledRule, ctx: PlanContext, phase: Phase, gi: np.ndarra
     """Evaluate one compiled rule on rows ``(gi, pk)`` (both (R,) int) in ``phase``."""
     gi = np.asarray(gi, dtype=np.int64)
     pk = np.asarray(pk, dtype=np.int64)
-    return c.rule.evaluate(ctx, phase, gi, pk)
+    return judge.evaluate(c.rule, ctx, phase, gi, pk)
 
 
 def evaluate(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
@@ -278,7 +279,7 @@ def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,
                 entry["hits"] = hits
         if c.rule.kind == "location" and c.rule.measure == "clear" and not passed:
             entry["hits"] = list(phase.hands.hits[presentation])
-        entry.update(c.rule.detail(ctx, phase, grasp, presentation))
+        entry.update(judge.detail(c.rule, ctx, phase, grasp, presentation))
         entries.append(entry)
     for c in cg.inactive:
         entries.append(_entry(c, "not_applicable", None, None))

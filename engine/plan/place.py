@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.plan import judge
 from handover.engine.plan.attempt import Attempt, Chosen, Hands, Phase
 from handover.geometry.rests import (
     MIN_TIP_DEG,
@@ -52,9 +53,9 @@ from handover.geometry.rests import (
 )
 
 if TYPE_CHECKING:
+    from handover.engine.load.loader import KB
     from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
     from handover.engine.plan.context import PlanContext
-    from handover.engine.load.loader import KB
 
 __all__ = ["PlacementPlan", "plan_placement", "PLACE_KINDS"]
 
@@ -290,7 +291,7 @@ def _oriented(ctx: PlanContext, judged: list[CompiledRule], rotations: np.ndarra
     for c in judged:
         if c.rule.kind != "axis":
             continue
-        out = c.rule.evaluate(pctx, phase, *rows)
+        out = judge.evaluate(c.rule, pctx, phase, *rows)
         if c.rule.hard:
             if (~out.passed & ok).any():
                 failed[c.id] = int((~out.passed & ok).sum())

@@ -29,10 +29,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from handover.engine.load.loader import KB
     from handover.engine.plan.attempt import Attempt
     from handover.engine.plan.compiler import CompiledRule
     from handover.engine.plan.context import PlanContext
-    from handover.engine.load.loader import KB
     from handover.engine.plan.query import Query
 
 __all__ = ["Change", "what_if", "without_rules", "MAX_RULE_SETS"]

@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.blocking import blocking_sets
 from handover.engine.errors import UsageError
+from handover.engine.plan.blocking import blocking_sets
 from handover.engine.plan.evaluate import trace_row
 from handover.engine.plan.features import handover_targets
 from handover.engine.report.result import PlanResult

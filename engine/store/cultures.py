@@ -19,8 +19,8 @@ import math
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
-from handover.engine.spec.applies import Applies, Facts, check
 from handover.engine.errors import KBError, KBIssue
+from handover.engine.spec.applies import Applies, Facts, check
 from handover.engine.spec.schema import Culture, ObjectSpec, Primitive, RuleBase
 from handover.geometry.frames import rotation_from_euler_deg
 

@@ -340,8 +340,8 @@ def error_rows(unit: Unit, error: BaseException | str) -> list[dict]:
 
 def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: GraspDB | None) -> dict:
     """Plan one query; its row. Any failure becomes the row's ``error``."""
-    from handover.engine.planner import plan
     from handover.engine.plan.query import Query
+    from handover.engine.planner import plan
     from handover.engine.report.result import to_jsonable
 
     query = Query(object=obj.query_object, task=q.task, receiver=q.receiver, culture=q.culture,

@@ -36,8 +36,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
-    from handover.engine.tools.kbtest import CaseRun
     from handover.engine.store.kb import KB
+    from handover.engine.tools.kbtest import CaseRun
 
 __all__ = ["rule_coverage", "decided_rules"]
 
@@ -112,8 +112,8 @@ def rule_coverage(kb: KB, runs: list[CaseRun]) -> dict[str, Any]:
     "decided"}}, "never_applied": [key], "unread_tags": [tag]}``, rules in culture then file
     order (``key``: the rule id, or ``culture.rule`` where an id repeats across cultures).
     """
-    from handover.engine.store.cultures import object_tags
     from handover.engine.load.lint import rule_tags
+    from handover.engine.store.cultures import object_tags
 
     keys = _keys(kb)
     rules: dict[str, dict[str, Any]] = {}

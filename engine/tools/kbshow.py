@@ -20,8 +20,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from handover.engine.spec.applies import describe as describe_applies
 from handover.engine.errors import UsageError
+from handover.engine.plan import judge
+from handover.engine.spec.applies import describe as describe_applies
 from handover.engine.store.cultures import (
     applies_to_object,
     culture_chain,
@@ -32,8 +33,8 @@ from handover.engine.store.cultures import (
 )
 
 if TYPE_CHECKING:
-    from handover.engine.store.cultures import ResolvedRule
     from handover.engine.spec.schema import KBModel, ObjectSpec, RuleBase, Task
+    from handover.engine.store.cultures import ResolvedRule
     from handover.engine.store.kb import KB
 
 __all__ = [
@@ -296,5 +297,5 @@ def not_applicable(rule: RuleBase, obj: ObjectSpec) -> str | None:
     if applies_to_object(rule, obj) is False:
         return f"needs {describe_applies(rule.applies)}"
     tasks = [obj.default_task, *(t for t in obj.tasks if t != obj.default_task)]
-    reasons = [rule.not_applicable(ObjectOnly.of(obj, t)) for t in tasks]  # type: ignore[arg-type]
+    reasons = [judge.not_applicable(rule, ObjectOnly.of(obj, t)) for t in tasks]  # type: ignore[arg-type]
     return None if None in reasons else reasons[0]

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from handover.engine.tools import batch
 from handover.engine.errors import UsageError
 from handover.engine.load.loader import load_kb
+from handover.engine.tools import batch
 
 GOOD = ("bar.stl", "can.stl", "ball.ply")
 BROKEN = ("empty.stl", "garbage.obj", "flat.stl")
@@ -245,8 +245,8 @@ def test_ray_missing_is_a_clear_error(kb, tmp_path, monkeypatch):
 
 
 def test_cli_batch(meshes, tmp_path, monkeypatch):
-    from handover.engine.cli.app import main
     from handover.engine.assets.graspdb import GraspDB
+    from handover.engine.cli.app import main
 
     out = tmp_path / "out.parquet"
     args = ["batch", "--objects", str(meshes), "--out", str(out), "--workers", "2",

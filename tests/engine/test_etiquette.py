@@ -5,6 +5,8 @@ from __future__ import annotations
 import pytest
 
 from handover.engine.errors import UsageError
+from handover.engine.load.loader import load_kb
+from handover.engine.spec.schema import Applies, ObjectSpec, RuleBase, parse_rule
 from handover.engine.store.cultures import (
     applies_to_object,
     culture_chain,
@@ -13,8 +15,6 @@ from handover.engine.store.cultures import (
     object_tags,
     resolve_culture,
 )
-from handover.engine.load.loader import load_kb
-from handover.engine.spec.schema import Applies, ObjectSpec, RuleBase, parse_rule
 
 
 def rule(rid: str, **fields) -> RuleBase:

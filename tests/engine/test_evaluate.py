@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from handover.engine.plan.blocking import blocking_sets
 from handover.engine.plan.evaluate import Decision
-from handover.engine.spec.kinds import Outcome
+from handover.engine.plan.judge import Outcome
 
 
 def _decision(fails: np.ndarray) -> Decision:

@@ -9,7 +9,13 @@ import pyarrow.parquet as pq
 import pytest
 
 from handover.engine.assets import graspdb
-from handover.engine.assets.graspdb import EntryError, GraspDB, cached_candidates, candidate_key, open_db
+from handover.engine.assets.graspdb import (
+    EntryError,
+    GraspDB,
+    cached_candidates,
+    candidate_key,
+    open_db,
+)
 from handover.geometry.candidates import SOURCE_ANTIPODAL, SOURCE_FACET, CandidateSet
 from handover.geometry.gripper import Gripper
 

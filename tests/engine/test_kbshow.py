@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import pytest
 
-from handover.engine.plan.compiler import compile
 from handover.engine.errors import UsageError
-from handover.engine.store.cultures import resolve_culture
-from handover.engine.tools.kbshow import item_kind, not_applicable, object_view, show_item
+from handover.engine.plan.compiler import compile
 from handover.engine.plan.prepare import prepare
 from handover.engine.plan.query import Query
+from handover.engine.store.cultures import resolve_culture
+from handover.engine.tools.kbshow import item_kind, not_applicable, object_view, show_item
 
 
 def test_every_kind_judges_every_builtin_object(builtin_kb):

@@ -8,10 +8,11 @@ import json
 import numpy as np
 import pytest
 
+from handover.engine.plan import judge
 from handover.engine.plan.attempt import Phase, Roles
-from handover.engine.spec.kinds import FEATURES, KINDS
 from handover.engine.plan.prepare import prepare
 from handover.engine.plan.query import Query
+from handover.engine.spec.kinds import FEATURES, KINDS
 from handover.engine.spec.schema import RULE_KINDS, parse_rule
 from handover.engine.store.validate import document_schema
 
@@ -56,13 +57,13 @@ def test_every_kind_parses_describes_and_evaluates_vectorised(kind, knife_ctx):
     rows = 50
     gi = np.arange(rows) % ctx.n
     pk = np.arange(rows) % ctx.k
-    out = rule.evaluate(ctx, phase, gi, pk)
+    out = judge.evaluate(rule, ctx, phase, gi, pk)
     assert out.passed.shape == (rows,) and out.passed.dtype == bool
     assert out.measured.shape == (rows,) and out.score.shape == (rows,)
     assert np.all((out.score >= 0) & (out.score <= 1))
     # One row at a time says the same as all rows at once (vectorised, not order-dependent).
     for r in (0, rows // 2, rows - 1):
-        one = rule.evaluate(ctx, phase, gi[r:r + 1], pk[r:r + 1])
+        one = judge.evaluate(rule, ctx, phase, gi[r:r + 1], pk[r:r + 1])
         assert one.passed[0] == out.passed[r]
         np.testing.assert_allclose(one.score[0], out.score[r])
 

@@ -16,14 +16,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from handover.engine.errors import UsageError
 from handover.engine.plan.attempt import Attempt, Hands, Phase
 from handover.engine.plan.compiler import CompiledRule
 from handover.engine.plan.context import PlanContext
-from handover.engine.errors import UsageError
 from handover.engine.plan.evaluate import Decision
-from handover.engine.spec.kinds import KINDS
 from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites
-from handover.engine.report.rerun.writer import write_recording
 from handover.engine.report.rerun.bodies import ARM_COLOURS
 from handover.engine.report.rerun.reader import read_recording
 from handover.engine.report.rerun.stages import (
@@ -37,7 +35,9 @@ from handover.engine.report.rerun.stages import (
     OUTCOME_COLOURS,
     stage_classes,
 )
+from handover.engine.report.rerun.writer import write_recording
 from handover.engine.report.result import PlanResult
+from handover.engine.spec.kinds import KINDS
 from handover.engine.spec.schema import RULE_KINDS, parse_rule
 from handover.geometry.candidates import SOURCE_FACET, CandidateSet
 from handover.geometry.gripper import Gripper
@@ -546,8 +546,8 @@ def kb():
 
 
 def _real(kb, tmp_path: Path, obj: str, mode: str, scene: str):
-    from handover.engine.planner import plan
     from handover.engine.plan.query import Query
+    from handover.engine.planner import plan
 
     planned = plan(kb, Query(object=obj, mode=mode, scene=scene))
     path = tmp_path / f"{obj}-{mode}.rrd"
@@ -728,8 +728,8 @@ def test_real_h2g2_plan_records_pick_midair_and_handover(kb, tmp_path):
 
 
 def test_the_recording_draws_both_bodies_and_the_handover_locations(kb, tmp_path):
-    from handover.engine.planner import plan
     from handover.engine.plan.query import Query
+    from handover.engine.planner import plan
 
     # A mug: with the shipped arms no pair of arms holds the knife for a seated receiver
     # (its plan is infeasible, see test_world), and this test wants a handover to draw.
@@ -773,8 +773,8 @@ def test_an_infeasible_plan_says_and_draws_the_same_handover_location(tmp_path):
     import shutil
 
     from handover.engine.load.loader import load_kb
-    from handover.engine.planner import plan
     from handover.engine.plan.query import Query
+    from handover.engine.planner import plan
     from handover.engine.store.kb import builtin_kb_dir
 
     root = tmp_path / "kb"

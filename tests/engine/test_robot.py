@@ -13,10 +13,10 @@ import yourdfpy
 from numpy.testing import assert_allclose
 
 from handover.engine.assets import robot as engine_robot
-from handover.engine.assets.objects import gripper_from_spec
 from handover.engine.assets.graspdb import GraspDB, MemoryDB
-from handover.engine.load.loader import load_kb
+from handover.engine.assets.objects import gripper_from_spec
 from handover.engine.assets.robot import RobotArms, reach_dir, robot_arms
+from handover.engine.load.loader import load_kb
 from handover.geometry.frames import rotation_from_euler_deg, transform_from
 from handover.geometry.kinematics import rotation_angle
 from handover.geometry.reach import ReachMap

@@ -23,8 +23,8 @@ import numpy as np
 import pytest
 import yaml
 
-from handover.engine.plan.blocking import blocking_sets
 from handover.engine.load.loader import load_kb
+from handover.engine.plan.blocking import blocking_sets
 from handover.engine.plan.modes import attempt_mode
 from handover.engine.plan.prepare import prepare
 from handover.engine.plan.query import Query

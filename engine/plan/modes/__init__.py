@@ -31,10 +31,10 @@ from handover.engine.plan.modes.common import HANDS_NEEDED, PLANNERS, hand_at
 from handover.engine.plan.modes.h2g2 import FIRST_NOTE, first_rules
 
 if TYPE_CHECKING:
+    from handover.engine.load.loader import KB
     from handover.engine.plan.compiler import CompiledRule
     from handover.engine.plan.context import PlanContext
     from handover.engine.spec.kinds.mode import Bend
-    from handover.engine.load.loader import KB
 
 __all__ = ["PLANNERS", "choose", "attempt_mode", "chosen_traces", "required_mode",
            "closest_attempt", "progress"]

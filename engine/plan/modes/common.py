@@ -10,9 +10,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from handover.engine.load.loader import KB
     from handover.engine.plan.attempt import Attempt, Hands
     from handover.engine.plan.context import PlanContext
-    from handover.engine.load.loader import KB
 
 __all__ = ["CATALOGUE", "PLANNERS", "HANDS_NEEDED", "RELOCATIONS", "RETRY_CHECKS",
            "H2G1_RELOCATIONS", "register", "hand_at", "relocated"]

@@ -15,8 +15,8 @@ from handover.engine.plan.hands import hands_for
 from handover.engine.plan.modes.common import hand_at, register
 
 if TYPE_CHECKING:
-    from handover.engine.plan.context import PlanContext
     from handover.engine.load.loader import KB
+    from handover.engine.plan.context import PlanContext
 
 
 @register("H1G1")

@@ -38,17 +38,18 @@ from handover.engine.plan.evaluate import evaluate
 from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.features import collision_scene
 from handover.engine.plan.hands import hands_for
-from handover.engine.spec.kinds.torque import load_shares, pair_lever
+from handover.engine.plan.judge.torque import torques
 from handover.engine.plan.modes.common import (
     H2G1_RELOCATIONS,
     RETRY_CHECKS,
     register,
     relocated,
 )
+from handover.engine.spec.kinds.torque import load_shares, pair_lever
 
 if TYPE_CHECKING:
-    from handover.engine.plan.context import PlanContext
     from handover.engine.load.loader import KB
+    from handover.engine.plan.context import PlanContext
 
 __all__ = ["plan_h2g1", "receiver_hand_count", "SIDE_BAND", "BALANCE_WEIGHT"]
 
@@ -100,7 +101,7 @@ def _overloaded(ctx: PlanContext, cg: ConstraintGraph, gl: np.ndarray, gr: np.nd
     for c in cg.hard:
         if c.rule.kind == "torque":
             worst = np.maximum(share_l, 1.0 - share_l)
-            over |= c.rule.torques(ctx, worst, lever) > c.rule.max_nm + 1e-12
+            over |= torques(c.rule, ctx, worst, lever) > c.rule.max_nm + 1e-12
     return over
 
 

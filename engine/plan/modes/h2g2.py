@@ -30,8 +30,8 @@ from handover.engine.plan.hands import hands_for
 from handover.engine.plan.modes.common import hand_at, register, relocated
 
 if TYPE_CHECKING:
-    from handover.engine.plan.context import PlanContext
     from handover.engine.load.loader import KB
+    from handover.engine.plan.context import PlanContext
 
 __all__ = ["plan_h2g2", "first_rules", "midair_pose", "MIDAIR_BACKOFF", "FIRST_NOTE"]
 

@@ -78,8 +78,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.errors import UsageError
-from handover.engine.plan.features import receiver_hand_boxes
 from handover.engine.files import atomic_path, write_error
+from handover.engine.plan.features import receiver_hand_boxes
 from handover.engine.report.rerun.bodies import (
     ROBOT_BODY_COLOUR,
     boxes_arrays,

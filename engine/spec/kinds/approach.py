@@ -3,16 +3,11 @@ robot does not reach around the object toward itself)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import Annotated, Literal
 
-import numpy as np
 from pydantic import Field
 
-from handover.engine.spec.kinds.base import Outcome, RuleBase, angle_deg, register
-
-if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
-    from handover.engine.plan.context import PlanContext
+from handover.engine.spec.kinds.base import RuleBase, register
 
 
 @register
@@ -29,10 +24,3 @@ class ApproachRule(RuleBase):
     def describe(self) -> str:
         return f"gripper approaches within {self.max_deg:g} deg of robot-to-receiver"
 
-    def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
-                 pk: np.ndarray) -> Outcome:
-        a_world = np.einsum("rij,rj->ri", ctx.rotations[pk], ctx.candidates.a[gi])
-        angles = angle_deg(a_world, ctx.situation.toward[None, :])
-        ok = angles <= self.max_deg + 1e-9
-        score = (1.0 + np.cos(np.radians(angles))) / 2.0
-        return Outcome(ok, angles, score, f"<= {self.max_deg:g} deg", "deg")

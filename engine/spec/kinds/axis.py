@@ -3,17 +3,12 @@ presented pose (a knife's tip at least 100 degrees from the receiver)."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated, Literal
+from typing import Annotated, Literal
 
-import numpy as np
 from pydantic import Field, model_validator
 
 from handover.engine.spec.kbmodel import Direction, Id
-from handover.engine.spec.kinds.base import Outcome, RuleBase, angle_deg, bounds, register
-
-if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
-    from handover.engine.plan.context import PlanContext
+from handover.engine.spec.kinds.base import RuleBase, register
 
 Degrees = Annotated[float, Field(ge=0, le=180)]
 
@@ -52,21 +47,4 @@ class AxisRule(RuleBase):
             said.append(f"at most {self.max_deg:g} deg")
         return f"axis '{self.axis}' {' and '.join(said)} from {self.toward}"
 
-    def not_applicable(self, ctx: PlanContext) -> str | None:
-        obj = ctx.situation.obj
-        if self.axis not in obj.axes:
-            return f"object '{obj.id}' has no axis '{self.axis}'"
-        return None
 
-    def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
-                 pk: np.ndarray) -> Outcome:
-        from handover.engine.plan.features import axis_world
-
-        direction = ctx.situation.directions[self.toward]
-        angles = angle_deg(axis_world(ctx, self.axis), direction)[pk]
-        ok, threshold = bounds(angles, self.min_deg, self.max_deg, "deg")
-        cos = np.cos(np.radians(angles))
-        # 1 when the axis points the wanted way (toward for max_deg, away for min_deg).
-        score = (1.0 + cos) / 2.0 if self.max_deg is not None else (1.0 - cos) / 2.0
-        return Outcome(ok, angles, score, f"angle({self.axis}, {self.toward}) {threshold}",
-                       "deg")

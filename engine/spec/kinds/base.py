@@ -1,36 +1,29 @@
-"""What every rule kind shares: the common fields, the outcome type, the features, and the
-registry that serves validation (the schema's discriminated union), evaluation, description
-and colour from one declaration per kind.
+"""What every rule kind shares: the common fields, the features, and the registry that
+serves validation (the schema's discriminated union), description and colour from one
+declaration per kind.
 
 A kind is one class: a pydantic model (its YAML fields) decorated with :func:`register`,
-with ``features``, ``evaluate`` and ``describe``, and the class variables ``colour`` (RGB of a
-candidate it rejects, in recordings), ``summary`` (one line for the catalogue) and
-``example`` (its fields in a minimal valid rule). A new kind is one module in this package.
+with ``features`` and ``describe``, and the class variables ``colour`` (RGB of a candidate it
+rejects, in recordings), ``summary`` (one line for the catalogue) and ``example`` (its fields
+in a minimal valid rule). How a rule of the kind is judged on candidates is planning, one
+layer up: a module of the same name in :mod:`handover.engine.plan.judge`. A new kind is one
+module here and one there (a kind without its judge is an error at import).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import ClassVar, Literal
 
-import numpy as np
 from pydantic import Field
 
 from handover.engine.spec.applies import Applies
 from handover.engine.spec.kbmodel import Id, KBModel, NonNegative
 
-if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
-    from handover.engine.plan.context import PlanContext
-
 __all__ = [
     "RuleBase",
-    "Outcome",
     "FEATURES",
     "KINDS",
     "register",
-    "angle_deg",
-    "bounds",
 ]
 
 
@@ -56,21 +49,6 @@ FEATURES: dict[str, tuple[float, str, str]] = {
     "collision_handover": (100.0, "grasp x presentation",
                            "gripper against table, obstacles and bodies at the handover"),
 }
-
-
-@dataclass
-class Outcome:
-    """A rule's decision on R rows.
-
-    passed : (R,) bool. measured : (R,) float (unit in ``unit``; NaN where not measured).
-    score : (R,) float in [0, 1]. threshold : human-readable bound, e.g. ">= 100 deg".
-    """
-
-    passed: np.ndarray
-    measured: np.ndarray
-    score: np.ndarray
-    threshold: str
-    unit: str
 
 
 class RuleBase(KBModel):
@@ -111,21 +89,6 @@ class RuleBase(KBModel):
         """What the rule asks, in a few words (listings and traces)."""
         return self.kind
 
-    def not_applicable(self, ctx: PlanContext) -> str | None:
-        """Why the rule cannot judge this object although its conditions hold (None: it
-        can)."""
-        return None
-
-    def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
-                 pk: np.ndarray) -> Outcome:
-        """Decide rows ``(gi, pk)`` (both (R,) int) in the attempt phase ``phase``."""
-        raise NotImplementedError(self.kind)
-
-    def detail(self, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
-        """Extra fields of this rule's trace entry on one row (what was measured, in more
-        than one number: the contact points, the boxes that entered). Empty by default."""
-        return {}
-
 
 KINDS: dict[str, type[RuleBase]] = {}
 """Every rule kind by name, in registration order (the catalogue)."""
@@ -138,23 +101,3 @@ def register(cls: type[RuleBase]) -> type[RuleBase]:
         raise TypeError(f"rule kind {cls.__name__} needs a unique `kind` literal default")
     KINDS[name] = cls
     return cls
-
-
-def angle_deg(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Angle in degrees between unit vectors along the last axis (broadcasting)."""
-    cos = np.clip(np.einsum("...i,...i->...", u, v), -1.0, 1.0)
-    return np.degrees(np.arccos(cos))
-
-
-def bounds(values: np.ndarray, lo: float | None, hi: float | None,
-           unit: str) -> tuple[np.ndarray, str]:
-    """(R,) bool within [lo, hi] (either may be None) and the bound as text."""
-    ok = np.ones(values.shape, dtype=bool)
-    parts = []
-    if lo is not None:
-        ok &= values >= lo - 1e-9
-        parts.append(f">= {lo:g} {unit}")
-    if hi is not None:
-        ok &= values <= hi + 1e-9
-        parts.append(f"<= {hi:g} {unit}")
-    return ok, " and ".join(parts)

@@ -6,17 +6,13 @@ value (soft). The location is chosen per presentation before the grasps are judg
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import numpy as np
 from pydantic import model_validator
 
 from handover.engine.spec.kbmodel import Finite, Positive
-from handover.engine.spec.kinds.base import Outcome, RuleBase, register
-
-if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
-    from handover.engine.plan.context import PlanContext
+from handover.engine.spec.kinds.base import RuleBase, register
 
 Measure = Literal["receiver_reach", "height", "front", "lateral", "robot_reach", "clear"]
 
@@ -87,10 +83,3 @@ class LocationRule(RuleBase):
             bits.append(f"best {self.prefer:g} +- {self.tolerance:g}")
         return f"{self.measure} " + " and ".join(bits)
 
-    def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
-                 pk: np.ndarray) -> Outcome:
-        from handover.engine.plan.world import LOCATION_MEASURES
-
-        values = np.asarray(phase.hands.measured[self.measure], dtype=float)[pk]
-        ok, score = self.judge(values)
-        return Outcome(ok, values, score, self.threshold(), LOCATION_MEASURES[self.measure][0])

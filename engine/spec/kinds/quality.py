@@ -2,16 +2,10 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
-
-import numpy as np
+from typing import Literal
 
 from handover.engine.spec.kbmodel import NonNegative
-from handover.engine.spec.kinds.base import Outcome, RuleBase, register
-
-if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
-    from handover.engine.plan.context import PlanContext
+from handover.engine.spec.kinds.base import RuleBase, register
 
 
 @register
@@ -28,7 +22,3 @@ class QualityRule(RuleBase):
     def describe(self) -> str:
         return f"grasp quality at least {self.min_quality:g}"
 
-    def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
-                 pk: np.ndarray) -> Outcome:
-        q = ctx.candidates.quality[gi]
-        return Outcome(q >= self.min_quality - 1e-12, q, q, f">= {self.min_quality:g}", "")

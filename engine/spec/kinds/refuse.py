@@ -3,15 +3,9 @@ a knife to a child under 8). With ``fallback: place`` the robot sets it down ins
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
-import numpy as np
-
-from handover.engine.spec.kinds.base import Outcome, RuleBase, register
-
-if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
-    from handover.engine.plan.context import PlanContext
+from handover.engine.spec.kinds.base import RuleBase, register
 
 
 @register
@@ -33,10 +27,3 @@ class RefuseRule(RuleBase):
         then = "set down instead" if self.fallback == "place" else "refused"
         return f"not handed over: {then}"
 
-    def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
-                 pk: np.ndarray) -> Outcome:
-        # measured: the receiver's age (years), what such rules are usually about.
-        age = ctx.situation.receiver.years
-        ok = np.zeros(len(gi), dtype=bool)
-        return Outcome(ok, np.full(len(gi), age), ok.astype(float), "not handed over",
-                       "years (receiver's age)")

@@ -12,18 +12,14 @@ not reject it; the pair is judged with its shares (and must pass in the chosen g
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from typing import Literal
 
 import numpy as np
 
 from handover.engine.spec.kbmodel import NonNegative
-from handover.engine.spec.kinds.base import Outcome, RuleBase, register
+from handover.engine.spec.kinds.base import RuleBase, register
 
-if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
-    from handover.engine.plan.context import PlanContext
-
-__all__ = ["TorqueRule", "GRAVITY", "load_shares", "pair_lever", "grasp_loads"]
+__all__ = ["TorqueRule", "GRAVITY", "load_shares", "pair_lever"]
 
 GRAVITY = 9.81  # m/s^2
 
@@ -69,24 +65,6 @@ def pair_lever(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.abs(np.einsum("...i,...i->...", across, com - a))
 
 
-def grasp_loads(ctx: PlanContext, phase: Phase, gi: np.ndarray,
-                pk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(R,) the share of the object's weight grasp ``gi`` carries in presentation ``pk`` and
-    (R,) m, the lever arm of that share: alone, all of it at ``com_distance``; in H2G1 with
-    ``phase.other_grasp``, its share and :func:`pair_lever` in the presented pose; in H2G1
-    before the partner is known, an even half and a lever of NaN (not known)."""
-    if phase is None or phase.mode != "H2G1":
-        return np.ones(len(gi)), ctx.candidates.com_distance[gi]
-    if phase.other_grasp is None:
-        return np.full(len(gi), 0.5), np.full(len(gi), np.nan)
-    rot = ctx.rotations[pk]  # (R, 3, 3) object -> world at the handover
-    centre = ctx.candidates.centre
-    com = np.einsum("rij,j->ri", rot, np.asarray(ctx.part_mesh.mass_centre, dtype=float))
-    mine = np.einsum("rij,rj->ri", rot, centre[gi])
-    other = np.einsum("rij,j->ri", rot, centre[phase.other_grasp])
-    return load_shares(com, mine, other), pair_lever(com, mine, other)
-
-
 @register
 class TorqueRule(RuleBase):
     """max_nm: the largest torque (N m) of the weight about the grasp (each gripper's share
@@ -102,25 +80,4 @@ class TorqueRule(RuleBase):
     def describe(self) -> str:
         return f"torque of the object's weight about the grasp at most {self.max_nm:g} N m"
 
-    def torques(self, ctx: PlanContext, share: np.ndarray, lever: np.ndarray) -> np.ndarray:
-        """N m: ``share`` of the object's weight at ``lever`` (m), broadcast."""
-        return share * ctx.facts.mass * GRAVITY * lever
 
-    def evaluate(self, ctx: PlanContext, phase: Phase, gi: np.ndarray,
-                 pk: np.ndarray) -> Outcome:
-        torque = self.torques(ctx, *grasp_loads(ctx, phase, gi, pk))
-        known = np.isfinite(torque)
-        ok = ~known | (torque <= self.max_nm + 1e-12)
-        score = np.where(known, np.clip(1.0 - torque / max(self.max_nm, 1e-9), 0.0, 1.0), 1.0)
-        return Outcome(ok, torque, score, f"<= {self.max_nm:g} N m", "N m")
-
-    def detail(self, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
-        """In H2G1, the share of the weight this grasp carries, its load (kg) and lever (m)."""
-        if phase is None or phase.mode != "H2G1":
-            return {}
-        share, lever = grasp_loads(ctx, phase, np.array([grasp]), np.array([presentation]))
-        out = {"load_share": round(float(share[0]), 6),
-               "load_kg": round(float(share[0]) * ctx.facts.mass, 6)}
-        if np.isfinite(lever[0]):
-            out["lever_m"] = round(float(lever[0]), 6)
-        return out

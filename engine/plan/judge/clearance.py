@@ -1,0 +1,31 @@
+"""How a ``clearance`` rule is judged on candidate rows (the rule's fields:
+:class:`~handover.engine.spec.kinds.clearance.ClearanceRule`)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from handover.engine.plan.judge.base import Outcome, judges
+from handover.engine.spec.kinds.clearance import ClearanceRule
+
+if TYPE_CHECKING:
+    from handover.engine.plan.attempt import Phase
+    from handover.engine.plan.context import PlanContext
+
+__all__ = ["evaluate"]
+
+
+def evaluate(rule: ClearanceRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
+             pk: np.ndarray) -> Outcome:
+    dist = np.full(len(gi), np.inf)
+    for sites in phase.hands.sites:  # the nearest receiver hand counts
+        d = np.linalg.norm(ctx.candidates.centre[gi] - sites.site[pk], axis=1)
+        dist = np.minimum(dist, np.where(sites.valid[pk], d, np.inf))
+    ok = dist >= rule.min_m - 1e-9
+    score = np.clip(dist / max(2.0 * rule.min_m, 1e-9), 0.0, 1.0)
+    return Outcome(ok, dist, score, f">= {rule.min_m:g} m", "m")
+
+
+judges(ClearanceRule, evaluate=evaluate)
