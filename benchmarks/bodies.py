@@ -32,7 +32,11 @@ import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from handover.geometry.body_mesh import _fcl_primitives  # noqa: E402
+from handover.geometry.body_mesh import (  # noqa: E402
+    _fcl_primitives,  # noqa: E402
+    mesh_clearances,
+    mesh_hits,
+)
 from handover.geometry.collision import ObjectCollider, _bvh_object  # noqa: E402
 from handover.geometry.frames import transform_from  # noqa: E402
 from handover.geometry.gripper import Gripper  # noqa: E402
@@ -142,28 +146,28 @@ def main() -> None:
         for count in (16, 48):
             mesh = trimesh.creation.capsule(height=0.3, radius=0.02, count=[count, count])
             faces = len(mesh.faces)
-            t, hits = best(lambda mesh=mesh, p=poses: body.mesh_hits(mesh, p), r)
+            t, hits = best(lambda mesh=mesh, p=poses: mesh_hits(body, mesh, p), r)
             row(f"mesh_hits, {faces} faces, {where}", len(poses), t,
                 f"{hits.any(axis=1).mean():.0%} hit")  # fmt: skip
             collider = ObjectCollider(mesh)
-            t, hits = best(lambda c=collider, p=poses: body.mesh_hits(c, p), r)
+            t, hits = best(lambda c=collider, p=poses: mesh_hits(body, c, p), r)
             row("  same, ObjectCollider's BVH (built once)", len(poses), t)
         t = min(bare_fcl_all_pairs(body, mesh, poses) for _ in range(r))
         row(f"bare fcl, all {len(body)} pairs, {faces} faces, {where}", len(poses), t,
             "(reference)")  # fmt: skip
         long = trimesh.creation.capsule(height=1.2, radius=0.015, count=[48, 48])
-        t, hits = best(lambda p=poses, m=long: body.mesh_hits(m, p), r)
+        t, hits = best(lambda p=poses, m=long: mesh_hits(body, m, p), r)
         row(f"mesh_hits, 1.2 m shaft, {len(long.faces)} faces, {where}", len(poses), t,
             f"{hits.any(axis=1).mean():.0%} hit")  # fmt: skip
         sliver = trimesh.creation.cylinder(radius=0.015, height=1.2, sections=1250)
-        t, hits = best(lambda p=poses, m=sliver: body.mesh_hits(m, p), r)
+        t, hits = best(lambda p=poses, m=sliver: mesh_hits(body, m, p), r)
         row(f"  same, {len(sliver.faces)} sliver faces (worst case)", len(poses), t,
             f"{hits.any(axis=1).mean():.0%} hit")  # fmt: skip
 
     print("4. clearance of one pose")
     mesh = trimesh.creation.capsule(height=0.3, radius=0.02, count=[48, 48])
     collider = ObjectCollider(mesh)
-    t, d = best(lambda: body.mesh_clearances(collider, around_body(1, 3)[0]), r)
+    t, d = best(lambda: mesh_clearances(body, collider, around_body(1, 3)[0]), r)
     row(f"mesh_clearances, {len(mesh.faces)} faces", 1, t, f"min {d.min():.3f} m")
 
 

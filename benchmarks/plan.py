@@ -38,8 +38,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from handover.engine.assets.graspdb import GraspDB, cached_candidates  # noqa: E402
 from handover.engine.load.loader import load_kb  # noqa: E402
-from handover.engine.plan.query import Query  # noqa: E402
 from handover.engine.planner import plan  # noqa: E402
+from handover.engine.spec.query import Query  # noqa: E402
 
 RADIUS = 0.015  # m: a 3 cm ball; a larger one is too deep for 2 cm of finger past the contacts
 

@@ -178,8 +178,8 @@ def knife(folder: Path) -> str:
     pays rerun's import; this one runs after the synthetic ones, so it does not)."""
     try:
         from handover.engine.load.loader import load_kb
-        from handover.engine.plan.query import Query
         from handover.engine.planner import plan
+        from handover.engine.spec.query import Query
 
         kb = load_kb(None)
         t = time.perf_counter()

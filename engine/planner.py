@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from handover.engine.plan.attempt import Attempt
-from handover.engine.plan.query import DEFAULTS, Query
+from handover.engine.spec.query import DEFAULTS, Query
 
 if TYPE_CHECKING:
     import trimesh

@@ -16,9 +16,9 @@ Queries (touching counts as hitting; ``margin`` m grows every primitive by that 
   separating-axis test :func:`geometry.collision.boxes_overlap` (the query box is grown by
   ``margin`` per side: exact at ``margin = 0``, conservative above).
 - capsules (arm links): :meth:`Body.capsules_hit`, exact (segment distances).
-- a mesh at many poses (the object): :meth:`Body.mesh_hits`, python-fcl per (pose, primitive)
+- a mesh at many poses (the object): :func:`geometry.body_mesh.mesh_hits`, python-fcl per (pose, primitive)
   pair that survives a numpy broad phase, then a containment test (see there).
-- clearance of one mesh pose: :meth:`Body.mesh_clearances` (python-fcl distance).
+- clearance of one mesh pose: :func:`geometry.body_mesh.mesh_clearances` (python-fcl distance).
 
 :func:`human_body` (in :mod:`geometry.human`) builds a receiver; :func:`robot_body` places a
 robot's primitives by its base pose. Lengths in metres.
@@ -42,9 +42,8 @@ from handover.geometry.proximity import (
 )
 
 if TYPE_CHECKING:
-    import trimesh
 
-    from handover.geometry.collision import ObjectCollider
+    pass
 
 __all__ = [
     "BodyError",
@@ -317,24 +316,6 @@ class Body:
         rad = np.concatenate([0.5 * np.linalg.norm(self.p1 - self.p0, axis=1) + self.radius,
                               0.5 * np.linalg.norm(self.extents, axis=1)])  # fmt: skip
         return mid, rad
-
-    def mesh_hits(
-        self, mesh: trimesh.Trimesh | ObjectCollider, poses: np.ndarray, *, margin: float = 0.0
-    ) -> np.ndarray:
-        """(K, P) bool: which primitives the mesh touches at each of K poses (see
-        :func:`geometry.body_mesh.mesh_hits`)."""
-        from handover.geometry.body_mesh import mesh_hits
-
-        return mesh_hits(self, mesh, poses, margin=margin)
-
-    def mesh_clearances(
-        self, mesh: trimesh.Trimesh | ObjectCollider, pose: np.ndarray
-    ) -> np.ndarray:
-        """(P,) float, m: the mesh's distance at ``pose`` to each primitive (see
-        :func:`geometry.body_mesh.mesh_clearances`)."""
-        from handover.geometry.body_mesh import mesh_clearances
-
-        return mesh_clearances(self, mesh, pose)
 
 
 def _margin(margin: float) -> float:

@@ -566,8 +566,8 @@ def test_separate_processes_give_the_same_bytes(capsys, tmp_path, query):
 def test_ties_go_to_the_lower_row(builtin_kb):
     """The ranking is score descending, then row index: equal scores are common (a ball, a
     symmetric book), and the choice among them must not depend on anything else."""
-    from handover.engine.plan.query import Query
     from handover.engine.planner import plan
+    from handover.engine.spec.query import Query
 
     ties = 0
     for obj in ("ball", "book", "hammer", "scissors"):

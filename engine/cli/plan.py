@@ -28,7 +28,7 @@ def check_mesh_scale(mesh_scale: float) -> float:
 
 def _query(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0,
            robot=None):
-    from handover.engine.plan.query import DEFAULTS, Query
+    from handover.engine.spec.query import DEFAULTS, Query
 
     return Query(
         mesh_scale=check_mesh_scale(mesh_scale),

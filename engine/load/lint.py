@@ -57,7 +57,7 @@ from typing import TYPE_CHECKING
 
 from handover.engine.errors import KBIssue
 from handover.engine.load.lint_scene import lint_scene
-from handover.engine.plan.query import DEFAULTS
+from handover.engine.spec.query import DEFAULTS
 from handover.engine.spec.schema import KBModel, KBTestFile, ObjectSpec, RobotSpec, RuleBase
 from handover.engine.store.cultures import _resolve, applies_to_object, object_tags
 

@@ -15,12 +15,12 @@ import numpy as np
 
 from handover.engine.plan.attempt import Hands, Roles
 from handover.engine.plan.presentation import presentation_rotations, principal_axes, rule_goals
-from handover.engine.plan.query import Situation
 from handover.engine.plan.receiver_sites import (
     predict_receiver_sites,
     predict_two_hand_sites,
     receiver_region,
 )
+from handover.engine.plan.situation import Situation
 from handover.engine.plan.world import Locations, World, build_world, candidate_locations, place
 from handover.engine.spec.applies import Facts
 

@@ -46,6 +46,7 @@ import numpy as np
 
 from handover.engine.plan import judge
 from handover.engine.plan.attempt import Attempt, Chosen, Hands, Phase
+from handover.geometry.body_mesh import mesh_hits
 from handover.geometry.rests import (
     MIN_TIP_DEG,
     resting_rotations,
@@ -231,7 +232,7 @@ def _positions(ctx: PlanContext, cg: ConstraintGraph, rotations: np.ndarray,
         if not pairs:
             break
         if len(targets):
-            hit = targets.mesh_hits(ctx.collider, np.array([pose_at(m, g) for m, g in pairs]))
+            hit = mesh_hits(targets, ctx.collider, np.array([pose_at(m, g) for m, g in pairs]))
         else:
             hit = np.zeros((len(pairs), 0), dtype=bool)
         for (m, g), row in zip(pairs, hit, strict=True):

@@ -8,7 +8,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from handover.engine.plan.context import PlanContext, build_context
-from handover.engine.plan.query import Query, resolve_situation
+from handover.engine.plan.situation import resolve_situation
+from handover.engine.spec.query import Query
 
 if TYPE_CHECKING:
     import trimesh

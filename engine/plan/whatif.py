@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from handover.engine.plan.attempt import Attempt
     from handover.engine.plan.compiler import CompiledRule
     from handover.engine.plan.context import PlanContext
-    from handover.engine.plan.query import Query
+    from handover.engine.spec.query import Query
 
 __all__ = ["Change", "what_if", "without_rules", "MAX_RULE_SETS"]
 
@@ -218,7 +218,7 @@ def _other_modes(kb: KB, query: Query, ctx: PlanContext) -> list[Change]:
 def _other_world(kb: KB, query: Query, db, mesh) -> list[Change]:
     """Another gripper, scene or receiver of the KB with which the plan is feasible."""
     from handover.engine.plan.prepare import prepare
-    from handover.engine.plan.query import DEFAULTS
+    from handover.engine.spec.query import DEFAULTS
 
     robot = kb.robots.get(query.robot)
     gripper = query.gripper or (robot.gripper if robot is not None else None)

@@ -22,9 +22,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.geometry.body_mesh import mesh_hits
+
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
-    from handover.engine.plan.query import Situation
+    from handover.engine.plan.situation import Situation
     from handover.geometry.bodies import Body
     from handover.geometry.human import Landmarks
 
@@ -271,7 +273,7 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
     def hits_at(k_idx: np.ndarray, l_idx: np.ndarray) -> np.ndarray:
         """(n, P) bool: the object and the receiver's hands at (k, l) against the targets."""
         poses = poses_at(k_idx, l_idx)
-        hit = targets.mesh_hits(ctx.collider, poses)
+        hit = mesh_hits(targets, ctx.collider, poses)
         for s in sites:
             ext, bp, valid = hand_models(ctx, region, s, k_idx, poses)
             owner, box = np.nonzero(valid)

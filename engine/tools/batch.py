@@ -257,7 +257,7 @@ def expand(
         (``common``, ``adult``). tasks : None for each object's default task, ``all`` for
         every task of each object, or ids (an object without a listed task skips it).
     """
-    from handover.engine.plan.query import DEFAULTS, MODES
+    from handover.engine.spec.query import DEFAULTS, MODES
 
     mode = mode.lower()
     if mode not in MODES:
@@ -340,9 +340,9 @@ def error_rows(unit: Unit, error: BaseException | str) -> list[dict]:
 
 def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: GraspDB | None) -> dict:
     """Plan one query; its row. Any failure becomes the row's ``error``."""
-    from handover.engine.plan.query import Query
     from handover.engine.planner import plan
     from handover.engine.report.result import to_jsonable
+    from handover.engine.spec.query import Query
 
     query = Query(object=obj.query_object, task=q.task, receiver=q.receiver, culture=q.culture,
                   scene=q.scene, mode=q.mode, mesh_scale=obj.scale)  # fmt: skip

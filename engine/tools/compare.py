@@ -24,7 +24,7 @@ from __future__ import annotations
 import itertools
 from typing import TYPE_CHECKING, Any
 
-from handover.engine.plan.query import receiver_directions
+from handover.engine.plan.situation import receiver_directions
 from handover.engine.tools.coverage import decided_rules
 from handover.engine.tools.kbtest import angle_between
 

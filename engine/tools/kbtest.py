@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from handover.engine.errors import KBError, UsageError
-from handover.engine.plan.query import receiver_directions
+from handover.engine.plan.situation import receiver_directions
 from handover.engine.spec.kbtestspec import KBTestCase, KBTestFile, parse_comparison
 
 if TYPE_CHECKING:

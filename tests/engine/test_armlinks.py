@@ -516,7 +516,7 @@ def test_the_object_held_must_not_pass_through_the_arm_that_waits(builtin_urdf):
     from dataclasses import replace
 
     from handover.engine.plan.arms.links import rest_blocked
-    from handover.engine.plan.arms.solve import ArmCheck
+    from handover.engine.plan.arms.stages import ArmCheck
 
     plan = Planner().plan("screwdriver", mode="h1g1")
     ctx, attempt = plan.context, plan.attempt

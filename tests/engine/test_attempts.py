@@ -21,7 +21,7 @@ from handover import Planner
 from handover.engine.cli.app import main
 from handover.engine.plan.modes import attempt_mode, choose
 from handover.engine.plan.prepare import prepare
-from handover.engine.plan.query import Query
+from handover.engine.spec.query import Query
 from handover.engine.spec.schema import Culture
 from handover.engine.store.kb import builtin_kb_dir
 

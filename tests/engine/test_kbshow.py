@@ -7,7 +7,7 @@ import pytest
 from handover.engine.errors import UsageError
 from handover.engine.plan.compiler import compile
 from handover.engine.plan.prepare import prepare
-from handover.engine.plan.query import Query
+from handover.engine.spec.query import Query
 from handover.engine.store.cultures import resolve_culture
 from handover.engine.tools.kbshow import item_kind, not_applicable, object_view, show_item
 

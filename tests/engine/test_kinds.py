@@ -11,8 +11,8 @@ import pytest
 from handover.engine.plan import judge
 from handover.engine.plan.attempt import Phase, Roles
 from handover.engine.plan.prepare import prepare
-from handover.engine.plan.query import Query
 from handover.engine.spec.kinds import FEATURES, KINDS
+from handover.engine.spec.query import Query
 from handover.engine.spec.schema import RULE_KINDS, parse_rule
 from handover.engine.store.validate import document_schema
 

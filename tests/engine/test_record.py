@@ -546,8 +546,8 @@ def kb():
 
 
 def _real(kb, tmp_path: Path, obj: str, mode: str, scene: str):
-    from handover.engine.plan.query import Query
     from handover.engine.planner import plan
+    from handover.engine.spec.query import Query
 
     planned = plan(kb, Query(object=obj, mode=mode, scene=scene))
     path = tmp_path / f"{obj}-{mode}.rrd"
@@ -728,8 +728,8 @@ def test_real_h2g2_plan_records_pick_midair_and_handover(kb, tmp_path):
 
 
 def test_the_recording_draws_both_bodies_and_the_handover_locations(kb, tmp_path):
-    from handover.engine.plan.query import Query
     from handover.engine.planner import plan
+    from handover.engine.spec.query import Query
 
     # A mug: with the shipped arms no pair of arms holds the knife for a seated receiver
     # (its plan is infeasible, see test_world), and this test wants a handover to draw.
@@ -773,8 +773,8 @@ def test_an_infeasible_plan_says_and_draws_the_same_handover_location(tmp_path):
     import shutil
 
     from handover.engine.load.loader import load_kb
-    from handover.engine.plan.query import Query
     from handover.engine.planner import plan
+    from handover.engine.spec.query import Query
     from handover.engine.store.kb import builtin_kb_dir
 
     root = tmp_path / "kb"

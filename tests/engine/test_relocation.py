@@ -94,7 +94,7 @@ def test_explaining_an_attempt_at_moved_locations_judges_them_there(builtin_kb, 
     from handover.engine.plan.evaluate import evaluate
     from handover.engine.plan.hands import hands_for
     from handover.engine.plan.prepare import prepare
-    from handover.engine.plan.query import Query
+    from handover.engine.spec.query import Query
 
     ctx = prepare(builtin_kb, Query(object="mug"))
     cg = compile_graph(builtin_kb, ctx, "H1G1")

@@ -27,8 +27,8 @@ from handover.engine.load.loader import load_kb
 from handover.engine.plan.blocking import blocking_sets
 from handover.engine.plan.modes import attempt_mode
 from handover.engine.plan.prepare import prepare
-from handover.engine.plan.query import Query
 from handover.engine.plan.whatif import without_rules
+from handover.engine.spec.query import Query
 
 KB_DIR = Path(__file__).resolve().parents[2] / "kb"
 CASES = int(os.environ.get("HANDOVER_TRUTH_CASES", "60"))

@@ -86,8 +86,8 @@ from handover.engine.cli.app import main
 from handover.engine.errors import EXIT_BAD_MESH, EXIT_INFEASIBLE, EXIT_INVALID_KB, EXIT_OK
 from handover.engine.load.loader import load_kb
 from handover.engine.plan.presentation import ISOTROPY
-from handover.engine.plan.query import Query
 from handover.engine.planner import plan
+from handover.engine.spec.query import Query
 from handover.engine.spec.schema import SceneSpec
 from handover.engine.store.kb import builtin_kb_dir
 from handover.geometry.frames import rotation_from_euler_deg

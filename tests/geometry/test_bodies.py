@@ -10,6 +10,7 @@ from numpy.testing import assert_allclose, assert_array_equal
 from scipy.spatial.transform import Rotation
 
 from handover.geometry.bodies import Body, BodyError, concatenate, first_hit, robot_body
+from handover.geometry.body_mesh import mesh_clearances, mesh_hits
 from handover.geometry.collision import ObjectCollider
 from handover.geometry.frames import transform_from
 from handover.geometry.gripper import Gripper
@@ -119,7 +120,7 @@ def test_box_mesh_at_many_poses_matches_closed_form():
     rng = np.random.default_rng(3)
     rots = Rotation.random(400, random_state=4).as_matrix()
     poses = transform_from(rots, rng.uniform(-0.25, 0.4, (400, 3)))
-    hits = body.mesh_hits(mesh, poses)
+    hits = mesh_hits(body, mesh, poses)
     d_cap = segment_box_distances(body.p0[0], body.p1[0], poses[:, :3, 3], rots, ext / 2)
     sure = np.abs(d_cap - 0.05) > 1e-6
     assert_array_equal(hits[sure, 0], (d_cap <= 0.05)[sure])
@@ -141,10 +142,10 @@ def test_thin_shaft_through_forearm_is_a_hit():
     shaft = trimesh.creation.cylinder(radius=0.005, height=1.0, sections=6)
     assert not body.points_hit(shaft.vertices + [0, 0, 1]).any()
     poses = np.array([_pose(t=(0, 0, 1)), _pose(t=(0.06, 0, 1))])  # through; 6 cm beside
-    assert_array_equal(body.mesh_hits(shaft, poses)[:, 0], [True, False])
+    assert_array_equal(mesh_hits(body, shaft, poses)[:, 0], [True, False])
     # Crossing at an angle, 3 cm off the axis still touches (0.03 + 0.005 < 0.04).
     tilt = Rotation.from_euler("x", 50, degrees=True).as_matrix()
-    assert body.mesh_hits(shaft, _pose(tilt, (0.03, 0, 1)))[0, 0]
+    assert mesh_hits(body, shaft, _pose(tilt, (0.03, 0, 1)))[0, 0]
 
 
 def test_containment_both_ways():
@@ -155,14 +156,14 @@ def test_containment_both_ways():
         [("torso", [0.5, 0.5, 0.5], _pose(t=(3, 0, 0)))],
     )
     big = trimesh.creation.box([1, 1, 1])
-    assert_array_equal(body.mesh_hits(big, EYE4), [[True, False]])
+    assert_array_equal(mesh_hits(body, big, EYE4), [[True, False]])
     small = trimesh.creation.icosphere(radius=0.05)
     poses = np.array([_pose(t=(3, 0, 0)), _pose(t=(3, 1, 0))])
-    assert_array_equal(body.mesh_hits(small, poses), [[False, True], [False, False]])
+    assert_array_equal(mesh_hits(body, small, poses), [[False, True], [False, False]])
     # A margin grows the capsule: a sphere 0.03 from it is hit with margin 0.04, not 0.02.
     near = _pose(t=(0.025, 0, 0.01 + 0.05 + 0.03))
-    assert not body.mesh_hits(small, near, margin=0.02)[0, 0]
-    assert body.mesh_hits(small, near, margin=0.04)[0, 0]
+    assert not mesh_hits(body, small, near, margin=0.02)[0, 0]
+    assert mesh_hits(body, small, near, margin=0.04)[0, 0]
 
 
 def test_object_collider_lends_its_bvh_unchanged():
@@ -176,15 +177,15 @@ def test_object_collider_lends_its_bvh_unchanged():
     gripper = Gripper.default()
     grasp = transform_from(np.eye(3), [0.0, 0.0, -0.01])
     before = collider.gripper_collides(gripper, grasp, 0.05)
-    assert_array_equal(body.mesh_hits(collider, poses), body.mesh_hits(mesh, poses))
+    assert_array_equal(mesh_hits(body, collider, poses), mesh_hits(body, mesh, poses))
     assert_array_equal(collider.gripper_collides(gripper, grasp, 0.05), before)
-    assert_allclose(body.mesh_clearances(collider, poses[0]), body.mesh_clearances(mesh, poses[0]))
+    assert_allclose(mesh_clearances(body, collider, poses[0]), mesh_clearances(body, mesh, poses[0]))
 
 
 def test_mesh_clearances_closed_form():
     # A unit-edge cube mesh centred 0.5 + 0.3 + 0.1 above a capsule's axis: clearance 0.3.
     body = Body.from_primitives([("arm", [-1, 0, 0], [1, 0, 0], 0.1)])
-    d = body.mesh_clearances(trimesh.creation.box([1, 1, 1]), _pose(t=(0, 0, 0.9)))
+    d = mesh_clearances(body, trimesh.creation.box([1, 1, 1]), _pose(t=(0, 0, 0.9)))
     assert_allclose(d, [0.3], atol=1e-6)
 
 
@@ -262,4 +263,4 @@ def test_bad_input_raises_body_error():
     with pytest.raises(BodyError, match="rotations"):
         body.boxes_hit([[0, 0, 0]], np.eye(3), [1, 1, 1])
     with pytest.raises(ValueError, match="mesh"):
-        body.mesh_hits(trimesh.Trimesh(), EYE4)
+        mesh_hits(body, trimesh.Trimesh(), EYE4)

@@ -16,7 +16,9 @@ import numpy as np
 
 from handover.engine.plan.arms.stages import (
     STAGE_WORDS,
+    ArmCheck,
     canonical_first,
+    hit_words,
     objects_at,
     other_arm_idle,
     row_keys,
@@ -24,11 +26,10 @@ from handover.engine.plan.arms.stages import (
 )
 
 if TYPE_CHECKING:
-    from handover.engine.plan.arms.solve import ArmCheck
     from handover.engine.plan.attempt import Phase
     from handover.engine.plan.context import PlanContext
 
-__all__ = ["LINK_STARTS", "LINK_POOL", "hit_words", "link_targets", "wrist_failures",
+__all__ = ["LINK_STARTS", "LINK_POOL", "link_targets", "wrist_failures",
            "target_groups", "link_tally", "pair_contacts", "links_words", "clear_links",
            "held_contacts", "held_names", "rest_blocked"]
 
@@ -40,20 +41,6 @@ configurations nearest the pose, those whose own links are clear first
 
 LINK_POOL = 32
 """The nearest configurations of the seed library :data:`LINK_STARTS` are chosen among."""
-
-def hit_words(pairs) -> str:
-    """``(link, target)`` pairs in words, by target: "left_link6, left_link7 hit scene:table
-    and left_link5 hits body:robot:torso" (at most three targets, then "and more"; a link
-    ``rest:<side>:<link>`` of :func:`rest_blocked` is said as its link)."""
-    by_target: dict[str, list[str]] = {}
-    for link, target in pairs:
-        if link.startswith("rest:"):
-            link = link.split(":", 2)[2]
-        by_target.setdefault(target, []).append(link)
-    said = [f"{', '.join(links)} {'hit' if len(links) > 1 else 'hits'} {target}"
-            for target, links in list(by_target.items())[:3]]
-    more = " and more" if len(by_target) > 3 else ""
-    return " and ".join(said) + more
 
 def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
     """What the links of the arm on ``side`` must not touch at ``stage``

@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.arms.links import hit_words, pair_contacts, wrist_failures
+from handover.engine.plan.arms.links import pair_contacts, wrist_failures
 from handover.engine.plan.arms.solve import CONFIRM_LIMIT, confirm, preferred_sides, screen
-from handover.engine.plan.arms.stages import STAGE_WORDS
+from handover.engine.plan.arms.stages import STAGE_WORDS, hit_words
 
 if TYPE_CHECKING:
     from handover.engine.plan.attempt import Phase

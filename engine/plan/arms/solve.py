@@ -25,7 +25,6 @@ a turn about its approach ``a`` (``swapped``), whichever the arm reaches.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -34,7 +33,6 @@ from handover.engine.plan.arms.links import (
     clear_links,
     held_contacts,
     held_names,
-    hit_words,
     link_tally,
     link_targets,
     rest_blocked,
@@ -43,6 +41,7 @@ from handover.engine.plan.arms.links import (
 )
 from handover.engine.plan.arms.stages import (
     STAGE_WORDS,
+    ArmCheck,
     canonical_first,
     finger_sign,
     objects_at,
@@ -59,7 +58,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CONFIRM_LIMIT",
-    "ArmCheck",
     "reach_rule",
     "screen",
     "preferred_sides",
@@ -143,66 +141,6 @@ def preferred_sides(ctx: PlanContext, phase: Phase, grasp: int,
     first = next(iter(poses.values()))[0, :3, 3]
     dist = [round(float(np.linalg.norm(first - memo[s])), 9) for s in arms.sides]
     return tuple(arms.sides[j] for j in np.argsort(dist, kind="stable"))
-
-@dataclass(frozen=True)
-class ArmCheck:
-    """One arm holding one row through its stages, checked by exact inverse kinematics and
-    its links' collisions.
-
-    side : the arm. stages : the stages, in time order. poses : (T, 4, 4) world gripper poses
-    (the grasp as planned). q : (T, dof) joint values (rad; m for prismatic joints) within the
-    limits (the closest attempt where IK failed). reached : (T,) bool, within 0.1 mm and
-    1 mrad. swapped : (T,) bool, held turned half a turn about ``a`` (fingers swapped).
-    position_error : (T,) m. rotation_error : (T,) rad. hits : per stage, the ``(link,
-    target)`` pairs the arm's links touch at ``q`` (:func:`link_targets`; checked where the
-    stage was reached, empty elsewhere). against : what the links were checked against
-    (``scene:table``, ``scene:<obstacle>``, ``body:receiver``, ``body:robot``,
-    ``object:<id>``).
-    """
-
-    side: str
-    stages: tuple[str, ...]
-    poses: np.ndarray
-    q: np.ndarray
-    reached: np.ndarray
-    swapped: np.ndarray
-    position_error: np.ndarray
-    rotation_error: np.ndarray
-    hits: tuple[tuple[tuple[str, str], ...], ...] = ()
-    against: tuple[str, ...] = ()
-
-    @property
-    def held(self) -> np.ndarray:
-        """(T,) bool: the stage is reached and the links there touch nothing."""
-        clear = np.array([not h for h in self.hits], dtype=bool) if self.hits \
-            else np.ones(len(self.stages), dtype=bool)
-        return self.reached & clear
-
-    @property
-    def ok(self) -> bool:
-        return bool(self.held.all())
-
-    def failure(self) -> str | None:
-        """What the arm cannot do, in one clause, or None: the first stage it does not reach
-        ("the left arm cannot reach x, y, z with approach (...) at pick-up within its joint
-        limits ...") or whose links touch something ("the left arm's left_link6 hits
-        scene:table at pick-up")."""
-        for t, stage in enumerate(self.stages):
-            if not self.reached[t]:
-                return (f"the {self.side} arm cannot reach {pose_words(self.poses[t])} "
-                        f"{STAGE_WORDS[stage]} within its joint limits (inverse kinematics "
-                        f"ends {1e3 * self.position_error[t]:.0f} mm, "
-                        f"{np.degrees(self.rotation_error[t]):.0f} deg off)")
-            if self.hits and self.hits[t]:
-                resting = [(link, target) for link, target in self.hits[t]
-                           if link.startswith("rest:")]
-                if resting:
-                    waiting = sorted({link.split(":")[1] for link, _ in resting})
-                    return (f"the {' and '.join(waiting)} arm cannot wait at its rest "
-                            f"{STAGE_WORDS[stage]} while the {self.side} arm works: its "
-                            f"{hit_words(resting)}")
-                return f"the {self.side} arm's {hit_words(self.hits[t])} {STAGE_WORDS[stage]}"
-        return None
 
 def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
             pk: np.ndarray) -> list[ArmCheck]:

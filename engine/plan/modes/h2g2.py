@@ -28,6 +28,7 @@ from handover.engine.plan.evaluate import evaluate, evaluate_rule
 from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.hands import hands_for
 from handover.engine.plan.modes.common import hand_at, register, relocated
+from handover.geometry.body_mesh import mesh_hits
 
 if TYPE_CHECKING:
     from handover.engine.load.loader import KB
@@ -80,7 +81,7 @@ def _clear_in_midair(ctx: PlanContext, hands, firsts: np.ndarray, seconds: np.nd
     for k in np.unique(presentations):
         cols = np.flatnonzero(presentations == k)
         pose = midair_pose(ctx, hands.poses[k])
-        obj = targets.mesh_hits(ctx.collider, pose[None])[0]  # (P,)
+        obj = mesh_hits(targets, ctx.collider, pose[None])[0]  # (P,)
         local = targets.moved(np.linalg.inv(pose))
         f_hit = local.posed_hits(posed._replace(centres=posed.centres[firsts],
                                                 rotations=posed.rotations[firsts]))  # (F, P)

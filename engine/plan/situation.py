@@ -1,4 +1,5 @@
-"""A handover query and the situation it resolves to: specs from the KB, world frame.
+"""The situation a query (:class:`~handover.engine.spec.query.Query`) resolves to: specs
+from the KB, world frame.
 
 The world frame is z up with the robot at the origin facing +x. The receiver stands where
 the scene puts them (default 1.0 m in front of the robot, facing it). The receiver frame's
@@ -13,9 +14,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.errors import UsageError
+from handover.engine.spec.query import MODES
 
 if TYPE_CHECKING:
-    from handover.engine.load.loader import KB
+    from handover.engine.spec.query import Query
     from handover.engine.spec.schema import (
         GripperSpec,
         HumanHandSpec,
@@ -25,55 +27,9 @@ if TYPE_CHECKING:
         SceneSpec,
         Task,
     )
+    from handover.engine.store.kb import KB
 
-__all__ = ["Query", "Situation", "resolve_situation", "receiver_directions", "MODES", "DEFAULTS"]
-
-MODES = ("auto", "h1g1", "h2g2", "h2g1")
-
-DEFAULTS = {
-    "receiver": "adult",
-    "culture": "common",
-    "scene": "table",
-    "robot": "idro",
-    "mode": "auto",
-}
-
-
-@dataclass(frozen=True)
-class Query:
-    """What the user asks: hand ``object`` to ``receiver`` of ``culture`` in ``scene``.
-
-    object : object id in the KB, or a path to a mesh file (planned as one untagged part).
-    task : task id of the object (None: the object's ``default_task``, else no task).
-    mode : "auto" or a forced mode, "h1g1" | "h2g2" | "h2g1".
-    mesh_scale : units of a mesh-file ``object`` to metres (0.001: millimetres).
-    """
-
-    object: str
-    task: str | None = None
-    receiver: str = DEFAULTS["receiver"]
-    culture: str = DEFAULTS["culture"]
-    scene: str = DEFAULTS["scene"]
-    mode: str = DEFAULTS["mode"]
-    robot: str = DEFAULTS["robot"]
-    gripper: str | None = None
-    mesh_scale: float = 1.0
-
-    def as_dict(self) -> dict:
-        out = {
-            "object": self.object,
-            "task": self.task,
-            "receiver": self.receiver,
-            "culture": self.culture,
-            "scene": self.scene,
-            "mode": self.mode,
-            "robot": self.robot,
-            "gripper": self.gripper,
-        }
-        if self.mesh_scale != 1.0:  # only where asked: other results stay as they were
-            out["mesh_scale"] = self.mesh_scale
-        return out
-
+__all__ = ["Situation", "resolve_situation", "receiver_directions"]
 
 @dataclass
 class Situation:
