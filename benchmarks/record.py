@@ -31,10 +31,11 @@ sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
 
 import numpy as np  # noqa: E402
 
-from handover.engine.plan.attempt import Attempt, Hands, Phase  # noqa: E402
+from handover.engine.plan.attempt import Attempt  # noqa: E402
 from handover.engine.plan.compiler import CompiledRule  # noqa: E402
 from handover.engine.plan.context import PlanContext  # noqa: E402
 from handover.engine.plan.evaluate import Decision  # noqa: E402
+from handover.engine.plan.phase import Hands, Phase  # noqa: E402
 from handover.engine.plan.presentation import presentation_rotations  # noqa: E402
 from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites  # noqa: E402
 from handover.engine.report.rerun.writer import write_recording  # noqa: E402

@@ -22,7 +22,7 @@ import networkx as nx
 
 from handover.engine.errors import KBError, KBIssue
 from handover.engine.plan import judge
-from handover.engine.plan.attempt import Roles
+from handover.engine.plan.phase import Roles
 from handover.engine.spec.applies import Facts, check
 from handover.engine.spec.kinds import FEATURES
 from handover.engine.spec.schema import RuleBase

@@ -13,15 +13,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from handover.engine.plan.attempt import Hands, Roles
 from handover.engine.plan.presentation import presentation_rotations, principal_axes, rule_goals
-from handover.engine.plan.receiver_sites import (
-    predict_receiver_sites,
-    predict_two_hand_sites,
-    receiver_region,
-)
 from handover.engine.plan.situation import Situation
-from handover.engine.plan.world import Locations, World, build_world, candidate_locations, place
+from handover.engine.plan.world import World, build_world
 from handover.engine.spec.applies import Facts
 
 if TYPE_CHECKING:
@@ -60,7 +54,7 @@ class ObjectFacts:
 class PlanContext:
     """The evaluated world of one query (see module docstring). Immutable in meaning: what
     a rule decides depends on the context and the attempt's
-    :class:`~handover.engine.plan.attempt.Phase`; ``memo`` only holds pure functions of the
+    :class:`~handover.engine.plan.phase.Phase`; ``memo`` only holds pure functions of the
     context (gripper poses, the scene collision of a grasp at pick-up, hand boxes keyed by
     the hands' identity), computed on first use.
 
@@ -138,22 +132,6 @@ class PlanContext:
             self.memo["d_obj"] = np.einsum("kji,j->ki", self.rotations, self.situation.toward)
         return self.memo["d_obj"]
 
-    def hands(self, roles: Roles, count: int = 1, location_rules: tuple = (),
-              avoid: tuple[int, ...] = ()) -> Hands:
-        """Where the receiver's ``count`` hands (1 or 2) go in every presentation, given
-        which parts the people may hold, and where each presentation is offered under the
-        compiled ``location_rules``, the candidate locations ``avoid`` tried last
-        (:func:`~handover.engine.plan.world.place`; memoised by roles, count, the rules and
-        ``avoid``)."""
-        memo = self.memo.setdefault("hands", {})
-        key = (roles, count, tuple(c.rule.model_dump_json() for c in location_rules))
-        avoid = tuple(sorted({int(v) for v in avoid}))
-        if avoid:
-            key = (*key, ("avoid", avoid))
-        if key not in memo:
-            memo[key] = _hands(self, roles, count, location_rules, key, avoid)
-        return memo[key]
-
     @property
     def world(self) -> World:
         """The bodies at the handover: scene boxes, the receiver's and the robot's bodies."""
@@ -170,49 +148,6 @@ class PlanContext:
 
             self.memo["arms"] = plan_arms(self.kb_root, self.situation.robot)
         return self.memo["arms"]
-
-    def locations(self, hand: str) -> Locations:
-        """The candidate handover locations around the receiver's ``hand`` (memoised)."""
-        memo = self.memo.setdefault("locations", {})
-        if hand not in memo:
-            memo[hand] = candidate_locations(self, self.world, hand)
-        return memo[hand]
-
-
-def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
-           key: tuple, avoid: tuple[int, ...] = ()) -> Hands:
-    """See :meth:`PlanContext.hands`. The giver's graspable region (parts the robot may
-    hold) gives ``s_range``, whose robot-side half the ``giver_side`` rule measures (seed
-    3.1: "the half of the graspable region near the robot")."""
-    mesh = ctx.part_mesh.mesh
-    centroids = np.asarray(mesh.triangles_center)
-    face_part = np.asarray(ctx.part_mesh.face_part)
-    graspable = np.array([not (t & roles.giver_forbid) for t in ctx.part_tags] or [True],
-                         dtype=bool)
-    giver_faces = graspable[face_part]
-    if not giver_faces.any():  # no face the robot may hold: the whole object is its region
-        giver_faces = np.ones(len(face_part), bool)
-    proj = centroids[giver_faces] @ ctx.d_obj().T  # (F', K)
-    s_range = np.stack([proj.min(axis=0), proj.max(axis=0)], axis=1)
-    region = receiver_region(centroids, face_part, ctx.part_tags, set(roles.want),
-                             set(roles.receiver_forbid))
-    s = ctx.situation
-    if count == 2:
-        sites = tuple(predict_two_hand_sites(region, ctx.rotations, s.toward,
-                                             s.hand.grip_width))
-    else:
-        sites = (predict_receiver_sites(
-            region, ctx.rotations, s.toward, grip_width=s.hand.grip_width,
-            where=s.task.receiver_site if s.task is not None else "middle",
-            finger_thickness=s.hand.finger_thickness, hand=ctx.hand, mesh=mesh,
-        ),)
-    receiving = (s.receiver.dominant_hand,) if count == 1 else (
-        s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")
-    placed = place(ctx, region, sites, list(location_rules), receiving, avoid)
-    return Hands(key=key, region=region, sites=sites, s_range=s_range, poses=placed.poses,
-                 location=placed.location, located=placed.located, measured=placed.measured,
-                 hits=placed.hits, receiving=receiving,
-                 locations=ctx.locations(receiving[0]), avoid=avoid)
 
 
 def _rotation_deg(angles) -> np.ndarray:

@@ -30,8 +30,8 @@ from handover.engine.plan.features import collision_targets, handover_targets
 from handover.engine.plan.judge import Outcome
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
 
 __all__ = ["Decision", "evaluate", "evaluate_rule", "complete", "trace_row", "ROW_LIMIT",
            "DEFERRED_KINDS"]

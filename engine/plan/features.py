@@ -1,7 +1,7 @@
 """Features the rule kinds read: quantities computed on candidate rows, vectorised.
 
 Each function takes the plan context and, where the answer depends on the attempt, its
-:class:`~handover.engine.plan.attempt.Phase` explicitly. Memoised values (the scene collision of a
+:class:`~handover.engine.plan.phase.Phase` explicitly. Memoised values (the scene collision of a
 grasp at pick-up, the receiver's hand boxes of one presentation) are pure functions of their
 key, so memoising them never changes an outcome.
 """
@@ -14,8 +14,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Hands
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Hands
     from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites
     from handover.geometry.bodies import Body
     from handover.geometry.interior import Interior

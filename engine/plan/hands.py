@@ -5,12 +5,21 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import numpy as np
+
+from handover.engine.plan.offer import locations, place
+from handover.engine.plan.phase import Hands, Roles
+from handover.engine.plan.receiver_sites import (
+    predict_receiver_sites,
+    predict_two_hand_sites,
+    receiver_region,
+)
+
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Hands, Roles
     from handover.engine.plan.compiler import ConstraintGraph
     from handover.engine.plan.context import PlanContext
 
-__all__ = ["receiver_roles", "hands_for"]
+__all__ = ["hands", "receiver_roles", "hands_for"]
 
 
 def receiver_roles(cg: ConstraintGraph, ctx: PlanContext) -> Roles:
@@ -24,5 +33,58 @@ def hands_for(cg: ConstraintGraph, ctx: PlanContext, count: int = 1,
     """Where the receiver's ``count`` hands go and where each presentation is offered,
     under ``cg``'s contact and location rules, the candidate locations ``avoid`` tried
     last."""
-    locations = tuple(c for c in cg.order if c.rule.kind == "location")
-    return ctx.hands(receiver_roles(cg, ctx), count, locations, avoid)
+    rules = tuple(c for c in cg.order if c.rule.kind == "location")
+    return hands(ctx, receiver_roles(cg, ctx), count, rules, avoid)
+
+
+def hands(ctx: PlanContext, roles: Roles, count: int = 1, location_rules: tuple = (),
+          avoid: tuple[int, ...] = ()) -> Hands:
+    """Where the receiver's ``count`` hands (1 or 2) go in every presentation, given
+    which parts the people may hold, and where each presentation is offered under the
+    compiled ``location_rules``, the candidate locations ``avoid`` tried last
+    (:func:`~handover.engine.plan.offer.place`; memoised by roles, count, the rules and
+    ``avoid``)."""
+    memo = ctx.memo.setdefault("hands", {})
+    key = (roles, count, tuple(c.rule.model_dump_json() for c in location_rules))
+    avoid = tuple(sorted({int(v) for v in avoid}))
+    if avoid:
+        key = (*key, ("avoid", avoid))
+    if key not in memo:
+        memo[key] = _hands(ctx, roles, count, location_rules, key, avoid)
+    return memo[key]
+
+
+def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
+           key: tuple, avoid: tuple[int, ...] = ()) -> Hands:
+    """See :func:`hands`. The giver's graspable region (parts the robot may
+    hold) gives ``s_range``, whose robot-side half the ``giver_side`` rule measures (seed
+    3.1: "the half of the graspable region near the robot")."""
+    mesh = ctx.part_mesh.mesh
+    centroids = np.asarray(mesh.triangles_center)
+    face_part = np.asarray(ctx.part_mesh.face_part)
+    graspable = np.array([not (t & roles.giver_forbid) for t in ctx.part_tags] or [True],
+                         dtype=bool)
+    giver_faces = graspable[face_part]
+    if not giver_faces.any():  # no face the robot may hold: the whole object is its region
+        giver_faces = np.ones(len(face_part), bool)
+    proj = centroids[giver_faces] @ ctx.d_obj().T  # (F', K)
+    s_range = np.stack([proj.min(axis=0), proj.max(axis=0)], axis=1)
+    region = receiver_region(centroids, face_part, ctx.part_tags, set(roles.want),
+                             set(roles.receiver_forbid))
+    s = ctx.situation
+    if count == 2:
+        sites = tuple(predict_two_hand_sites(region, ctx.rotations, s.toward,
+                                             s.hand.grip_width))
+    else:
+        sites = (predict_receiver_sites(
+            region, ctx.rotations, s.toward, grip_width=s.hand.grip_width,
+            where=s.task.receiver_site if s.task is not None else "middle",
+            finger_thickness=s.hand.finger_thickness, hand=ctx.hand, mesh=mesh,
+        ),)
+    receiving = (s.receiver.dominant_hand,) if count == 1 else (
+        s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")
+    placed = place(ctx, region, sites, list(location_rules), receiving, avoid)
+    return Hands(key=key, region=region, sites=sites, s_range=s_range, poses=placed.poses,
+                 location=placed.location, located=placed.located, measured=placed.measured,
+                 hits=placed.hits, receiving=receiving,
+                 locations=locations(ctx, receiving[0]), avoid=avoid)

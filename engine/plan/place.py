@@ -45,7 +45,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.plan import judge
-from handover.engine.plan.attempt import Attempt, Chosen, Hands, Phase
+from handover.engine.plan.attempt import Attempt, Chosen
+from handover.engine.plan.phase import Hands, Phase
 from handover.geometry.body_mesh import mesh_hits
 from handover.geometry.rests import (
     MIN_TIP_DEG,

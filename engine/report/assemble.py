@@ -15,9 +15,10 @@ from handover.engine.plan.features import handover_targets
 from handover.engine.report.result import PlanResult
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Attempt, Hands
+    from handover.engine.plan.attempt import Attempt
     from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Hands
     from handover.engine.plan.place import PlacementPlan
     from handover.engine.plan.receiver_sites import ReceiverSites
     from handover.engine.spec.schema import GripperSpec

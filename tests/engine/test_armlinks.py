@@ -374,7 +374,8 @@ def test_a_grasp_low_on_the_post_puts_the_wrist_into_the_base(links_kb, builtin_
     # Whatever the arm's other joints do, the exact check finds it in the plinth, names the
     # link and the object, and passes the row over.
     from handover.engine.plan.arms.solve import confirm
-    from handover.engine.plan.attempt import Phase, Roles
+    from handover.engine.plan.hands import hands as plan_hands
+    from handover.engine.plan.phase import Phase, Roles
 
     ctx = trophy_plan.context
     r = trophy_plan.to_dict()
@@ -382,7 +383,7 @@ def test_a_grasp_low_on_the_post_puts_the_wrist_into_the_base(links_kb, builtin_
     low = np.flatnonzero((np.abs(poses[:, 2, 2]) < 0.05) & (np.abs(poses[:, 2, 0]) > 0.95)
                          & (poses[:, 2, 3] > 0.12) & (poses[:, 2, 3] < 0.15))
     assert len(low)
-    hands = ctx.hands(Roles(want=frozenset({"handle"})))
+    hands = plan_hands(ctx, Roles(want=frozenset({"handle"})))
     (base_box,) = held_object(r, TROPHY_BOXES[:1], "pickup").values()
     checked = 0
     for side in ("left", "right"):

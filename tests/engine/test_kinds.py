@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from handover.engine.plan import judge
-from handover.engine.plan.attempt import Phase, Roles
+from handover.engine.plan.hands import hands as plan_hands
+from handover.engine.plan.phase import Phase, Roles
 from handover.engine.plan.prepare import prepare
 from handover.engine.spec.kinds import FEATURES, KINDS
 from handover.engine.spec.query import Query
@@ -52,7 +53,7 @@ def test_every_kind_parses_describes_and_evaluates_vectorised(kind, knife_ctx):
     assert text and text != kind
     assert set(rule.features()) <= set(FEATURES)
     ctx = knife_ctx
-    hands = ctx.hands(Roles(want=frozenset({"handle"})))
+    hands = plan_hands(ctx, Roles(want=frozenset({"handle"})))
     phase = Phase("H1G1", hands=hands)
     rows = 50
     gi = np.arange(rows) % ctx.n

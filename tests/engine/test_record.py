@@ -17,10 +17,11 @@ import numpy as np
 import pytest
 
 from handover.engine.errors import UsageError
-from handover.engine.plan.attempt import Attempt, Hands, Phase
+from handover.engine.plan.attempt import Attempt
 from handover.engine.plan.compiler import CompiledRule
 from handover.engine.plan.context import PlanContext
 from handover.engine.plan.evaluate import Decision
+from handover.engine.plan.phase import Hands, Phase
 from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites
 from handover.engine.report.rerun.bodies import ARM_COLOURS
 from handover.engine.report.rerun.reader import read_recording

@@ -89,10 +89,10 @@ def test_explaining_an_attempt_at_moved_locations_judges_them_there(builtin_kb, 
     # failed is explained where it was judged: lifting a location rule places the receiver's
     # hands again with the same locations tried last, not back at the first ones.
     from handover.engine.plan import blocking
-    from handover.engine.plan.attempt import Phase
     from handover.engine.plan.compiler import compile as compile_graph
     from handover.engine.plan.evaluate import evaluate
     from handover.engine.plan.hands import hands_for
+    from handover.engine.plan.phase import Phase
     from handover.engine.plan.prepare import prepare
     from handover.engine.spec.query import Query
 

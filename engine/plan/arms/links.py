@@ -26,8 +26,8 @@ from handover.engine.plan.arms.stages import (
 )
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
 
 __all__ = ["LINK_STARTS", "LINK_POOL", "link_targets", "wrist_failures",
            "target_groups", "link_tally", "pair_contacts", "links_words", "clear_links",

@@ -19,8 +19,8 @@ from handover.engine.plan.arms.solve import CONFIRM_LIMIT, confirm, preferred_si
 from handover.engine.plan.arms.stages import STAGE_WORDS, hit_words
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
 
 __all__ = ["FIRST_TRIES", "choose_pair_h2g2", "choose_pair_h2g1", "side_reaches"]
 

@@ -52,9 +52,9 @@ from handover.engine.plan.arms.stages import (
 )
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
     from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
 
 __all__ = [
     "CONFIRM_LIMIT",

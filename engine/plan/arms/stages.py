@@ -9,7 +9,7 @@ A grasp is held at up to three gripper poses in the world, its *stages*:
   table): the object where it rests, ``hands.poses[k] @ G`` of the placement's phase;
 
 where ``G`` is the candidate's gripper pose in the object frame. Which stages a grasp goes
-through is read from its :class:`~handover.engine.plan.attempt.Phase` (:func:`stages`). Used by
+through is read from its :class:`~handover.engine.plan.phase.Phase` (:func:`stages`). Used by
 :mod:`handover.engine.plan.arms.solve` and :mod:`handover.engine.plan.arms.links`.
 """
 
@@ -21,8 +21,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
 
 __all__ = ["STAGES", "STAGE_WORDS", "MIDAIR_BACKOFF", "FLIP", "stages", "screened_stages",
            "stage_poses", "pose_words", "objects_at", "finger_sign", "canonical_first", "row_keys",

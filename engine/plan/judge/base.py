@@ -18,8 +18,8 @@ import numpy as np
 from handover.engine.spec.kinds import KINDS, RuleBase
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
 
 __all__ = [
     "Outcome",

@@ -8,19 +8,17 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.plan.judge.base import Outcome, judges
-from handover.engine.spec.kinds.location import LocationRule
+from handover.engine.spec.kinds.location import LOCATION_MEASURES, LocationRule
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
 
 __all__ = ["evaluate"]
 
 
 def evaluate(rule: LocationRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
              pk: np.ndarray) -> Outcome:
-    from handover.engine.plan.world import LOCATION_MEASURES
-
     values = np.asarray(phase.hands.measured[rule.measure], dtype=float)[pk]
     ok, score = rule.judge(values)
     return Outcome(ok, values, score, rule.threshold(), LOCATION_MEASURES[rule.measure][0])

@@ -11,8 +11,8 @@ from handover.engine.plan.judge.base import Outcome, judges
 from handover.engine.spec.kinds.mode import MODE_CODES, ModeRule
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
 
 __all__ = ["evaluate", "detail"]
 

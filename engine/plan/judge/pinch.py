@@ -11,8 +11,8 @@ from handover.engine.plan.judge.base import Outcome, judges
 from handover.engine.spec.kinds.pinch import PinchRule
 
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Phase
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
     from handover.engine.spec.schema import ObjectSpec
 
 __all__ = ["evaluate", "detail", "not_applicable"]

@@ -120,7 +120,7 @@ def _reason_with_targets(ctx: PlanContext, attempt: Attempt) -> str | None:
     """An infeasible attempt's reason, with what its collision rules hit and, when nothing
     could be offered anywhere, why not."""
     from handover.engine.plan.features import handover_targets
-    from handover.engine.plan.world import location_reason
+    from handover.engine.plan.offer import location_reason
 
     reason = attempt.reason
     if attempt.phase is None or attempt.graph is None:

@@ -11,8 +11,9 @@ import numpy as np
 
 if TYPE_CHECKING:
     from handover.engine.load.loader import KB
-    from handover.engine.plan.attempt import Attempt, Hands
+    from handover.engine.plan.attempt import Attempt
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Hands
 
 __all__ = ["CATALOGUE", "PLANNERS", "HANDS_NEEDED", "RELOCATIONS", "RETRY_CHECKS",
            "H2G1_RELOCATIONS", "register", "hand_at", "relocated"]

@@ -7,12 +7,13 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from handover.engine.plan.arms.solve import CONFIRM_LIMIT, choose_row, reach_rule
-from handover.engine.plan.attempt import Attempt, Chosen, Phase
+from handover.engine.plan.attempt import Attempt, Chosen
 from handover.engine.plan.compiler import compile
 from handover.engine.plan.evaluate import evaluate
 from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.hands import hands_for
 from handover.engine.plan.modes.common import hand_at, register
+from handover.engine.plan.phase import Phase
 
 if TYPE_CHECKING:
     from handover.engine.load.loader import KB

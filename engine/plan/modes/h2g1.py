@@ -32,7 +32,7 @@ import numpy as np
 
 from handover.engine.plan.arms.pairs import choose_pair_h2g1, side_reaches
 from handover.engine.plan.arms.solve import reach_rule
-from handover.engine.plan.attempt import Attempt, Chosen, Hands, Phase
+from handover.engine.plan.attempt import Attempt, Chosen
 from handover.engine.plan.compiler import ConstraintGraph, compile
 from handover.engine.plan.evaluate import evaluate
 from handover.engine.plan.explain import infeasible_reason
@@ -45,6 +45,7 @@ from handover.engine.plan.modes.common import (
     register,
     relocated,
 )
+from handover.engine.plan.phase import Hands, Phase
 from handover.engine.spec.kinds.torque import load_shares, pair_lever
 
 if TYPE_CHECKING:

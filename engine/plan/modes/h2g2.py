@@ -22,12 +22,13 @@ import numpy as np
 from handover.engine.plan.arms.pairs import choose_pair_h2g2
 from handover.engine.plan.arms.solve import reach_rule
 from handover.engine.plan.arms.stages import MIDAIR_BACKOFF
-from handover.engine.plan.attempt import Attempt, Chosen, Phase
+from handover.engine.plan.attempt import Attempt, Chosen
 from handover.engine.plan.compiler import CompiledRule, compile
 from handover.engine.plan.evaluate import evaluate, evaluate_rule
 from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.hands import hands_for
 from handover.engine.plan.modes.common import hand_at, register, relocated
+from handover.engine.plan.phase import Phase
 from handover.geometry.body_mesh import mesh_hits
 
 if TYPE_CHECKING:

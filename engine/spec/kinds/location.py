@@ -17,9 +17,25 @@ from handover.engine.spec.kinds.base import RuleBase, register
 Measure = Literal["receiver_reach", "height", "front", "lateral", "robot_reach", "clear"]
 
 
+LOCATION_MEASURES = {
+    "receiver_reach": ("fraction", "distance from the receiving shoulder to the receiver's "
+                       "grasp site over the arm's reach (1: a straight arm)"),
+    "height": ("fraction", "height of the receiver's grasp site in the elbow (0) to chest (1) "
+               "band"),
+    "front": ("m", "distance of the receiver's grasp site in front of their torso"),
+    "lateral": ("m", "offset of the receiver's grasp site from their midline toward the "
+                "receiving hand"),
+    "robot_reach": ("fraction", "horizontal distance of the receiver's grasp site from the "
+                    "robot's base axis over the robot's reach"),
+    "clear": ("", "1 when the object and the receiver's hands at this location hit nothing "
+              "(table, obstacles, bodies), else 0"),
+}
+"""Measures a ``location`` rule may judge: name -> (unit, meaning)."""
+
+
 @register
 class LocationRule(RuleBase):
-    """measure (see ``handover.engine.plan.world.LOCATION_MEASURES``), min / max (bounds, in the
+    """measure (see ``:data:`LOCATION_MEASURES```), min / max (bounds, in the
     measure's unit), prefer and tolerance (soft: the score is 1 at ``prefer`` and falls as a
     Gaussian of width ``tolerance``)."""
 
@@ -48,8 +64,6 @@ class LocationRule(RuleBase):
         return ["location"]
 
     def describe(self) -> str:
-        from handover.engine.plan.world import LOCATION_MEASURES
-
         unit = LOCATION_MEASURES[self.measure][0]
         said = []
         if self.min is not None:
