@@ -16,8 +16,8 @@ Queries (touching counts as hitting; ``margin`` m grows every primitive by that 
   separating-axis test :func:`geometry.collision.boxes_overlap` (the query box is grown by
   ``margin`` per side: exact at ``margin = 0``, conservative above).
 - capsules (arm links): :meth:`Body.capsules_hit`, exact (segment distances).
-- a mesh at many poses (the object): :func:`geometry.body_mesh.mesh_hits`, python-fcl per (pose, primitive)
-  pair that survives a numpy broad phase, then a containment test (see there).
+- a mesh at many poses (the object): :func:`geometry.body_mesh.mesh_hits`, python-fcl per
+  (pose, primitive) pair that survives a numpy broad phase, then a containment test (see there).
 - clearance of one mesh pose: :func:`geometry.body_mesh.mesh_clearances` (python-fcl distance).
 
 :func:`human_body` (in :mod:`geometry.human`) builds a receiver; :func:`robot_body` places a

@@ -2,8 +2,8 @@
 once per file content, each arm's chain, kinematics (tool frame = the grasp frame, through
 the arm's ``tcp``), world base and collision shapes, and the robot's body in the world.
 
-:func:`assemble` builds the parts :class:`handover.engine.assets.robot.RobotArms` is made of and lists
-the problems, each a :class:`~handover.engine.errors.KBIssue` at the YAML node with the URDF's
+:func:`assemble` builds the parts :class:`~handover.engine.assets.robot.RobotArms` is made of
+and lists the problems, each a :class:`~handover.engine.errors.KBIssue` at the YAML node with the URDF's
 own file:line in the message; :func:`check_robot` gives only the problems (``handover kb
 validate``). Frames and units: see :mod:`handover.engine.assets.robot`.
 """

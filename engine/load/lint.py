@@ -365,7 +365,8 @@ def lint_robot(kb: KB, robot: RobotSpec, parse: bool = True) -> Iterator[KBIssue
     reported at the ``urdf`` key with the URDF's own file:line; xacro is not supported), the
     links each arm names exist, each chain has only revolute, continuous, prismatic and fixed
     joints and at least one that moves, an arm's base link is fixed to the URDF's root; a
-    warning when ``reach`` exceeds what the arms reach (:func:`engine.assets.robot_load.check_robot`)."""
+    warning when ``reach`` exceeds what the arms reach
+    (:func:`~handover.engine.assets.robot_load.check_robot`)."""
     if robot.urdf is None:
         return
     path_issues = list(lint_mesh_path(kb, robot, robot, robot.urdf, "urdf", what="URDF file"))

@@ -13,7 +13,8 @@ offered upright). A frame-aligned rotation that meets a rule only roughly (that 
 degrees off upright) is left out, and near-identical rotations are kept once
 (``SAME_ROTATION_DEG``); the axis rules then choose among them all.
 
-Where the receiver holds the object in each presentation is :mod:`handover.engine.plan.receiver_sites`.
+Where the receiver holds the object in each presentation is
+:mod:`handover.engine.plan.receiver_sites`.
 """
 
 from __future__ import annotations

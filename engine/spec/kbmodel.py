@@ -1,8 +1,8 @@
 """The building blocks every knowledge-base model shares: the base model with its source
 position, and the field types (ids, tags, finite numbers, receiver-frame directions).
 
-Kept apart from :mod:`handover.engine.spec.schema` so the rule kinds (:mod:`handover.engine.spec.kinds`)
-and the schema both build on it without importing each other.
+Kept apart from :mod:`handover.engine.spec.schema` so the rule kinds
+(:mod:`handover.engine.spec.kinds`) and the schema both build on it without importing each other.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ Kinds of KB document, one per file, told apart by their folder:
 ``robots/``    :class:`RobotSpec`       hands, payload, gripper, arms (URDF), body
                (in :mod:`handover.engine.spec.robotspec`)
 ``scenes/``    :class:`SceneSpec`       table, obstacles, receiver placement, initial pose
-``tests/``     :class:`KBTestFile`      cases run by ``handover kb test`` (:mod:`engine.spec.kbtestspec`)
+``tests/``     :class:`KBTestFile`      cases run by ``handover kb test`` (:mod:`.kbtestspec`)
 """
 
 from __future__ import annotations

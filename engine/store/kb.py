@@ -77,7 +77,8 @@ class KB:
         return self._get("objects", "object", item_id)
 
     def culture(self, item_id: str) -> Culture:
-        """The culture ``item_id`` (its own rules; see :func:`engine.store.cultures.resolve_culture`)."""
+        """The culture ``item_id`` (its own rules; see
+        :func:`~handover.engine.store.cultures.resolve_culture`)."""
         return self._get("cultures", "culture", item_id)
 
     def receiver(self, item_id: str) -> ReceiverProfile:

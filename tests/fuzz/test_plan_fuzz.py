@@ -29,8 +29,8 @@ and the files are written with every digit: a difference between the plans is th
 planner's, not rounding's. Shapes whose receiver region has two equal principal extents (a
 square box or plate, a disc) used to be left out: the SVD's axis for them, and so the way the
 receiver's hand was predicted to wrap around them, was chosen by the frame. Their hand now
-wraps the rim tangent the presentation gives (``engine.plan.receiver_sites.hand_axes``), and they are
-in: boxes with equal sides, and a square plate larger than two hands in all 24 frames. Only
+wraps the rim tangent the presentation gives (``engine.plan.receiver_sites.hand_axes``), and
+they are in: boxes with equal sides, and a square plate larger than two hands in all 24 frames. Only
 regions within 0.1 % of the isotropy threshold (``ISOTROPY``) are left out, where rounding
 may classify them differently in each frame.
 

@@ -179,7 +179,8 @@ def test_object_collider_lends_its_bvh_unchanged():
     before = collider.gripper_collides(gripper, grasp, 0.05)
     assert_array_equal(mesh_hits(body, collider, poses), mesh_hits(body, mesh, poses))
     assert_array_equal(collider.gripper_collides(gripper, grasp, 0.05), before)
-    assert_allclose(mesh_clearances(body, collider, poses[0]), mesh_clearances(body, mesh, poses[0]))
+    assert_allclose(mesh_clearances(body, collider, poses[0]),
+                    mesh_clearances(body, mesh, poses[0]))
 
 
 def test_mesh_clearances_closed_form():

@@ -23,7 +23,8 @@ def not_applicable(rule: ContactRule, ctx: PlanContext) -> str | None:
     return None
 
 
-def detail(rule: ContactRule, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
+def detail(rule: ContactRule, ctx: PlanContext, phase: Phase, grasp: int,
+           presentation: int) -> dict:
     """The giver's rule shows the two contact points (object frame, m) and the part at
     each."""
     if rule.who != "giver":

@@ -39,7 +39,8 @@ def evaluate(rule: HandFitRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
     return Outcome(ok[pk], depth[pk], ok[pk].astype(float), threshold, "m")
 
 
-def detail(rule: HandFitRule, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
+def detail(rule: HandFitRule, ctx: PlanContext, phase: Phase, grasp: int,
+           presentation: int) -> dict:
     """``receiver_hand``: the site's gap, the palm's and fingers' depths (m) and each
     hand's grip (pinch, wrap, cup, none)."""
     if phase is None or not phase.receiver_present:

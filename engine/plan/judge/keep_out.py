@@ -65,7 +65,8 @@ def evaluate(rule: KeepOutRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
                    "boxes inside the opening")
 
 
-def detail(rule: KeepOutRule, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
+def detail(rule: KeepOutRule, ctx: PlanContext, phase: Phase, grasp: int,
+           presentation: int) -> dict:
     """``entered``: the boxes that reach into the opening (``gripper palm``, ``right
     fingers``, ...)."""
     _, names = _entered(rule, ctx, phase, np.array([grasp]), np.array([presentation]))
