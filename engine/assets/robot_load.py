@@ -3,9 +3,9 @@ once per file content, each arm's chain, kinematics (tool frame = the grasp fram
 the arm's ``tcp``), world base and collision shapes, and the robot's body in the world.
 
 :func:`assemble` builds the parts :class:`~handover.engine.assets.robot.RobotArms` is made of
-and lists the problems, each a :class:`~handover.engine.errors.KBIssue` at the YAML node with the URDF's
-own file:line in the message; :func:`check_robot` gives only the problems (``handover kb
-validate``). Frames and units: see :mod:`handover.engine.assets.robot`.
+and lists the problems, each a :class:`~handover.engine.errors.KBIssue` at the YAML node with
+the URDF's own file:line in the message; :func:`check_robot` gives only the problems (``handover
+kb validate``). Frames and units: see :mod:`handover.engine.assets.robot`.
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """The robot's arms in planning (the ``reach`` rule, engine.plan.arms.solve): the arm that
-gives is the one that reaches, an object beyond both arms is refused with the arm and the pose named, and
-the joint values a plan gives put the grasp frame where the plan says, checked by yourdfpy's
-own forward kinematics (not the planner's)."""
+gives is the one that reaches, an object beyond both arms is refused with the arm and the pose
+named, and the joint values a plan gives put the grasp frame where the plan says, checked by
+yourdfpy's own forward kinematics (not the planner's)."""
 
 from __future__ import annotations
 

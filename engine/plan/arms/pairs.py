@@ -1,12 +1,13 @@
 """The robot's arms in the two-handed modes: which pair of arms holds H2G2's two grasps (one
-picks the object up and holds it at the midair pose, the other takes it there and hands it
-over) and H2G1's pair (the left arm the left grasp, the right arm the right one, the lifting
-arm at pick-up too), confirmed by exact inverse kinematics on the pairs that decide the plan
-(:mod:`~handover.engine.plan.arms.solve`: each arm's links clear of the world). Where both
-arms hold the object at the same moment (H2G2's midair regrasp, H2G1's handover, and its pick-up when both
-arms lift) their links must not touch each other either (:func:`~handover.engine.plan.arms.solve.
-pair_contacts`): a pair whose arms collide is passed over, its failure naming the links
-("the left arm's left_link6 hits other_arm:right_link6 at the midair regrasp")."""
+picks the object up and holds it at the midair pose, the other takes it there and hands it over)
+and H2G1's pair (the left arm the left grasp, the right arm the right one, the lifting arm at
+pick-up too), confirmed by exact inverse kinematics on the pairs that decide the plan
+(:mod:`~handover.engine.plan.arms.solve`: each arm's links clear of the world). Where both arms
+hold the object at the same moment (H2G2's midair regrasp, H2G1's handover, and its pick-up when
+both arms lift) their links must not touch each other either
+(:func:`~handover.engine.plan.arms.links.pair_contacts`): a pair whose arms collide is passed
+over, its failure naming the links ("the left arm's left_link6 hits other_arm:right_link6 at the
+midair regrasp")."""
 
 from __future__ import annotations
 

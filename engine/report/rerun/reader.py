@@ -1,9 +1,9 @@
 """Read a plan's rerun recording back (``handover review FILE --summary``).
 
-The recording is written by :mod:`~handover.engine.report.rerun.writer` (its docstring
-describes the entities and the stages); this module reads it with rerun's own reader into a plain summary: entities,
-the outcome counts of the candidates at each stage, the rule trace and the stage documents.
-``rerun`` is imported inside the functions, never when the engine is imported.
+The recording is written by :mod:`~handover.engine.report.rerun.writer` (its docstring describes
+the entities and the stages); this module reads it with rerun's own reader into a plain summary:
+entities, the outcome counts of the candidates at each stage, the rule trace and the stage
+documents. ``rerun`` is imported inside the functions, never when the engine is imported.
 """
 
 from __future__ import annotations

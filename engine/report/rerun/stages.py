@@ -1,6 +1,7 @@
 """What a plan's recording shows, stage by stage: the layout the writer
 (:mod:`~handover.engine.report.rerun.writer`) and the reader
-(:mod:`~handover.engine.report.rerun.reader`) share, and the outcome of every candidate at each stage (pure numpy, no rerun).
+(:mod:`~handover.engine.report.rerun.reader`) share, and the outcome of every candidate at each
+stage (pure numpy, no rerun).
 
 The timeline ``stage`` has one step per stage of the decision (:data:`STAGES`); each grasp
 candidate has an outcome class id per stage (``CLASS_*``; ``CLASS_RULE_BASE + h`` for a
