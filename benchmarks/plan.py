@@ -95,7 +95,6 @@ def bench_objects(kb, modes: list[str], runs: int) -> None:
 
 
 def bench_explain(kb, runs: int) -> None:
-    from handover.engine.plan.explain import QUICK_REASONS
     from handover.engine.plan.modes import attempt_mode
     from handover.engine.plan.prepare import prepare
 
@@ -122,10 +121,8 @@ def bench_explain(kb, runs: int) -> None:
                 for _ in range(runs):
                     for explain, times in ((False, quick), (True, full)):
                         ctx = prepare(kb, query, db)
-                        if not explain:
-                            ctx.memo[QUICK_REASONS] = True
                         t = time.perf_counter()
-                        attempt = attempt_mode(kb, ctx, mode.upper())
+                        attempt = attempt_mode(kb, ctx, mode.upper(), quick=not explain)
                         times.append(time.perf_counter() - t)
                         rows = attempt.decision.n_rows if attempt.decision is not None else 0
                 t_quick = statistics.median(quick)

@@ -150,7 +150,7 @@ def _without(cg: ConstraintGraph, ctx, removed: set[str]) -> ConstraintGraph:
     if not reads or not any(c.rule.kind == "contact" and getattr(c.rule, "who", "") == "giver"
                             and c.rule.hard for c in lifted):
         return replace(cg, order=order)
-    facts = query_facts(ctx, cg.mode)  # no rules: leaves the context's memo as it is
+    facts = query_facts(ctx, cg.mode)
     rules = [c.rule for c in cg.order + cg.inactive if c.id not in removed]
     facts = replace(facts, single_grasps=ctx.single_grasps(giver_forbid(rules, facts)))
     now: dict[str, tuple[bool, str | None]] = {}

@@ -76,6 +76,9 @@ class ConstraintGraph:
     mode: str
     overridden: list[CompiledRule] = field(default_factory=list)
     kb_order: list[str] = field(default_factory=list)
+    giver_forbid: frozenset[str] = frozenset()
+    """The tags the robot may not hold (:func:`giver_forbid` of the culture's rules on the
+    query's facts in this mode)."""
 
     @property
     def hard(self) -> list[CompiledRule]:
@@ -136,10 +139,7 @@ def query_facts(ctx: PlanContext, mode: str, rules: Iterable[RuleBase] = ()) -> 
                   payload=f.payload, max_opening=f.max_opening, role=s.receiver.role,
                   age=s.receiver.years,
                   task=s.task_id, mode=mode)
-    rules = list(rules)
     forbid = giver_forbid(rules, facts)
-    if rules:
-        ctx.memo.setdefault("giver_forbid", {})[mode] = forbid
     return replace(facts, single_grasps=ctx.single_grasps(forbid))
 
 
@@ -164,6 +164,7 @@ def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  #
 
     resolved = resolve_culture(kb, ctx.situation.query.culture)
     facts = query_facts(ctx, mode, [rr.rule for rr in resolved])
+    forbid = giver_forbid([rr.rule for rr in resolved], facts)
     graph = nx.DiGraph()
     for name, (cost, varies, text) in FEATURES.items():
         graph.add_node(f"feature:{name}", kind="feature", cost=cost, varies=varies, text=text)
@@ -227,7 +228,8 @@ def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  #
     order = sorted(active, key=lambda c: (not c.rule.hard, c.cost, position[c.id]))
     inactive = [c for c in compiled if not c.active]
     return ConstraintGraph(graph=graph, order=order, inactive=inactive, mode=mode,
-                           overridden=overridden, kb_order=[c.id for c in compiled])
+                           overridden=overridden, kb_order=[c.id for c in compiled],
+                           giver_forbid=forbid)
 
 
 def _override_chain(rr) -> list:

@@ -9,7 +9,7 @@ Rules read features of rows ``(i, k)``; see :mod:`handover.engine.plan.features`
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
@@ -22,6 +22,8 @@ if TYPE_CHECKING:
     from collections.abc import Sequence
 
     from handover.engine.assets.robot import RobotArms
+    from handover.engine.plan.phase import Hands
+    from handover.engine.plan.world import Locations
     from handover.engine.spec.schema import RuleBase
     from handover.geometry.candidates import CandidateSet
     from handover.geometry.collision import BoxWorld
@@ -29,7 +31,7 @@ if TYPE_CHECKING:
     from handover.geometry.hand import HumanHand
     from handover.geometry.mesh import PartMesh
 
-__all__ = ["ObjectFacts", "PlanContext", "build_context", "initial_pose", "scene_boxes"]
+__all__ = ["ObjectFacts", "Memo", "PlanContext", "build_context", "initial_pose", "scene_boxes"]
 
 
 @dataclass(frozen=True)
@@ -50,13 +52,66 @@ class ObjectFacts:
     max_opening: float
 
 
+_UNSET: Any = object()
+"""A memo field not computed yet (where None is a value: a robot without arms)."""
+
+
+@dataclass
+class Memo:
+    """What a context derives on first use, each value under its own name and type; the
+    module that computes a field is named after it. Every value is a pure function of the
+    context (and of the key it is filed under), so keeping or dropping them never changes
+    an outcome. Keys of ``hands``-dependent fields are :attr:`Hands.key
+    <handover.engine.plan.phase.Hands.key>`.
+    """
+
+    # PlanContext itself
+    poses: np.ndarray | None = None  # (N, 4, 4) gripper poses, object frame
+    gripper_boxes: PosedBoxes | None = None  # the gripper's boxes at every candidate
+    d_obj: np.ndarray | None = None  # (K, 3) robot->receiver per presentation, object frame
+    world: World | None = None
+    arms: RobotArms | None = _UNSET
+    single_grasps: dict[frozenset[str], int] = field(default_factory=dict)
+    # plan.hands / plan.offer
+    hands: dict[tuple, Hands] = field(default_factory=dict)
+    locations: dict[str, Locations] = field(default_factory=dict)  # by receiving hand
+    # plan.features
+    collision_scene: np.ndarray | None = None  # (N,) int8, -1 not judged yet
+    collision_handover: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N*K,) int64
+    collision_receiver_hand: dict[tuple, np.ndarray] = field(default_factory=dict)
+    hand_boxes: dict[tuple, list] = field(default_factory=dict)  # per presentation
+    gripper_spheres: tuple[np.ndarray, float] | None = None
+    interior: dict[tuple[str, ...], Any] = field(default_factory=dict)  # by tags: Interior
+    keep_out_gripper: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N,) int64
+    hand_fit: dict[tuple, Any] = field(default_factory=dict)  # features.HandFit
+    # plan.arms
+    arm_shoulders: dict[str, np.ndarray] = field(default_factory=dict)
+    arm_checks: dict[tuple, Any] = field(default_factory=dict)  # arms.stages.ArmCheck
+    arm_link_targets: dict[tuple, Any] = field(default_factory=dict)  # geometry Body
+    rest_blocked: dict[tuple, tuple] = field(default_factory=dict)
+    rest_on_object: dict[tuple, list] = field(default_factory=dict)
+    held_colliders: dict[tuple, Any] = field(default_factory=dict)
+    held_hand_boxes: dict[tuple, list] = field(default_factory=dict)
+    arm_wrists: dict[tuple, Any] = field(default_factory=dict)
+    arm_pairs: dict[tuple, tuple] = field(default_factory=dict)
+
+    GRASP_ONLY: ClassVar[tuple[str, ...]] = (
+        "poses", "gripper_boxes", "gripper_spheres", "collision_scene", "keep_out_gripper",
+        "interior", "world", "locations", "arms")
+    """Fields that depend on the grasps only, not on the presentations' rotations."""
+
+    def grasp_only(self) -> Memo:
+        """A new memo holding this one's :data:`GRASP_ONLY` fields (for a context with the
+        same grasps and other rotations)."""
+        return Memo(**{name: getattr(self, name) for name in self.GRASP_ONLY})
+
+
 @dataclass
 class PlanContext:
     """The evaluated world of one query (see module docstring). Immutable in meaning: what
     a rule decides depends on the context and the attempt's
-    :class:`~handover.engine.plan.phase.Phase`; ``memo`` only holds pure functions of the
-    context (gripper poses, the scene collision of a grasp at pick-up, hand boxes keyed by
-    the hands' identity), computed on first use.
+    :class:`~handover.engine.plan.phase.Phase`; ``memo`` (:class:`Memo`) only holds pure
+    functions of the context, computed on first use.
 
     rotations : (K, 3, 3) object -> world at the handover (where each is offered depends on
     the mode's rules: :meth:`hands`). initial : (4, 4) object -> world at pick-up.
@@ -80,7 +135,7 @@ class PlanContext:
     collider: Any = None
     kb_root: Any = None
     warnings: list[str] = field(default_factory=list)
-    memo: dict[str, Any] = field(default_factory=dict)
+    memo: Memo = field(default_factory=Memo)
 
     @property
     def n(self) -> int:
@@ -92,17 +147,17 @@ class PlanContext:
 
     def gripper_poses(self) -> np.ndarray:
         """(N, 4, 4): the candidates' gripper poses in the object frame (computed once)."""
-        if "poses" not in self.memo:
-            self.memo["poses"] = self.candidates.poses()
-        return self.memo["poses"]
+        if self.memo.poses is None:
+            self.memo.poses = self.candidates.poses()
+        return self.memo.poses
 
     def gripper_boxes(self) -> PosedBoxes:
         """The gripper's boxes at every candidate, object frame (posed once)."""
-        if "gripper_boxes" not in self.memo:
-            self.memo["gripper_boxes"] = self.gripper.posed_boxes(
+        if self.memo.gripper_boxes is None:
+            self.memo.gripper_boxes = self.gripper.posed_boxes(
                 self.gripper_poses(), self.candidates.width
             )
-        return self.memo["gripper_boxes"]
+        return self.memo.gripper_boxes
 
     def single_grasps(self, forbid: frozenset[str] = frozenset()) -> int:
         """How many single-gripper candidates lie within the gripper's opening with both
@@ -111,7 +166,7 @@ class PlanContext:
         the object: a mug too wide for the gripper still has its handle, a saucepan its
         handle; a tray wider than any opening with no rim to pinch has none. Memoised per
         ``forbid``."""
-        memo = self.memo.setdefault("single_grasps", {})
+        memo = self.memo.single_grasps
         if forbid not in memo:
             c = self.candidates
             held = np.array([not (t & forbid) for t in self.part_tags] or [True], dtype=bool)
@@ -121,33 +176,28 @@ class PlanContext:
             memo[forbid] = int(ok.sum())
         return memo[forbid]
 
-    def giver_forbid(self, mode: str | None) -> frozenset[str]:
-        """The tags the giver's hard contact rules forbid in ``mode``, as the compiler found
-        them for this query (:func:`~handover.engine.plan.compiler.query_facts`; empty before)."""
-        return self.memo.get("giver_forbid", {}).get(mode, frozenset())
-
     def d_obj(self) -> np.ndarray:
         """(K, 3): robot->receiver direction in the object frame, per presentation."""
-        if "d_obj" not in self.memo:
-            self.memo["d_obj"] = np.einsum("kji,j->ki", self.rotations, self.situation.toward)
-        return self.memo["d_obj"]
+        if self.memo.d_obj is None:
+            self.memo.d_obj = np.einsum("kji,j->ki", self.rotations, self.situation.toward)
+        return self.memo.d_obj
 
     @property
     def world(self) -> World:
         """The bodies at the handover: scene boxes, the receiver's and the robot's bodies."""
-        if "world" not in self.memo:
-            self.memo["world"] = build_world(self.situation, self.scene_box_list, self.kb_root)
-        return self.memo["world"]
+        if self.memo.world is None:
+            self.memo.world = build_world(self.situation, self.scene_box_list, self.kb_root)
+        return self.memo.world
 
     @property
     def arms(self) -> RobotArms | None:
         """The robot's arms (:func:`handover.engine.assets.robot.plan_arms`), None for a robot
         without a URDF (a floating gripper per hand) or a context without a KB folder."""
-        if "arms" not in self.memo:
+        if self.memo.arms is _UNSET:
             from handover.engine.assets.robot import plan_arms
 
-            self.memo["arms"] = plan_arms(self.kb_root, self.situation.robot)
-        return self.memo["arms"]
+            self.memo.arms = plan_arms(self.kb_root, self.situation.robot)
+        return self.memo.arms
 
 
 def _rotation_deg(angles) -> np.ndarray:

@@ -13,28 +13,23 @@ from handover.engine.plan.compiler import CompiledRule
 from handover.engine.plan.evaluate import Decision
 from handover.engine.plan.features import collision_targets, handover_targets
 
-__all__ = ["infeasible_reason", "PHYSICAL_KINDS", "QUICK_REASONS"]
+__all__ = ["infeasible_reason", "PHYSICAL_KINDS"]
 
 # Rule kinds that state what is physically possible (the gripper, the receiver's hand and
 # the world's bodies), not what is proper: a set of only these is a geometric cause.
 PHYSICAL_KINDS = ("collision", "hand_fit")
 
-# A context whose memo holds this key True plans without explaining infeasible attempts
-# (--what-if asks many plans only whether they are feasible).
-QUICK_REASONS = "quick_reasons"
-
-
-def infeasible_reason(decision: Decision, mode: str) -> str:
+def infeasible_reason(decision: Decision, mode: str, quick: bool = False) -> str:
     """One sentence: why no row of ``decision`` survived, from the :meth:`Decision.exact`
     table. The geometric cause first (no grasp on the parts the rules leave; the gripper and
     the receiver's hand that do not both fit), then the minimal blocking rule sets: sets of
     physical rules (collision, with what they hit; hand fit) first, then knowledge rules,
     the sets with a safety rule last and marked so: a safety rule is never the first thing
-    named while another set blocks as well."""
+    named while another set blocks as well. ``quick``: only that no row passes (callers that
+    ask only whether a plan is feasible, as ``--what-if`` does, skip the explanation)."""
     if decision.n_rows == 0:
         return f"{mode}: the object has no geometric grasp for this gripper"
-    ctx = decision.judged_in[0] if decision.judged_in is not None else None
-    if ctx is not None and ctx.memo.get(QUICK_REASONS):  # only feasibility is asked
+    if quick:
         return f"{mode}: no candidate passes every hard rule"
     exact = decision.exact()
     by_id = {c.id: c for c in exact.hard}

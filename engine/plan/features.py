@@ -64,12 +64,12 @@ def handover_targets(ctx: PlanContext, hands: Hands) -> Body:
     return ctx.world.without_receiving_arms(hands.receiving)
 
 
-def _per_row(ctx: PlanContext, name: str, hands: Hands, gi: np.ndarray, pk: np.ndarray,
-             compute) -> np.ndarray:
-    """(R,) int64: ``compute(gi, pk)`` memoised per row (grasp, presentation) under
-    ``name`` and the hands' key: a row judged by an earlier mode or an explanation is not
-    judged again (the value is a pure function of the row and the hands)."""
-    memo = ctx.memo.setdefault(name, {})
+def _per_row(ctx: PlanContext, memo: dict[tuple, np.ndarray], hands: Hands, gi: np.ndarray,
+             pk: np.ndarray, compute) -> np.ndarray:
+    """(R,) int64: ``compute(gi, pk)`` memoised per row (grasp, presentation) under the
+    hands' key in ``memo`` (a field of the context's :class:`~handover.engine.plan.context.
+    Memo`): a row judged by an earlier mode or an explanation is not judged again (the value
+    is a pure function of the row and the hands)."""
     known = memo.get(hands.key)
     if known is None:
         known = memo[hands.key] = np.full(ctx.n * ctx.k, -1, dtype=np.int64)
@@ -85,7 +85,7 @@ def collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
     """(R,) int64 bit mask: which of :func:`handover_targets` the gripper at grasp ``gi``
     touches with the object offered in presentation ``pk`` (bit ``HANDOVER_BIT + p``).
     Memoised per row."""
-    return _per_row(ctx, "collision_handover", hands, gi, pk,
+    return _per_row(ctx, ctx.memo.collision_handover, hands, gi, pk,
                     lambda g, k: _collision_handover(ctx, hands, g, k))
 
 
@@ -138,7 +138,9 @@ def collision_scene(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
     """(R,) bool: the gripper at grasp ``gi`` collides with the scene at pick-up (the object
     at its initial pose). Memoised per candidate; computed only for candidates not yet
     known."""
-    known = ctx.memo.setdefault("collision_scene", np.full(ctx.n, -1, dtype=np.int8))
+    if ctx.memo.collision_scene is None:
+        ctx.memo.collision_scene = np.full(ctx.n, -1, dtype=np.int8)
+    known = ctx.memo.collision_scene
     todo = np.unique(gi[known[gi] < 0])
     if len(todo):
         poses = np.einsum("ij,njk->nik", ctx.initial, ctx.gripper_poses()[todo])
@@ -188,7 +190,7 @@ def receiver_hand_boxes(ctx: PlanContext, hands: Hands, k: int) -> list:
     presentation are built together, once per hands)."""
     from handover.geometry.hand import BOX_NAMES
 
-    memo = ctx.memo.setdefault("hand_boxes", {})
+    memo = ctx.memo.hand_boxes
     if hands.key not in memo:
         ks = np.arange(len(hands.poses))
         per_k: list[list] = [[] for _ in ks]
@@ -204,7 +206,7 @@ def collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
                             pk: np.ndarray) -> np.ndarray:
     """(R,) bool: the gripper at grasp ``gi`` in presentation ``pk`` hits a receiver hand.
     Memoised per row."""
-    return _per_row(ctx, "collision_receiver_hand", hands, gi, pk,
+    return _per_row(ctx, ctx.memo.collision_receiver_hand, hands, gi, pk,
                     lambda g, k: _collision_receiver_hand(ctx, hands, g, k)).astype(bool)
 
 
@@ -234,7 +236,7 @@ def _collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
 def gripper_spheres(ctx: PlanContext) -> tuple[np.ndarray, float]:
     """(N, 3) grasp origins (object frame) and the radius (m) around each that holds every
     box of its gripper (memoised)."""
-    if "gripper_spheres" not in ctx.memo:
+    if ctx.memo.gripper_spheres is None:
         posed = ctx.gripper_boxes()
         origin = ctx.gripper_poses()[:, :3, 3]
         if len(origin):
@@ -242,8 +244,8 @@ def gripper_spheres(ctx: PlanContext) -> tuple[np.ndarray, float]:
             reach = float(spread + 0.5 * np.linalg.norm(posed.extents, axis=1).max())
         else:
             reach = 0.0
-        ctx.memo["gripper_spheres"] = (origin, reach)
-    return ctx.memo["gripper_spheres"]
+        ctx.memo.gripper_spheres = (origin, reach)
+    return ctx.memo.gripper_spheres
 
 
 def collision_other_gripper(ctx: PlanContext, other: int, gi: np.ndarray) -> np.ndarray:
@@ -263,7 +265,7 @@ def open_interior(ctx: PlanContext, tags: tuple[str, ...]) -> Interior:
     (:func:`engine.assets.objects.object_interior`). Memoised per tags."""
     from handover.engine.assets.objects import object_interior
 
-    memo = ctx.memo.setdefault("interior", {})
+    memo = ctx.memo.interior
     key = tuple(sorted(tags))
     if key not in memo:
         obj = ctx.situation.obj
@@ -279,7 +281,7 @@ def keep_out_gripper(ctx: PlanContext, interior: Interior, key: tuple,
     at grasp ``gi`` reach into ``interior`` (object frame). Memoised per candidate under
     ``key`` (the interior's tags)."""
     posed = ctx.gripper_boxes()
-    memo = ctx.memo.setdefault("keep_out_gripper", {})
+    memo = ctx.memo.keep_out_gripper
     known = memo.setdefault(key, np.full(ctx.n, -1, dtype=np.int64))
     todo = np.unique(gi[known[gi] < 0])
     if len(todo):
@@ -335,7 +337,7 @@ def hand_fit(ctx: PlanContext, hands: Hands) -> HandFit:
     from handover.geometry.mesh import ray_first_hits
     from handover.geometry.penetration import box_depths, surface_gaps
 
-    memo = ctx.memo.setdefault("hand_fit", {})
+    memo = ctx.memo.hand_fit
     if hands.key in memo:
         return memo[hands.key]
     mesh = ctx.part_mesh.mesh

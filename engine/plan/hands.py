@@ -44,7 +44,7 @@ def hands(ctx: PlanContext, roles: Roles, count: int = 1, location_rules: tuple 
     compiled ``location_rules``, the candidate locations ``avoid`` tried last
     (:func:`~handover.engine.plan.offer.place`; memoised by roles, count, the rules and
     ``avoid``)."""
-    memo = ctx.memo.setdefault("hands", {})
+    memo = ctx.memo.hands
     key = (roles, count, tuple(c.rule.model_dump_json() for c in location_rules))
     avoid = tuple(sorted({int(v) for v in avoid}))
     if avoid:

@@ -33,7 +33,7 @@ __all__ = ["candidate_locations", "locations", "Placement", "site_points", "plac
 
 def locations(ctx: PlanContext, hand: str) -> Locations:
     """The candidate handover locations around the receiver's ``hand`` (memoised)."""
-    memo = ctx.memo.setdefault("locations", {})
+    memo = ctx.memo.locations
     if hand not in memo:
         memo[hand] = candidate_locations(ctx, ctx.world, hand)
     return memo[hand]

@@ -79,6 +79,9 @@ class Phase:
     arm : the robot arm holding this grasp (``left`` | ``right``) once a mode has decided
     it, else None (the ``reach`` rule then screens every arm's reachability map; with an arm
     it judges by exact inverse kinematics, see :mod:`handover.engine.plan.arms.solve`).
+    giver_forbid : the tags the robot may not hold in this mode (the hard giver contact
+    rules whose conditions hold: :attr:`ConstraintGraph.giver_forbid
+    <handover.engine.plan.compiler.ConstraintGraph.giver_forbid>`).
     """
 
     mode: str
@@ -87,6 +90,7 @@ class Phase:
     receiver_present: bool = True
     other_grasp: int | None = None
     arm: str | None = None
+    giver_forbid: frozenset[str] = frozenset()
 
     def but(self, **changes) -> Phase:
         """A copy with ``changes`` (phases are values)."""

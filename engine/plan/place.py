@@ -77,11 +77,6 @@ PLACE_KINDS = ("axis", "contact", "quality", "torque", "keep_out", "approach", "
 PLACE_MEASURES = ("receiver_reach", "robot_reach", "lateral")
 """Location measures judged for where the object is set down."""
 NOT_JUDGED = "not judged when the object is set down on the table"
-_GRASP_MEMO = ("poses", "gripper_boxes", "gripper_spheres", "collision_scene",
-               "keep_out_gripper", "interior", "world", "locations", "arms")
-"""Memoised values of the context that depend on the grasps only, shared with the
-placement's context (the rest depend on the orientations)."""
-
 
 @dataclass
 class PlacementPlan:
@@ -144,8 +139,7 @@ def _judged(c: CompiledRule) -> bool:
 def _place_context(ctx: PlanContext, rotations: np.ndarray) -> PlanContext:
     """The plan's context with ``rotations`` (M, 3, 3) as its orientations; the memoised
     values that depend on the grasps only are shared."""
-    memo = {key: ctx.memo[key] for key in _GRASP_MEMO if key in ctx.memo}
-    return replace(ctx, rotations=np.asarray(rotations, dtype=float), memo=memo)
+    return replace(ctx, rotations=np.asarray(rotations, dtype=float), memo=ctx.memo.grasp_only())
 
 
 def _location_rules(cg: ConstraintGraph) -> tuple[list, list]:

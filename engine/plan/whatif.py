@@ -128,18 +128,9 @@ def _rule_sets(tried: list[Attempt]) -> list[tuple[list, bool, dict]]:
 def _feasible(kb: KB, ctx: PlanContext, mode: str) -> Attempt | None:
     """The attempt planning ``ctx`` with ``kb`` gives, when feasible (infeasible attempts
     are not explained on the way: only feasibility is asked)."""
-    from handover.engine.plan.explain import QUICK_REASONS
     from handover.engine.plan.modes import choose
 
-    before = ctx.memo.get(QUICK_REASONS)
-    ctx.memo[QUICK_REASONS] = True
-    try:
-        attempt, _, _ = choose(kb, ctx, mode)
-    finally:
-        if before is None:
-            ctx.memo.pop(QUICK_REASONS, None)
-        else:
-            ctx.memo[QUICK_REASONS] = before
+    attempt, _, _ = choose(kb, ctx, mode, quick=True)
     return attempt if attempt.feasible else None
 
 

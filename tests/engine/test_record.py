@@ -458,7 +458,7 @@ def test_an_arm_with_boxes_is_drawn_at_each_stage_s_joints(tmp_path):
     result.robot = {"id": "one_arm", "arms": {"right": {}}}
     result.robot_grasps[0].update(arm="right", joints={"pickup": {"j1": 0.0},
                                                        "handover": {"j1": np.pi / 2}})
-    ctx.memo["arms"] = OneJointArm()
+    ctx.memo.arms = OneJointArm()
     path = tmp_path / "arm.rrd"
     write_recording(result, ctx, path, attempt)
     cols = read_columns(path)

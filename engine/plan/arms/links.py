@@ -52,7 +52,7 @@ def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
     arm at its ``rest`` where it waits (:func:`~handover.engine.plan.arms.stages.other_arm_idle`;
     its links named ``body:robot:<link>``). Memoised in the context (one world per
     query)."""
-    memo = ctx.memo.setdefault("arm_link_targets", {})
+    memo = ctx.memo.arm_link_targets
     receiving = tuple(phase.hands.receiving) if stage == "handover" else ()
     others = [o for o in ctx.arms.sides if o != side and ctx.arms.arm(o).rest is not None]
     idle = tuple(others) if other_arm_idle(phase, stage) else ()
@@ -86,7 +86,7 @@ def rest_blocked(ctx: PlanContext, phase: Phase, side: str, stage: str,
     if not other_arm_idle(phase, stage):
         return [() for _ in pk]
     arms = ctx.arms
-    memo = ctx.memo.setdefault("rest_blocked", {})
+    memo = ctx.memo.rest_blocked
     receiving = tuple(phase.hands.receiving) if stage == "handover" else ()
     others = [o for o in arms.sides if o != side and arms.arm(o).rest is not None]
     world: list[tuple[str, str]] = []
@@ -164,7 +164,7 @@ def _rest_on_object(ctx: PlanContext, other: str, pose: np.ndarray,
                     name: str) -> list[tuple[str, str]]:
     """``("rest:<other>:<link>", name)`` for the links of the arm ``other`` at its rest that
     touch the object at ``pose`` (4, 4), world (memoised per arm and pose)."""
-    memo = ctx.memo.setdefault("rest_on_object", {})
+    memo = ctx.memo.rest_on_object
     key = (other, np.round(pose, 12).tobytes())
     if key not in memo:
         body = ctx.arms.rest_body(other)
@@ -179,7 +179,7 @@ def _rest_on_object(ctx: PlanContext, other: str, pose: np.ndarray,
 
 def _placed(ctx: PlanContext, pose: np.ndarray):
     """The object's collider at ``pose`` (4, 4), world (memoised per pose)."""
-    memo = ctx.memo.setdefault("held_colliders", {})
+    memo = ctx.memo.held_colliders
     key = np.round(pose, 12).tobytes()
     if key not in memo:
         memo[key] = ctx.collider.placed(pose)
@@ -197,7 +197,7 @@ def _hand_boxes(ctx: PlanContext, phase: Phase, k: int) -> list[tuple]:
     from handover.geometry.hand import BOX_NAMES
 
     hands = phase.hands
-    memo = ctx.memo.setdefault("held_hand_boxes", {})
+    memo = ctx.memo.held_hand_boxes
     if (hands.key, k) not in memo:
         body = ctx.world.receiver_body
         out = []
@@ -233,7 +233,7 @@ def wrist_failures(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
     those links: any configuration holding the row puts them there. Memoised per (arm,
     row, stages, hands)."""
     gi, pk, names, keys = row_keys(side, phase, gi, pk)
-    memo = ctx.memo.setdefault("arm_wrists", {})
+    memo = ctx.memo.arm_wrists
     todo = [r for r, key in enumerate(keys) if key not in memo]
     if todo:
         rows = np.array(todo)
@@ -277,7 +277,7 @@ def pair_contacts(ctx: PlanContext, stage: str, a: tuple[ArmCheck, int],
     links touching arm b's, each arm at its check's configuration there (``a``, ``b``:
     (check, grasp)). Memoised in the context both ways, so the trace of either grasp says
     the pair was checked (:func:`links_words`)."""
-    memo = ctx.memo.setdefault("arm_pairs", {})
+    memo = ctx.memo.arm_pairs
     (ca, ia), (cb, ib) = a, b
     key = (ca.side, ia, cb.side, ib, presentation, hands_key, stage)
     if key not in memo:
@@ -299,7 +299,7 @@ def links_words(ctx: PlanContext, phase: Phase, check: ArmCheck, grasp: int,
     other = getattr(phase, "other_grasp", None)
     if other is None:
         return words
-    memo = ctx.memo.get("arm_pairs", {})
+    memo = ctx.memo.arm_pairs
     for side in ctx.arms.sides:
         said = [s for s in check.stages if memo.get(
             (check.side, grasp, side, other, presentation, phase.hands.key, s)) == ()]

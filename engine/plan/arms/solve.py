@@ -128,7 +128,7 @@ def preferred_sides(ctx: PlanContext, phase: Phase, grasp: int,
     first joint) to the gripper at the row's first stage (the left arm on a tie)."""
     from handover.geometry.reach import workspace
 
-    memo = ctx.memo.setdefault("arm_shoulders", {})
+    memo = ctx.memo.arm_shoulders
     arms = ctx.arms
     for side in arms.sides:
         if side not in memo:
@@ -160,7 +160,7 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
 
     arms = ctx.arms
     gi, pk, names, keys = row_keys(side, phase, gi, pk)
-    memo = ctx.memo.setdefault("arm_checks", {})
+    memo = ctx.memo.arm_checks
     todo = [r for r, key in enumerate(dict.fromkeys(keys)) if key not in memo]
     unique = list(dict.fromkeys(keys))
     if todo:

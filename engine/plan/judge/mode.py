@@ -20,23 +20,25 @@ __all__ = ["evaluate", "detail"]
 def evaluate(rule: ModeRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
              pk: np.ndarray) -> Outcome:
     ok = np.full(len(gi), phase.mode == rule.mode)
-    value, unit = measured(rule, ctx, phase.mode)
+    value, unit = measured(rule, ctx, phase.mode, phase.giver_forbid)
     return Outcome(ok, np.full(len(gi), value), ok.astype(float), f"mode {rule.mode}",
                    unit)
 
 
-def measured(rule: ModeRule, ctx: PlanContext, mode: str) -> tuple[float, str]:
+def measured(rule: ModeRule, ctx: PlanContext, mode: str,
+             forbid: frozenset[str] = frozenset()) -> tuple[float, str]:
     """What the rule's conditions read, as (value, unit): the object's mass (kg) for a
     rule about load, how many single-gripper grasps it has (``exceeds_opening``: none) or
     its largest extent (m) for one about size, the
     receiver's age (years) for one about the receiver; else the mode code (1 = H1G1,
-    2 = H2G2, 3 = H2G1). The unit says the mode under evaluation."""
+    2 = H2G2, 3 = H2G1). The unit says the mode under evaluation. ``forbid``: the tags the
+    robot may not hold in ``mode`` (:attr:`Phase.giver_forbid`)."""
     a, f = rule.applies, ctx.facts
     role = ctx.situation.receiver.role
     if a.exceeds_payload or a.min_mass is not None:
         return f.mass, f"kg mass (one hand's payload {f.payload:g} kg), mode is {mode}"
     if a.exceeds_opening:
-        return float(ctx.single_grasps(ctx.giver_forbid(mode))), (
+        return float(ctx.single_grasps(forbid)), (
             f"single-gripper grasps within the {f.max_opening:g} m opening on the parts "
             f"the robot may hold, mode is {mode}")
     if a.min_size is not None:
@@ -59,7 +61,8 @@ def detail(rule: ModeRule, ctx: PlanContext, phase: Phase, grasp: int, presentat
     return {"facts": {"mode": mode,
                       "mass": f.mass, "payload": f.payload, "thinnest": f.min_width,
                       "opening": f.max_opening,
-                      "single_grasps": ctx.single_grasps(ctx.giver_forbid(mode)),
+                      "single_grasps": ctx.single_grasps(
+                          phase.giver_forbid if phase is not None else frozenset()),
                       "role": receiver.role, "age": receiver.years}}
 
 

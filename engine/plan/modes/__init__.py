@@ -57,9 +57,10 @@ def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
     return trace
 
 
-def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
+def attempt_mode(kb: KB, ctx: PlanContext, mode: str, quick: bool = False) -> Attempt:
     """Run one mode's planner and check its answer: a feasible attempt keeps its chosen
-    grasps only if each passes every hard rule in its trace (``extra["trace"]``)."""
+    grasps only if each passes every hard rule in its trace (``extra["trace"]``). ``quick``:
+    an infeasible attempt's reason is not explained (only feasibility is asked)."""
     robot = ctx.situation.robot
     if len(robot.hands) < HANDS_NEEDED[mode]:
         return Attempt(mode, False, f"{mode}: needs {HANDS_NEEDED[mode]} robot hands; robot "
@@ -67,7 +68,7 @@ def attempt_mode(kb: KB, ctx: PlanContext, mode: str) -> Attempt:
     out_of_reach = beyond_reach(ctx)
     if out_of_reach:
         return Attempt(mode, False, f"{mode}: {out_of_reach}")
-    attempt = PLANNERS[mode](kb, ctx)
+    attempt = PLANNERS[mode](kb, ctx, quick=quick)
     if not attempt.feasible:
         return replace(attempt, reason=_reason_with_targets(ctx, attempt))
     return _checked(ctx, attempt)
@@ -190,7 +191,8 @@ def _steps(required: CompiledRule | None,
     return steps + [(m, None) for m in order]
 
 
-def choose(kb: KB, ctx: PlanContext, asked: str) -> tuple[Attempt, list[Attempt], str]:
+def choose(kb: KB, ctx: PlanContext, asked: str,
+           quick: bool = False) -> tuple[Attempt, list[Attempt], str]:
     """Try the modes ``asked`` for (``auto``, or one forced mode) and return the attempt to
     report, every attempt tried (in the catalogue's order) and why that mode.
 
@@ -200,11 +202,11 @@ def choose(kb: KB, ctx: PlanContext, asked: str) -> tuple[Attempt, list[Attempt]
     ``bends_to`` (e.g. one hand giving, the other supporting its wrist), then H1G1, H2G2,
     H2G1. When a preference gives way, the attempt says which rule was relaxed, why and what
     was used instead (``extra["relaxed"]``, its warning and its trace entries). A soft mode
-    rule marked ``safety`` never bends: it is required."""
+    rule marked ``safety`` never bends: it is required. ``quick``: see :func:`attempt_mode`."""
     asked = asked.lower()
     if asked != "auto":
         mode = asked.upper()
-        attempt = attempt_mode(kb, ctx, mode)
+        attempt = attempt_mode(kb, ctx, mode, quick)
         return attempt, [attempt], f"forced by --mode {asked}"
 
     required, preferred = compile(kb, ctx, "H1G1").mode_rules()
@@ -223,7 +225,7 @@ def choose(kb: KB, ctx: PlanContext, asked: str) -> tuple[Attempt, list[Attempt]
         if not supported and mode in reported:
             continue  # already tried as an alternative
         if mode not in plain:  # each mode is planned once; a support reuses its rows
-            plain[mode] = attempt_mode(kb, ctx, mode)
+            plain[mode] = attempt_mode(kb, ctx, mode, quick)
         attempt = plain[mode]
         if supported:
             attempt = _with_support(ctx, attempt, bend, preferred)

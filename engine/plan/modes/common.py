@@ -10,9 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
-    from handover.engine.load.loader import KB
     from handover.engine.plan.attempt import Attempt
-    from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Hands
 
 __all__ = ["CATALOGUE", "PLANNERS", "HANDS_NEEDED", "RELOCATIONS", "RETRY_CHECKS",
@@ -29,7 +27,9 @@ H2G1_RELOCATIONS = 2
 """How many next locations H2G1 tries (each costs a search of pairs, about 0.1 s: a book whose
 every pair puts a wrist in the table would cost 0.6 s with :data:`RELOCATIONS`)."""
 
-Planner = Callable[["KB", "PlanContext"], "Attempt"]
+Planner = Callable[..., "Attempt"]
+"""``(kb, ctx, *, quick=False) -> Attempt``: ``quick`` leaves an infeasible attempt's reason
+unexplained (only feasibility is asked)."""
 CATALOGUE = ("H1G1", "H2G2", "H2G1")
 """The modes in the order auto mode tries them (after a preferred mode and what it bends to):
 one hand, then the midair regrasp, then two hands (the seed's order of simplicity)."""

@@ -21,15 +21,16 @@ if TYPE_CHECKING:
 
 
 @register("H1G1")
-def plan_h1g1(kb: KB, ctx: PlanContext) -> Attempt:
+def plan_h1g1(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     """Plan a one-hand handover; see the module docstring."""
     cg = compile(kb, ctx, "H1G1")
     phase = Phase("H1G1", hands=hands_for(cg, ctx), pickup=True,
-                  receiver_present=True)
+                  receiver_present=True, giver_forbid=cg.giver_forbid)
     decision = evaluate(cg, ctx, phase)
     ranking = decision.ranking()
     if len(ranking) == 0:
-        return Attempt("H1G1", False, infeasible_reason(decision, "H1G1"), cg, decision, phase)
+        return Attempt("H1G1", False, infeasible_reason(decision, "H1G1", quick), cg, decision,
+                       phase)
     best = int(ranking[0])
     held = phase
     if reach_rule(cg, ctx) is not None:  # the best row an arm holds exactly, and that arm

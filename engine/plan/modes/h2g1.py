@@ -107,28 +107,29 @@ def _overloaded(ctx: PlanContext, cg: ConstraintGraph, gl: np.ndarray, gr: np.nd
 
 
 @register("H2G1", hands=2)
-def plan_h2g1(kb: KB, ctx: PlanContext) -> Attempt:
+def plan_h2g1(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     """Plan a two-handed handover; see the module docstring. When the arms hold none of the
     best pairs where the location rules offer the object, the presentations that had pairs
     move to their next best locations (:func:`~handover.engine.plan.modes.common.relocated`)."""
     cg = compile(kb, ctx, "H2G1")
     count, count_why = receiver_hand_count(cg)
     extra = {"receiver_hands": count, "receiver_hands_why": count_why}
-    return relocated(_plan(ctx, cg, hands_for(cg, ctx, count), extra),
+    return relocated(_plan(ctx, cg, hands_for(cg, ctx, count), extra, quick=quick),
                      lambda avoid: hands_for(cg, ctx, count, avoid=avoid),
-                     lambda hands: _plan(ctx, cg, hands, extra, RETRY_CHECKS),
+                     lambda hands: _plan(ctx, cg, hands, extra, RETRY_CHECKS, quick),
                      H2G1_RELOCATIONS)
 
 
 def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict,
-          checks: int | None = None) -> Attempt:
+          checks: int | None = None, quick: bool = False) -> Attempt:
     """H2G1 with the receiver's ``hands`` where they are (see :func:`plan_h2g1`); at most
     ``checks`` exact (arm, grasp) checks of the pairs (default
     :data:`~handover.engine.plan.arms.solve.CONFIRM_LIMIT`)."""
     from handover.geometry.collision import grippers_collide
 
     # Rows are judged at the presentation; pick-up is a property of the pair (below).
-    phase = Phase("H2G1", hands=hands, pickup=False, receiver_present=True)
+    phase = Phase("H2G1", hands=hands, pickup=False, receiver_present=True,
+                  giver_forbid=cg.giver_forbid)
     decision = evaluate(cg, ctx, phase)
     extra = dict(extra)
     facts = ctx.facts
@@ -138,8 +139,8 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict,
                        f"({facts.payload:g} kg)", cg, decision, phase, extra=extra)
     ranking = decision.ranking()
     if len(ranking) == 0:
-        return Attempt("H2G1", False, infeasible_reason(decision, "H2G1"), cg, decision, phase,
-                       extra=extra)
+        return Attempt("H2G1", False, infeasible_reason(decision, "H2G1", quick), cg, decision,
+                       phase, extra=extra)
 
     up = np.array([0.0, 0.0, 1.0])
     lateral = np.cross(up, ctx.situation.toward)  # the robot's left

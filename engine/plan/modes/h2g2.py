@@ -118,7 +118,7 @@ def _feasible_firsts(ctx: PlanContext, rules: list[CompiledRule],
 
 
 @register("H2G2", hands=2)
-def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
+def plan_h2g2(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     """Plan a midair regrasp; see the module docstring. When no pair of arms holds the
     grasps at the locations the location rules prefer, the presentations that had grasps
     move to their next best locations (every hard location rule still holding) and H2G2 is
@@ -126,26 +126,27 @@ def plan_h2g2(kb: KB, ctx: PlanContext) -> Attempt:
     (:func:`~handover.engine.plan.modes.common.relocated`); ``extra["relocated"]`` says which
     presentations moved."""
     cg = compile(kb, ctx, "H2G2")
-    return relocated(_plan(ctx, cg, hands_for(cg, ctx)),
+    return relocated(_plan(ctx, cg, hands_for(cg, ctx), quick),
                      lambda avoid: hands_for(cg, ctx, avoid=avoid),
-                     lambda hands: _plan(ctx, cg, hands))
+                     lambda hands: _plan(ctx, cg, hands, quick))
 
 
-def _plan(ctx: PlanContext, cg, hands) -> Attempt:
+def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
     """H2G2 with the receiver's hands (and the handover locations) ``hands``."""
     from handover.geometry.collision import grippers_collide
 
     # The second hand hands over: it never takes the object off the table. The first picks
     # it while the receiver's hands are not there yet.
-    second = Phase("H2G2", hands=hands, pickup=False, receiver_present=True)
+    second = Phase("H2G2", hands=hands, pickup=False, receiver_present=True,
+                   giver_forbid=cg.giver_forbid)
     first = second.but(pickup=True, receiver_present=False)
     decision = evaluate(cg, ctx, second)
     firsts, first_removed = _feasible_firsts(ctx, first_rules(cg.hard), first)
     extra = {"first_rejected_by": first_removed, "first_feasible": int(len(firsts))}
     ranking = decision.ranking()
     if len(ranking) == 0:
-        return Attempt("H2G2", False, infeasible_reason(decision, "H2G2") + " (second hand)", cg,
-                       decision, second, extra=extra)
+        why = infeasible_reason(decision, "H2G2", quick) + " (second hand)"
+        return Attempt("H2G2", False, why, cg, decision, second, extra=extra)
     if len(firsts) == 0:
         why = ", ".join(f"{k} ({v})" for k, v in first_removed.items()) or "no candidates"
         return Attempt("H2G2", False,
