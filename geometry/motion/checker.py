@@ -114,10 +114,12 @@ class ValidityChecker:
     attached : boxes ``(name, extents (3,), pose (4, 4) in the tool frame)`` carried by the
         tool (the gripper's palm and fingers, the held object), tested like links.
     margin : m, >= 0, grows every link and attached shape.
+    allowed : ``(link or attached box, target)`` name pairs never tested (the held object
+        on the table it is lifted from, as MoveIt's allowed collision matrix).
     """
 
     def __init__(self, arm: ArmModel, targets: Targets, *, attached: Sequence[Box] = (),
-                 margin: float = 0.0) -> None:
+                 margin: float = 0.0, allowed: Sequence[tuple[str, str]] = ()) -> None:
         margin = float(margin)
         if not (np.isfinite(margin) and margin >= 0):
             raise ValueError(f"margin must be a number of metres >= 0, got {margin}")
@@ -141,7 +143,15 @@ class ValidityChecker:
             np.concatenate([shapes.box_extents, exts]),
         )  # fmt: skip
         self.checks = 0  # configurations checked so far (for benchmarks)
-        self._pairs = _pairs(self.shapes, targets)
+        allowed = {(str(a), str(b)) for a, b in allowed}
+        unknown = sorted(a for a, _ in allowed if a not in self.shapes.links) + sorted(
+            b for _, b in allowed if b not in targets.names)
+        if unknown:
+            raise ValueError(f"allowed names no link, attached box or target: {unknown}")
+        self._allowed = np.zeros((len(self.shapes.links), len(targets.names)), dtype=bool)
+        for a, b in allowed:
+            self._allowed[self.shapes.links.index(a), targets.names.index(b)] = True
+        self._pairs = _pairs(self.shapes, targets, self._allowed)
 
     @property
     def link_names(self) -> tuple[str, ...]:
@@ -161,7 +171,9 @@ class ValidityChecker:
         configurations q (n, dof)."""
         q = np.atleast_2d(np.asarray(q, dtype=float))
         self.checks += len(q)
-        return world_hits(self.shapes, self._poses(q), self.targets, margin=self.margin)
+        hits = world_hits(self.shapes, self._poses(q), self.targets, margin=self.margin)
+        hits[:, self._allowed] = False
+        return hits
 
     def within_limits(self, q: np.ndarray) -> np.ndarray:
         """(n,) bool: configurations q (n, dof) within the joint limits."""
@@ -247,17 +259,20 @@ class ValidityChecker:
                                                                            strict=True)]
 
 
-def _pairs(shapes: LinkShapes, targets: Targets) -> dict[str, np.ndarray]:
-    """Every (link shape, target shape) pair of each kind, as index arrays, and the target
-    capsules' half lengths."""
-    def grid(n_s: int, n_t: int) -> tuple[np.ndarray, np.ndarray]:
-        s, t = np.meshgrid(np.arange(n_s), np.arange(n_t), indexing="ij")
-        return s.ravel(), t.ravel()
+def _pairs(shapes: LinkShapes, targets: Targets, allowed: np.ndarray
+           ) -> dict[str, np.ndarray]:
+    """Every (link shape, target shape) pair of each kind not ``allowed`` (links x targets
+    bool), as index arrays, and the target capsules' half lengths."""
+    def grid(links: np.ndarray, owners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        s, t = np.meshgrid(np.arange(len(links)), np.arange(len(owners)), indexing="ij")
+        s, t = s.ravel(), t.ravel()
+        keep = ~allowed[links[s], owners[t]]
+        return s[keep], t[keep]
 
-    nc, nb = len(shapes.cap_link), len(shapes.box_link)
-    tc, tb = len(targets.cap_target), len(targets.box_target)
     half = 0.5 * np.linalg.norm(targets.cap_b - targets.cap_a, axis=1)
-    out = {"cc": grid(nc, tc), "cb": grid(nc, tb), "bb": grid(nb, tb), "bc": grid(nb, tc)}
+    cl, bl = shapes.cap_link, shapes.box_link
+    tc, tb = targets.cap_target, targets.box_target
+    out = {"cc": grid(cl, tc), "cb": grid(cl, tb), "bb": grid(bl, tb), "bc": grid(bl, tc)}
     out["cc_half"] = half[out["cc"][1]]
     out["bc_half"] = half[out["bc"][1]]
     return out

@@ -168,6 +168,9 @@ def test_a_start_in_collision_is_a_failure_naming_the_link_and_what_it_touches(s
     inside = transform_from(frame_from_o_a([0, 1, 0], [0, 0, -1]), [0.56, 0.11, 1.0])
     ik = arm.kin.ik(np.linalg.inv(arm.base) @ inside, restarts=30, rng_seed=3)
     assert ik.success[0]
+    # python-fcl on the URDF's own geometry agrees that this start touches the post.
+    found = _fcl_clear(ik.q[:1], _yourdfpy_shapes(arm), _obstacle_objects())
+    assert {name for _, _, name in found} == {"post"}
     failure = plan_segment(checker, ik.q[0], goal, name="from inside the post")
     assert isinstance(failure, PlanningFailure)
     assert failure.kind == "start_invalid"
