@@ -15,10 +15,10 @@ grows every link and attached shape). The arm's links are not tested against eac
 
 :meth:`ValidityChecker.hits` gives the whole (configuration, link, target) matrix through
 ``world_hits``; :meth:`ValidityChecker.valid`, what a planner asks thousands of times, answers
-the same question (a test holds them equal) faster: the (shape, target shape) pairs are
-listed once per checker, a pair goes to its exact test only if its bounding volumes meet (a
-capsule's bounding sphere against a box itself, not the box's sphere: a table is large), and
-a configuration found touching is not tested further.
+the same question (a test holds them equal) faster: the targets' bounding spheres and the
+pairs to test are prepared once per checker; one array operation compares every (configuration,
+shape, target shape) pair's bounding spheres, only the pairs whose spheres meet go to their
+exact tests (the cheap kinds first), and a configuration found touching is not tested further.
 
 World frame, metres, radians (metres for prismatic joints).
 """
@@ -197,58 +197,42 @@ class ValidityChecker:
         ca, cb = posed_capsules(self.shapes, poses)  # (n, c, 3)
         bc, br = posed_boxes(self.shapes, poses)  # (n, b, 3), (n, b, 3, 3)
         t, mg, p = self.targets, self.margin, self._pairs
-        cap_r = self.shapes.cap_radius
+        cap_r = self.shapes.cap_radius + mg
         box_h = 0.5 * self.shapes.box_extents + mg
         t_h = 0.5 * t.box_ext
-        # Capsule - capsule.
-        s, k = p["cc"]
-        if len(s) and free.any():
-            rows = np.flatnonzero(free)
-            a, b = ca[rows][:, s], cb[rows][:, s]
-            reach = cap_r[s] + t.cap_radius[k] + mg
-            mid = 0.5 * (a + b) - 0.5 * (t.cap_a[k] + t.cap_b[k])
-            near = np.linalg.norm(mid, axis=2) <= (0.5 * np.linalg.norm(b - a, axis=2)
-                                                   + p["cc_half"] + reach)  # fmt: skip
-            i, j = np.nonzero(near)
-            touch = segment_segment_distances(a[i, j], b[i, j], t.cap_a[k[j]],
-                                              t.cap_b[k[j]]) <= reach[j]  # fmt: skip
-            free[rows[i[touch]]] = False
-        # Capsule - box: the capsule's bounding sphere against the box, then exact.
-        s, k = p["cb"]
-        if len(s) and free.any():
-            rows = np.flatnonzero(free)
-            a, b = ca[rows][:, s], cb[rows][:, s]
-            reach = cap_r[s] + mg
-            mid = ((0.5 * (a + b) - t.box_centre[k])[..., None, :] @ t.box_rot[k])[..., 0, :]
-            out = np.linalg.norm(np.maximum(np.abs(mid) - t_h[k], 0.0), axis=2)
-            near = out <= 0.5 * np.linalg.norm(b - a, axis=2) + reach
-            i, j = np.nonzero(near)
-            touch = segment_box_distances(a[i, j], b[i, j], t.box_centre[k[j]], t.box_rot[k[j]],
-                                          t_h[k[j]]) <= reach[j]  # fmt: skip
-            free[rows[i[touch]]] = False
-        # Box - box.
-        s, k = p["bb"]
-        if len(s) and free.any():
-            rows = np.flatnonzero(free)
-            c, r = bc[rows][:, s], br[rows][:, s]
-            near = np.linalg.norm(c - t.box_centre[k], axis=2) <= (
-                np.linalg.norm(box_h[s], axis=1) + np.linalg.norm(t_h[k], axis=1))
-            i, j = np.nonzero(near)
-            touch = boxes_overlap(c[i, j], r[i, j], 2.0 * box_h[s[j]], t.box_centre[k[j]],
-                                  t.box_rot[k[j]], t.box_ext[k[j]])  # fmt: skip
-            free[rows[i[touch]]] = False
-        # Box - capsule: the target capsule's sphere against the box, then exact.
-        s, k = p["bc"]
-        if len(s) and free.any():
-            rows = np.flatnonzero(free)
-            c, r = bc[rows][:, s], br[rows][:, s]
-            mid = ((0.5 * (t.cap_a[k] + t.cap_b[k]) - c)[..., None, :] @ r)[..., 0, :]
-            out = np.linalg.norm(np.maximum(np.abs(mid) - box_h[s], 0.0), axis=2)
-            near = out <= p["bc_half"] + t.cap_radius[k]
-            i, j = np.nonzero(near)
-            touch = segment_box_distances(t.cap_a[k[j]], t.cap_b[k[j]], c[i, j], r[i, j],
-                                          box_h[s[j]]) <= t.cap_radius[k[j]]  # fmt: skip
-            free[rows[i[touch]]] = False
+        # Broad phase over every (configuration, shape, target shape) at once: bounding
+        # spheres (capsules: about their middle; boxes: about their centre).
+        centres = np.concatenate([0.5 * (ca + cb), bc], axis=1)  # (n, c + b, 3)
+        radii = np.concatenate([0.5 * np.linalg.norm(cb - ca, axis=2) + cap_r,
+                                np.broadcast_to(np.linalg.norm(box_h, axis=1),
+                                                (n, len(box_h)))], axis=1)  # fmt: skip
+        gap = centres[:, :, None, :] - p["t_centre"]  # (n, S, T, 3)
+        reach = radii[:, :, None] + p["t_radius"]
+        near = ((gap * gap).sum(axis=3) <= reach * reach) & p["mask"]
+        rows, shp, tgt = np.nonzero(near)
+        nc, tc = len(cap_r), len(t.cap_target)
+        kinds = (shp >= nc).astype(int) * 2 + (tgt >= tc)  # 0 cc, 1 cb, 2 bc, 3 bb
+        for kind in (0, 3, 1, 2):  # the cheap exact tests first
+            pick = np.flatnonzero((kinds == kind) & free[rows])
+            if not len(pick):
+                continue
+            i, s, k = rows[pick], shp[pick], tgt[pick]
+            if kind == 0:
+                touch = segment_segment_distances(ca[i, s], cb[i, s], t.cap_a[k],
+                                                  t.cap_b[k]) <= cap_r[s] + t.cap_radius[k]
+            elif kind == 1:
+                k = k - tc
+                touch = segment_box_distances(ca[i, s], cb[i, s], t.box_centre[k], t.box_rot[k],
+                                              t_h[k]) <= cap_r[s]  # fmt: skip
+            elif kind == 2:
+                s = s - nc
+                touch = segment_box_distances(t.cap_a[k], t.cap_b[k], bc[i, s], br[i, s],
+                                              box_h[s]) <= t.cap_radius[k]  # fmt: skip
+            else:
+                s, k = s - nc, k - tc
+                touch = boxes_overlap(bc[i, s], br[i, s], 2.0 * box_h[s], t.box_centre[k],
+                                      t.box_rot[k], t.box_ext[k])  # fmt: skip
+            free[i[touch]] = False
         return free
 
     def contacts(self, q: np.ndarray) -> list[tuple[str, str]]:
@@ -261,18 +245,14 @@ class ValidityChecker:
 
 def _pairs(shapes: LinkShapes, targets: Targets, allowed: np.ndarray
            ) -> dict[str, np.ndarray]:
-    """Every (link shape, target shape) pair of each kind not ``allowed`` (links x targets
-    bool), as index arrays, and the target capsules' half lengths."""
-    def grid(links: np.ndarray, owners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        s, t = np.meshgrid(np.arange(len(links)), np.arange(len(owners)), indexing="ij")
-        s, t = s.ravel(), t.ravel()
-        keep = ~allowed[links[s], owners[t]]
-        return s[keep], t[keep]
-
-    half = 0.5 * np.linalg.norm(targets.cap_b - targets.cap_a, axis=1)
-    cl, bl = shapes.cap_link, shapes.box_link
-    tc, tb = targets.cap_target, targets.box_target
-    out = {"cc": grid(cl, tc), "cb": grid(cl, tb), "bb": grid(bl, tb), "bc": grid(bl, tc)}
-    out["cc_half"] = half[out["cc"][1]]
-    out["bc_half"] = half[out["bc"][1]]
-    return out
+    """The target shapes' bounding spheres (capsules first, then boxes): ``t_centre`` (T, 3),
+    ``t_radius`` (T,); and ``mask`` (S, T) bool, the (link shape, target shape) pairs to
+    test (link shapes: capsules first, then boxes), those not ``allowed`` (links x targets)."""
+    t_centre = np.concatenate([0.5 * (targets.cap_a + targets.cap_b), targets.box_centre])
+    t_radius = np.concatenate([0.5 * np.linalg.norm(targets.cap_b - targets.cap_a, axis=1)
+                               + targets.cap_radius,
+                               0.5 * np.linalg.norm(targets.box_ext, axis=1)])  # fmt: skip
+    owner_s = np.concatenate([shapes.cap_link, shapes.box_link])
+    owner_t = np.concatenate([targets.cap_target, targets.box_target])
+    mask = ~allowed[owner_s[:, None], owner_t[None, :]]
+    return {"t_centre": t_centre, "t_radius": t_radius, "mask": mask}
