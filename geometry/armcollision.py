@@ -20,11 +20,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from handover.geometry.collision import boxes_overlap
 from handover.geometry.urdf import LinkShapes, RobotModelError
+
+if TYPE_CHECKING:
+    from handover.geometry.bodies import Body
 
 __all__ = [
     "Targets",
@@ -137,6 +141,20 @@ class Targets:
         except ValueError as exc:
             raise RobotModelError(str(exc)) from None
         return cls(names, np.arange(len(names)), centres, rots, exts)
+
+    @classmethod
+    def from_body(cls, body: Body) -> Targets:
+        """Targets from a :class:`~handover.geometry.bodies.Body`'s primitives (in its frame),
+        one target per distinct name."""
+        names = tuple(dict.fromkeys(body.names))
+        index = {name: i for i, name in enumerate(names)}
+        return cls(
+            names,
+            np.array([index[n] for n in body.box_names], dtype=np.intp),
+            body.poses[:, :3, 3], body.poses[:, :3, :3], body.extents,
+            np.array([index[n] for n in body.capsule_names], dtype=np.intp),
+            body.p0, body.p1, body.radius,
+        )  # fmt: skip
 
     @classmethod
     def from_shapes(

@@ -30,13 +30,16 @@ from __future__ import annotations
 
 import hashlib
 import os
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 __all__ = [
+    "DEFAULT_VELOCITY",
     "RobotModelError",
+    "VelocityLimitWarning",
     "Chain",
     "LinkShapes",
     "RobotModel",
@@ -45,6 +48,16 @@ __all__ = [
 
 _XACRO_NS = "http://www.ros.org/wiki/xacro"
 _MOVING = ("revolute", "continuous", "prismatic")
+
+DEFAULT_VELOCITY = 0.5
+"""rad/s (m/s for a prismatic joint): the velocity limit of a moving joint whose URDF gives
+none (no ``velocity`` attribute, a value that is not a positive number, or no ``<limit>`` on a
+continuous joint). Slow for an arm joint (a Panda's are 2.2-2.6 rad/s), so a missing limit errs
+on the safe side; :meth:`Chain.velocity_limits` warns when it is used."""
+
+
+class VelocityLimitWarning(UserWarning):
+    """A joint's URDF gives no usable velocity limit; :data:`DEFAULT_VELOCITY` is used."""
 
 
 class RobotModelError(ValueError):
@@ -80,6 +93,9 @@ class Chain:
         and the first moving joint, not moved) and
         ``link_offsets[k]`` (4, 4) the link's frame in that joint's frame. Links hanging off
         the chain through fixed joints (a camera, a gripper) are included.
+    velocity : (dof,) the URDF's velocity limits, rad/s (m/s), :data:`DEFAULT_VELOCITY` where
+        it gives none (None: none known). velocity_missing : ``"joint (file:line)"`` for each
+        joint given the default. Read them through :meth:`velocity_limits`.
     """
 
     base_link: str
@@ -95,6 +111,8 @@ class Chain:
     link_joint: np.ndarray
     link_offsets: np.ndarray
     source: str = ""
+    velocity: np.ndarray | None = None
+    velocity_missing: tuple[str, ...] = ()
 
     @property
     def dof(self) -> int:
@@ -116,6 +134,23 @@ class Chain:
         q = np.asarray(q, dtype=float)
         ok = (q >= self.lower - tol) & (q <= self.upper + tol)
         return np.all(ok | self.continuous, axis=-1)
+
+    def velocity_limits(self) -> np.ndarray:
+        """(dof,) velocity limits, rad/s (m/s for prismatic joints): the URDF's, and
+        :data:`DEFAULT_VELOCITY` for the joints it gives none, with a
+        :class:`VelocityLimitWarning` naming them."""
+        if self.velocity is None:
+            missing = self.joint_names
+            limits = np.full(self.dof, DEFAULT_VELOCITY)
+        else:
+            missing = self.velocity_missing
+            limits = np.asarray(self.velocity, dtype=float).copy()
+        if missing:
+            warnings.warn(
+                f"no velocity limit for {', '.join(missing)}: using {DEFAULT_VELOCITY} "
+                "rad/s (m/s) (handover.geometry.urdf.DEFAULT_VELOCITY)",
+                VelocityLimitWarning, stacklevel=2)
+        return limits
 
     def as_dict(self, q: np.ndarray) -> dict[str, float]:
         """One configuration q (dof,) as ``{joint name: value}``."""
@@ -212,6 +247,7 @@ class RobotModel:
         path.reverse()
 
         names, kinds, origins, axes, lower, upper = [], [], [], [], [], []
+        velocity, missing = [], []
         pending = np.eye(4)  # fixed transform accumulated since the last moving joint
         chain_links: list[tuple[str, int, np.ndarray]] = [(base_link, -1, np.eye(4))]
         for joint in path:
@@ -249,6 +285,13 @@ class RobotModel:
                         f"got {lo}, {hi}",
                         key,
                     )
+            speed = None if joint.limit is None else joint.limit.velocity
+            if speed is None or not (np.isfinite(speed) and speed > 0):
+                line = self.lines.get(key)
+                missing.append(f"{joint.name} ({self.path}:{line})" if line
+                               else f"{joint.name} ({self.path})")  # fmt: skip
+                speed = DEFAULT_VELOCITY
+            velocity.append(float(speed))
             names.append(joint.name)
             kinds.append(joint.type)
             origins.append(pending @ origin)
@@ -292,6 +335,8 @@ class RobotModel:
             link_joint=np.array([j for _, j, _ in chain_links], dtype=np.intp),
             link_offsets=np.array([off for _, _, off in chain_links], dtype=float),
             source=str(self.path),
+            velocity=np.array(velocity, dtype=float),
+            velocity_missing=tuple(missing),
         )
 
     def fixed_pose(self, link: str, relative_to: str | None = None) -> np.ndarray:

@@ -4,13 +4,19 @@ as capsules and boxes, and every bad input reported at its file and line."""
 from __future__ import annotations
 
 import textwrap
+import warnings
 from pathlib import Path
 
 import pytest
 import trimesh
 from numpy.testing import assert_allclose
 
-from handover.geometry.urdf import RobotModelError, load_urdf
+from handover.geometry.urdf import (
+    DEFAULT_VELOCITY,
+    RobotModelError,
+    VelocityLimitWarning,
+    load_urdf,
+)
 
 ROBOT = Path(__file__).resolve().parents[2] / "kb" / "robots" / "idro_arms.urdf"
 
@@ -210,6 +216,25 @@ def test_xacro_and_malformed_xml_and_missing_links_are_errors(tmp_path):
     assert info.value.line == 3
     with pytest.raises(RobotModelError, match="not found"):
         load_urdf(tmp_path / "nothing.urdf")
+
+
+def test_shipped_robot_velocity_limits_are_frankas_without_a_warning():
+    # Franka's "Limits for Panda": 2.175 rad/s for joints 1-4, 2.61 rad/s for joints 5-7.
+    chain = load_urdf(ROBOT).chain("base_link", "left_flange")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert_allclose(chain.velocity_limits(), [2.175] * 4 + [2.61] * 3)
+
+
+def test_joint_without_velocity_limit_gets_the_default_and_a_warning_naming_it(tmp_path):
+    # TWO_LINK's joints give lower and upper but no velocity; j1 is declared on line 9.
+    path = _write(tmp_path, TWO_LINK.replace('<limit lower="-2" upper="2"/>',
+                                             '<limit lower="-2" upper="2" velocity="1.5"/>'))
+    chain = load_urdf(path).chain("base", "tip")
+    with pytest.warns(VelocityLimitWarning, match=rf"j1 \({path}:9\)") as record:
+        limits = chain.velocity_limits()
+    assert "j2" not in str(record[0].message)
+    assert_allclose(limits, [DEFAULT_VELOCITY, 1.5])
 
 
 def test_revolute_joint_without_limits_is_an_error(tmp_path):

@@ -1,0 +1,334 @@
+"""Collision-free joint-space motion of one arm between two configurations, with OMPL.
+
+:func:`plan_segment` plans one stage of a plan (rest to pre-grasp, grasp to lift, ...):
+
+1. the start and the goal are checked (within the joint limits, touching nothing): a
+   :class:`PlanningFailure` names what the links touch;
+2. the straight line between them is tried first (most stages are short and free);
+3. otherwise OMPL plans in the joints' box (``RealVectorStateSpace`` bounded by the limits)
+   with RRTConnect (or :attr:`PlannerSettings.planner`), its validity checker the project's
+   vectorised link model (:class:`~handover.geometry.motion.checker.ValidityChecker`): states
+   one by one, and every edge as one batch, discretised so that no joint moves more than
+   ``resolution`` rad between checked configurations (a Python ``MotionValidator``);
+4. the path is shortened with OMPL's ``PathSimplifier`` (vertex reduction, then collapsing
+   close vertices; each a fixed number of seeded random tries, never time-bounded);
+5. the final path is re-checked densely at ``resolution``, time-parameterised under the
+   URDF's velocity limits (:func:`~handover.geometry.motion.timing.time_parameterise`,
+   ruckig), and every sample of the trajectory is checked once more.
+
+Deterministic: OMPL's random numbers are re-seeded (``ompl.util.RNG.setSeed``) before each
+planner and simplifier is made, and the planner's budget is a number of iterations, so the
+same call gives the same path, bit for bit. A wall-clock ``timeout`` only guards against
+runaway searches; a search it stops is reported as a failure saying so (not reproducible
+from machine to machine, unlike the iteration budget).
+
+Why OMPL: its Python wheel (``ompl`` 2.0, nanobind) plans for any robot given a state space
+and a validity checker, so the project's own link model (capsules, boxes, the held object,
+the other arm) decides; VAMP (``vamp-planner``) compiles each robot's collision spheres into
+C++ with its own tracing compiler, ships no wheel for a robot of ours (the package is a source
+distribution for the Panda, UR5, Fetch and Baxter) and checks against its own sphere models,
+not the project's.
+
+Joint values in radians (metres for prismatic joints), times in seconds.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from handover.geometry.motion.checker import ValidityChecker
+from handover.geometry.motion.timing import time_parameterise
+
+__all__ = [
+    "DEFAULT_RESOLUTION",
+    "PLANNERS",
+    "PlannerSettings",
+    "PlanningFailure",
+    "Segment",
+    "densify",
+    "plan_segment",
+]
+
+DEFAULT_RESOLUTION = 0.02
+"""rad: the largest joint step between two checked configurations (edges of the search, the
+final path, the trajectory's samples). At the Panda's reach (about 1.1 m from the shoulder)
+one joint's step moves the gripper up to 2.2 cm; a ``margin`` on the checker covers the gap
+between checked configurations where that matters."""
+
+PLANNERS = ("RRTConnect", "RRT", "BKPIECE1", "LBKPIECE1")
+
+_COARSE = 4  # an edge's every fourth configuration is checked first
+"""The OMPL planners :class:`PlannerSettings` may name."""
+
+
+@dataclass(frozen=True)
+class PlannerSettings:
+    """How :func:`plan_segment` searches.
+
+    resolution : rad, > 0, see :data:`DEFAULT_RESOLUTION`.
+    planner : one of :data:`PLANNERS`. range : rad (joint-space distance), the planner's
+        step; 0 lets OMPL choose (a fifth of the joint box's diagonal).
+    max_iterations : the planner's budget (its termination condition is asked once per
+        iteration). timeout : s, a guard on wall-clock time.
+    seed : OMPL's random seed (> 0). simplify_steps : tries per simplification pass (0:
+        OMPL's default, the path's vertex count); simplify_rounds : passes of vertex
+        reduction (fewer if a pass changes nothing).
+    period : s, the trajectory's longest sampling period.
+    """
+
+    resolution: float = DEFAULT_RESOLUTION
+    planner: str = "RRTConnect"
+    range: float = 0.0
+    max_iterations: int = 20_000
+    timeout: float = 10.0
+    seed: int = 1
+    simplify_steps: int = 0
+    simplify_rounds: int = 5
+    period: float = 0.01
+
+    def __post_init__(self) -> None:
+        if self.planner not in PLANNERS:
+            raise ValueError(f"planner must be one of {', '.join(PLANNERS)}, got "
+                             f"{self.planner!r}")  # fmt: skip
+        for name in ("resolution", "timeout", "period"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ValueError(f"PlannerSettings.{name} must be a positive number, got {value}")
+        if not (np.isfinite(self.range) and self.range >= 0):
+            raise ValueError(f"PlannerSettings.range must be >= 0, got {self.range}")
+        for name in ("max_iterations", "seed"):
+            if int(getattr(self, name)) < 1:
+                raise ValueError(f"PlannerSettings.{name} must be at least 1")
+        if self.simplify_steps < 0 or self.simplify_rounds < 0:
+            raise ValueError("PlannerSettings.simplify_steps and simplify_rounds must be >= 0")
+
+
+@dataclass(frozen=True, eq=False)
+class Segment:
+    """A timed joint-space trajectory of one arm for one stage.
+
+    name : the stage (``rest->pregrasp``, ``grasp->lift``, ...). joint_names : dof str.
+    positions : (k, dof) rad, the samples (first: the start, last: the goal exactly).
+    times : (k,) s, from 0, increasing. waypoints : (w, dof) rad, the checked path's
+    vertices (the arm stops at each). planner : ``direct`` (the straight line was free) or
+    the OMPL planner's name. checks : configurations the checker tested for this segment.
+    seconds : wall-clock time spent planning it.
+    """
+
+    name: str
+    joint_names: tuple[str, ...]
+    positions: np.ndarray
+    times: np.ndarray
+    waypoints: np.ndarray
+    planner: str
+    checks: int = 0
+    seconds: float = field(default=0.0, compare=False)
+
+    @property
+    def duration(self) -> float:
+        """s, the time the motion takes."""
+        return float(self.times[-1])
+
+    def to_dict(self) -> dict:
+        """JSON-ready: ``{segment, joint_names, positions, times}`` (the plan's
+        ``trajectory`` entries) plus ``waypoints`` and ``planner``."""
+        return {
+            "segment": self.name,
+            "joint_names": list(self.joint_names),
+            "positions": self.positions.tolist(),
+            "times": self.times.tolist(),
+            "waypoints": self.waypoints.tolist(),
+            "planner": self.planner,
+        }
+
+
+@dataclass(frozen=True)
+class PlanningFailure:
+    """Why a stage has no motion.
+
+    name : the stage. kind : ``start_invalid`` | ``goal_invalid`` | ``no_path`` |
+    ``trajectory_invalid``. reason : one sentence. contacts : ``(link, target)`` pairs that
+    make the start or goal invalid (else empty).
+    """
+
+    name: str
+    kind: str
+    reason: str
+    contacts: tuple[tuple[str, str], ...] = ()
+
+    def to_dict(self) -> dict:
+        return {"segment": self.name, "kind": self.kind, "reason": self.reason,
+                "contacts": [list(c) for c in self.contacts]}
+
+
+def densify(waypoints: np.ndarray, resolution: float) -> np.ndarray:
+    """(k, dof) the polyline ``waypoints`` (w, dof) with configurations inserted so that no
+    joint moves more than ``resolution`` between neighbours (every waypoint kept)."""
+    q = np.asarray(waypoints, dtype=float)
+    out = [q[:1]]
+    for qa, qb in zip(q[:-1], q[1:], strict=True):
+        steps = max(1, int(np.ceil(np.abs(qb - qa).max() / resolution - 1e-9)))
+        t = np.arange(1, steps + 1)[:, None] / steps
+        out.append(qa + t * (qb - qa))
+    return np.concatenate(out)
+
+
+def _check_q(q: np.ndarray, dof: int, what: str) -> np.ndarray:
+    q = np.asarray(q, dtype=float).reshape(-1)
+    if q.shape != (dof,) or not np.isfinite(q).all():
+        raise ValueError(f"{what} must be {dof} finite joint values, got {np.shape(q)}")
+    return q
+
+
+def _endpoint_failure(checker: ValidityChecker, q: np.ndarray, name: str, which: str
+                      ) -> PlanningFailure | None:
+    chain = checker.arm.kin.chain
+    kind = f"{which}_invalid"
+    outside = ~((q >= chain.lower - 1e-9) & (q <= chain.upper + 1e-9) | chain.continuous)
+    if outside.any():
+        i = int(np.flatnonzero(outside)[0])
+        return PlanningFailure(name, kind, f"the {which} puts {chain.joint_names[i]} at "
+                               f"{q[i]:.4f}, outside its limits [{chain.lower[i]:.4f}, "
+                               f"{chain.upper[i]:.4f}]")  # fmt: skip
+    contacts = checker.contacts(q)
+    if contacts:
+        said = ", ".join(f"{link} touches {target}" for link, target in contacts[:4])
+        more = f" (and {len(contacts) - 4} more)" if len(contacts) > 4 else ""
+        return PlanningFailure(name, kind, f"the {which} is in collision: {said}{more}",
+                               tuple(contacts))
+    return None
+
+
+def plan_segment(
+    checker: ValidityChecker,
+    start: np.ndarray,
+    goal: np.ndarray,
+    *,
+    name: str = "segment",
+    settings: PlannerSettings | None = None,
+    velocity: np.ndarray | None = None,
+    acceleration: np.ndarray | float | None = None,
+    jerk: np.ndarray | float | None = None,
+) -> Segment | PlanningFailure:
+    """A collision-free timed motion from ``start`` to ``goal`` (each (dof,) rad) for the
+    checker's arm, or a :class:`PlanningFailure` saying why there is none (see the module
+    docstring). velocity : (dof,) rad/s (default: the URDF's, :meth:`Chain.velocity_limits
+    <handover.geometry.urdf.Chain.velocity_limits>`); acceleration, jerk : see
+    :func:`~handover.geometry.motion.timing.time_parameterise`.
+    Raises ``ValueError`` only for malformed input (wrong shapes, bad settings).
+    """
+    settings = settings or PlannerSettings()
+    began = time.perf_counter()
+    checks_before = checker.checks
+    dof = checker.arm.dof
+    start = _check_q(start, dof, "start")
+    goal = _check_q(goal, dof, "goal")
+    for which, q in (("start", start), ("goal", goal)):
+        failure = _endpoint_failure(checker, q, name, which)
+        if failure is not None:
+            return failure
+    res = settings.resolution
+    if checker.valid(densify(np.array([start, goal]), res)[1:-1]).all():
+        waypoints, used = np.array([start, goal]), "direct"
+    else:
+        found = _search(checker, start, goal, settings)
+        if isinstance(found, str):
+            return PlanningFailure(name, "no_path", found)
+        waypoints, used = found, settings.planner
+        if not checker.valid(densify(waypoints, res)).all():
+            return PlanningFailure(name, "no_path", "the simplified path failed the final "
+                                   f"dense check at {res} rad")  # fmt: skip
+    limits = checker.arm.kin.chain.velocity_limits() if velocity is None else velocity
+    positions, times = time_parameterise(waypoints, limits, acceleration, jerk,
+                                         resolution=res, period=settings.period)
+    bad = np.flatnonzero(~checker.valid(positions))
+    if len(bad):
+        contacts = checker.contacts(positions[bad[0]])
+        return PlanningFailure(name, "trajectory_invalid", f"the trajectory's sample at "
+                               f"{times[bad[0]]:.3f} s touches: " + ", ".join(
+                                   f"{a} - {b}" for a, b in contacts), tuple(contacts))
+    positions[-1] = goal  # exactly (the last sample is the goal up to rounding)
+    return Segment(name, checker.arm.joint_names, positions, times, waypoints, used,
+                   checker.checks - checks_before, time.perf_counter() - began)
+
+
+def _search(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray,
+            settings: PlannerSettings) -> np.ndarray | str:
+    """The simplified OMPL path's vertices (w, dof), or a sentence saying why none."""
+    from ompl import base as ob
+    from ompl import geometric as og
+    from ompl import util as ou
+
+    dof = checker.arm.dof
+    chain = checker.arm.kin.chain
+    res = settings.resolution
+
+    def values(state) -> np.ndarray:
+        return np.array(state[0:dof], dtype=float)
+
+    class BatchMotionValidator(ob.MotionValidator):
+        """An edge valid when every configuration on it, at most ``resolution`` apart (the
+        first excepted: OMPL's contract), passes the checker: every fourth configuration
+        and the last in one batch, then, if those pass, the others in another (an edge that
+        collides is found out at a quarter of the cost)."""
+
+        def checkMotion(self, s1, s2) -> bool:  # noqa: N802 (OMPL's name)
+            qa, qb = values(s1), values(s2)
+            steps = max(1, int(np.ceil(np.abs(qb - qa).max() / res - 1e-9)))
+            j = np.arange(1, steps + 1)
+            coarse = (j % _COARSE == 0) | (j == steps)
+            for part in (j[coarse], j[~coarse]):
+                if len(part) and not checker.valid(qa + (part / steps)[:, None] * (qb - qa)
+                                                   ).all():  # fmt: skip
+                    return False
+            return True
+
+    level = ou.getLogLevel()
+    ou.setLogLevel(ou.LOG_NONE)  # OMPL's own messages (and its warning on re-seeding)
+    try:
+        space = ob.RealVectorStateSpace(dof)
+        bounds = ob.RealVectorBounds(dof)
+        for i in range(dof):
+            bounds.setLow(i, float(chain.lower[i]))
+            bounds.setHigh(i, float(chain.upper[i]))
+        space.setBounds(bounds)
+        si = ob.SpaceInformation(space)
+        si.setStateValidityChecker(lambda s: bool(checker.valid(values(s))[0]))
+        si.setMotionValidator(BatchMotionValidator(si))
+        si.setup()
+        a, b = si.allocState(), si.allocState()
+        a[0:dof], b[0:dof] = start.tolist(), goal.tolist()
+        pdef = ob.ProblemDefinition(si)
+        pdef.setStartAndGoalStates(a, b)
+        ou.RNG.setSeed(int(settings.seed))
+        planner = getattr(og, settings.planner)(si)
+        if settings.range:
+            planner.setRange(float(settings.range))
+        planner.setProblemDefinition(pdef)
+        planner.setup()
+        budget = {"left": int(settings.max_iterations)}
+        deadline = time.perf_counter() + settings.timeout
+
+        def stop() -> bool:
+            budget["left"] -= 1
+            return budget["left"] < 0 or time.perf_counter() > deadline
+
+        status = planner.solve(ob.PlannerTerminationCondition(stop))
+        if not pdef.hasExactSolution():
+            why = ("its wall-clock guard" if time.perf_counter() > deadline
+                   else f"{settings.max_iterations} iterations")  # fmt: skip
+            return f"{settings.planner} found no path within {why} ({status})"
+        path = pdef.getSolutionPath()
+        ou.RNG.setSeed(int(settings.seed) + 1)
+        simplifier = og.PathSimplifier(si)
+        steps = int(settings.simplify_steps)
+        for _ in range(int(settings.simplify_rounds)):
+            if not simplifier.reduceVertices(path, steps):
+                break
+        simplifier.collapseCloseVertices(path, steps)
+        return np.array([values(s) for s in path.getStates()])
+    finally:
+        ou.setLogLevel(level)
