@@ -175,8 +175,8 @@ def _field(record: dict, key: str, where: str) -> Any:
     return record[key]
 
 
-def _transform(value: Any, where: str) -> np.ndarray:
-    """A 4x4 rigid transform of the JSON, its rotation replaced by the nearest rotation."""
+def _matrix(value: Any, where: str) -> np.ndarray:
+    """A 4x4 rigid transform of the JSON as it is (its rotation rounded, nearly orthonormal)."""
     m = np.asarray(value, dtype=float) if value is not None else np.empty(0)
     if m.shape != (4, 4) or not np.isfinite(m).all():
         raise ValueError(f"{where} must be a 4x4 matrix of finite numbers")
@@ -185,8 +185,16 @@ def _transform(value: Any, where: str) -> np.ndarray:
             or np.abs(m[3] - [0.0, 0.0, 0.0, 1.0]).max() > 0):
         raise ValueError(f"{where} is not a rigid transform (its rotation is not orthonormal "
                          "and right-handed, or its last row is not 0 0 0 1)")
+    return m
+
+
+def _rigid(m: np.ndarray) -> np.ndarray:
+    """``m`` with its rotation replaced by the nearest rotation in the Frobenius norm (the
+    polar decomposition's orthogonal factor, by SVD; scipy's ``from_matrix`` of a matrix a
+    little off orthonormal lands up to 2e-7 away from it)."""
+    u, _, vt = np.linalg.svd(m[:3, :3])
     out = np.eye(4)
-    out[:3, :3] = Rotation.from_matrix(r).as_matrix()
+    out[:3, :3] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
     out[:3, 3] = m[:3, 3]
     return out
 
@@ -232,7 +240,7 @@ def _rotation_quaternion(rotation: np.ndarray) -> Quaternion:
 def pose_message(transform: np.ndarray, frame_id: str = WORLD_FRAME) -> PoseStamped:
     """A 4x4 rigid transform (m) as a PoseStamped in ``frame_id``: position, and the
     quaternion of the nearest rotation to its 3x3 block, sign chosen so that ``w >= 0``."""
-    t = _transform(transform, "the pose")
+    t = _rigid(_matrix(transform, "the pose"))
     return PoseStamped(Header(frame_id=frame_id),
                        Pose(Point(*_floats(t[:3, 3])), _rotation_quaternion(t[:3, :3])))
 
@@ -270,17 +278,18 @@ def _posture(names: tuple[str, ...], half_gap: float, effort: float | None) -> J
 
 
 def _stage_poses(result: dict, g: dict, where: str) -> tuple[str, np.ndarray, np.ndarray]:
-    """(closing stage, the grasp frame where the gripper closes, where it lets go), world."""
-    pose = _transform(_field(g, "pose", where), f"{where}.pose")
+    """(closing stage, the grasp frame where the gripper closes, where it lets go), world,
+    each the nearest rigid transform to the JSON's product."""
+    pose = _matrix(_field(g, "pose", where), f"{where}.pose")
     regrasp = result.get("regrasp")
-    initial = _transform(_field(result, "initial_pose", "the result"), "initial_pose")
-    release = _transform(_field(g, "pose_world", where), f"{where}.pose_world")
+    initial = _matrix(_field(result, "initial_pose", "the result"), "initial_pose")
+    release = _matrix(_field(g, "pose_world", where), f"{where}.pose_world")
     if regrasp:
-        midair = _transform(_field(regrasp, "midair_pose", "regrasp"), "regrasp.midair_pose")
+        midair = _matrix(_field(regrasp, "midair_pose", "regrasp"), "regrasp.midair_pose")
         if g.get("stage") == "handover":  # H2G2's second grasp: taken from the other hand
-            return "midair", midair @ pose, release
-        return "pickup", initial @ pose, midair @ pose  # H2G2's first: let go midair
-    return "pickup", initial @ pose, release
+            return "midair", _rigid(midair @ pose), _rigid(release)
+        return "pickup", _rigid(initial @ pose), _rigid(midair @ pose)  # let go midair
+    return "pickup", _rigid(initial @ pose), _rigid(release)
 
 
 def _tip(result: dict, g: dict, stage: str, frame: np.ndarray, where: str) -> np.ndarray:
@@ -295,7 +304,7 @@ def _tip(result: dict, g: dict, stage: str, frame: np.ndarray, where: str) -> np
     if arm not in arms:
         raise ValueError(f"{where}.arm {arm!r} is not an arm of the robot "
                          f"({', '.join(sorted(arms))})")
-    tcp = _transform(_field(arms[arm], "tcp", f"robot.arms.{arm}"), f"robot.arms.{arm}.tcp")
+    tcp = _rigid(_matrix(_field(arms[arm], "tcp", f"robot.arms.{arm}"), f"robot.arms.{arm}.tcp"))
     return frame @ np.linalg.inv(tcp)
 
 
