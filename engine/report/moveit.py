@@ -317,13 +317,14 @@ def _grasp(result: dict, i: int, gripper: Gripper, force: float) -> Grasp:
         raise ValueError(f"{where} closes at {stage} but its joints give "
                          f"{', '.join(joints) or 'no stage'}")
     width = _number(_field(g, "width", where), f"{where}.width")
-    side = g.get("arm") or _field(g, "hand", where)
+    hand = _field(g, "hand", where)
+    side = g.get("arm") or hand
     names = tuple(name.format(side=side) for name in FINGER_JOINTS)
     depth = gripper.finger_depth + gripper.clearance
     approach = (closing[:3, 2], gripper.finger_length + gripper.clearance, depth)
     place = (-release[:3, 2], approach[1], approach[2])
     return Grasp(
-        id=f"{result['object']}/{g.get('id', i)}/{g['hand']}",
+        id=f"{result['object']}/{g.get('id', i)}/{hand}",
         pre_grasp_posture=_posture(names, float(gripper.opening(width)) / 2.0, None),
         grasp_posture=_posture(names, width / 2.0, force if force > 0 else None),
         grasp_pose=pose_message(_tip(result, g, stage, closing, where)),
@@ -364,6 +365,8 @@ def _trajectories(result: dict, i: int) -> list[ArmTrajectory]:
     g = result["robot_grasps"][i]
     arm = g.get("arm")
     segments, joints = g.get("trajectory"), g.get("joints")
+    if arm is None and segments is not None:
+        raise ValueError(f"{where} has a trajectory but no arm to move along it")
     if arm is None or (segments is None and not joints):
         return []
     if segments is not None:

@@ -36,6 +36,10 @@ PLANS = {  # name -> CLI arguments: one hand, midair regrasp, two hands
     "knife": ["plan", "knife"],
     "book": ["plan", "book"],
     "tray": ["plan", "tray", "--receiver", "elder", "--culture", "korean"],
+    # The arm holds these grasps turned half a turn where the gripper closes: the
+    # screwdriver's at pick-up, the pen's second (H2G2) at the midair regrasp.
+    "screwdriver": ["plan", "screwdriver"],
+    "pen": ["plan", "pen"],
 }
 
 
@@ -122,6 +126,9 @@ def grasps_of(messages) -> list:
 def test_each_grasp_in_the_bag_is_the_tip_link_where_the_gripper_closes(results, name,
                                                                         tmp_path):
     result = results[name]
+    swapped = [closing_stage(result, g)[0] in g.get("fingers_swapped", [])
+               for g in result["robot_grasps"]]
+    assert any(swapped) == (name in ("screwdriver", "pen"))  # both cases are met
     _, messages = bag(result, tmp_path)
     grasps = grasps_of(messages)
     assert len(grasps) == len(result["robot_grasps"]) >= 1
@@ -373,6 +380,10 @@ def test_bad_results_raise_a_clear_value_error(results):
     g["trajectory"][0]["times"] = [0.0, 1.0]
     g["trajectory"][0]["positions"] = [[0.0], [1.0, 2.0]]
     with pytest.raises(ValueError, match=r"positions\[1\] must hold 1"):
+        moveit_messages(bad)
+    del g["arm"]
+    bad["robot"] = None
+    with pytest.raises(ValueError, match="trajectory but no arm"):
         moveit_messages(bad)
     bad = copy.deepcopy(results["knife"])
     bad["robot_grasps"][0]["approach"] = {"direction": [0, 0, 0], "distance": 0.1}
