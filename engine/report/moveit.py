@@ -239,7 +239,8 @@ def _rotation_quaternion(rotation: np.ndarray) -> Quaternion:
 
 def pose_message(transform: np.ndarray, frame_id: str = WORLD_FRAME) -> PoseStamped:
     """A 4x4 rigid transform (m) as a PoseStamped in ``frame_id``: position, and the
-    quaternion of the nearest rotation to its 3x3 block, sign chosen so that ``w >= 0``."""
+    quaternion of the nearest rotation to its 3x3 block, sign chosen so that ``w >= 0`` (at
+    ``w = 0``, the first non-zero of x, y, z positive: one quaternion per rotation)."""
     t = _rigid(_matrix(transform, "the pose"))
     return PoseStamped(Header(frame_id=frame_id),
                        Pose(Point(*_floats(t[:3, 3])), _rotation_quaternion(t[:3, :3])))
