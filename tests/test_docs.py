@@ -195,6 +195,21 @@ def test_the_documents_shown_plan_as_the_pages_say(docs, kb_copy, capsys):
     assert code == 0, out
 
 
+def test_the_json_page_names_every_top_level_field():
+    """Each field of a result (a handover asked why-not and what-if, a refusal, an H2G2
+    regrasp) is a row of docs/json.md's table."""
+    table = (ROOT / "docs" / "json.md").read_text(encoding="utf-8").split("## The top level")[1]
+    table = table.split("\n## ", 1)[0]
+    named = {name for row in table.splitlines() if row.startswith("| `")
+             for name in re.findall(r"`(\w+)`", row.split("|")[1])}
+    planner = handover.Planner()
+    fields = set(planner.plan("knife", why_not=(12,), what_if=True).to_dict())
+    fields |= set(planner.plan("knife", receiver="child").to_dict())
+    fields |= set(planner.plan("hammer", scene="hammer_by_wall", mode="h2g2").to_dict())
+    assert {"why_not", "what_if", "refused", "regrasp"} <= fields
+    assert fields <= named, f"not in docs/json.md: {sorted(fields - named)}"
+
+
 def test_a_broken_document_in_a_page_would_be_caught(kb_copy, capsys):
     """The validation above can fail: a misspelt key in an object is an error at its line."""
     text = ("# yaml-language-server: $schema=../schema/objects.json\n"
