@@ -1,14 +1,22 @@
-"""Shared fixtures: the built-in KB, and small KBs written into ``tmp_path`` by tests.
+"""Shared fixtures: the built-in KB, small KBs written into ``tmp_path`` by tests, and the
+code blocks of the documentation.
 
 ``make_kb(files)`` writes a minimal valid KB (one object, a ``common`` culture, a gripper,
 a hand, a robot, a receiver, a scene) and then the given files over it (relative path ->
 YAML text, or None to delete a file). Tests break one thing and check the error.
+
+``docs`` reads README.md and docs/*.md into :class:`CodeBlock` records. A test finds the
+block it checks by the name of the HTML comment just before its opening fence
+(``<!-- example: own-robot -->``), never by a heading, so pages can be rewritten and
+examples moved between them: ``docs.example("own-robot").text``.
 """
 
 from __future__ import annotations
 
+import re
 import textwrap
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -170,3 +178,85 @@ def _grasp_db_in_a_temporary_folder(tmp_path_factory):
         os.environ.pop("HANDOVER_DB", None)
     else:
         os.environ["HANDOVER_DB"] = old
+
+
+# ---------------------------------------------------------------- the documentation's code
+
+ROOT = Path(__file__).resolve().parents[1]
+FENCE = re.compile(r"^```(?P<lang>[\w+-]*)\s*$")
+MARKER = re.compile(r"^<!--\s*example:\s*(?P<name>[\w.-]+)\s*-->\s*$")
+
+
+@dataclass(frozen=True)
+class CodeBlock:
+    """One fenced code block of a documentation page.
+
+    page : the Markdown file. line : 1-based line of its opening fence. lang : the fence's
+    language (``python``, ``yaml``, ``sh``, ... or ``""``). text : its content, each line
+    ending in a newline. example : the name given by an ``<!-- example: NAME -->`` comment on
+    the nearest non-blank line before the fence, else None.
+    """
+
+    page: Path
+    line: int
+    lang: str
+    text: str
+    example: str | None
+
+    @property
+    def where(self) -> str:
+        """``page:line`` (relative to the repository when in it), for assertion messages."""
+        page = self.page.relative_to(ROOT) if self.page.is_relative_to(ROOT) else self.page
+        return f"{page.as_posix()}:{self.line}"
+
+
+def code_blocks(page: Path) -> list[CodeBlock]:
+    """The fenced code blocks of ``page`` in order. Fences start at the line's first column
+    (three backticks and an optional language); a fence left open is a ValueError."""
+    lines = page.read_text(encoding="utf-8").splitlines()
+    out: list[CodeBlock] = []
+    k = 0
+    while k < len(lines):
+        opening = FENCE.match(lines[k])
+        if opening is None:
+            k += 1
+            continue
+        end = next((j for j in range(k + 1, len(lines)) if lines[j].rstrip() == "```"), None)
+        if end is None:
+            raise ValueError(f"{page}:{k + 1}: a code fence is opened and never closed")
+        before = next((lines[j] for j in range(k - 1, -1, -1) if lines[j].strip()), "")
+        marker = MARKER.match(before.strip())
+        out.append(CodeBlock(page=page, line=k + 1, lang=opening["lang"],
+                             text="".join(f"{s}\n" for s in lines[k + 1 : end]),
+                             example=marker["name"] if marker else None))
+        k = end + 1
+    return out
+
+
+@dataclass(frozen=True)
+class Docs:
+    """The documentation: README.md, then docs/*.md in name order."""
+
+    pages: tuple[Path, ...]
+
+    def blocks(self, lang: str | None = None) -> list[CodeBlock]:
+        """Every code block of every page (of language ``lang`` when given)."""
+        return [b for page in self.pages for b in code_blocks(page)
+                if lang is None or b.lang == lang]
+
+    def example(self, name: str) -> CodeBlock:
+        """The one block named ``name`` by its ``<!-- example: NAME -->`` comment."""
+        found = [b for b in self.blocks() if b.example == name]
+        if not found:
+            raise LookupError(f"no code block is marked <!-- example: {name} --> in README.md "
+                              "or docs/*.md")
+        if len(found) > 1:
+            raise ValueError(f"example {name!r} is marked more than once: "
+                             + ", ".join(b.where for b in found))
+        return found[0]
+
+
+@pytest.fixture(scope="session")
+def docs() -> Docs:
+    """README.md and docs/*.md, their code blocks found by marker (:class:`Docs`)."""
+    return Docs(pages=(ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))))

@@ -260,15 +260,10 @@ def test_a_robot_without_arms_has_none(make_kb):
     assert robot_arms(kb, "bot") is None
 
 
-def test_the_readme_shows_the_shipped_robot(builtin_kb):
-    import re
-    from pathlib import Path
-
+def test_the_docs_show_the_shipped_robot(builtin_kb, docs):
     import yaml
 
-    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
-    section = readme.split("### Robots and their arms", 1)[1].split("\n## ", 1)[0]
-    shown = yaml.safe_load(re.findall(r"```yaml\n(.*?)```", section, flags=re.S)[0])
+    shown = yaml.safe_load(docs.example("shipped-robot").text)
     shipped = yaml.safe_load((builtin_kb.root / "robots" / "idro.yaml").read_text())
     assert shown == shipped
 

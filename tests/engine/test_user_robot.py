@@ -7,7 +7,6 @@ an object above its reach) is said, naming the arm it has."""
 from __future__ import annotations
 
 import json
-import re
 import shutil
 from pathlib import Path
 
@@ -50,15 +49,7 @@ receiver: {position: [0.95, 0.0, 0.0], facing: [-1.0, 0.0, 0.0]}
 object: {position: [0.33, 0.0]}
 """
 
-README = Path(__file__).resolve().parents[2] / "README.md"
-
 FLIP = np.diag([-1.0, -1.0, 1.0, 1.0])  # the grasp turned half a turn about a
-
-
-def readme_robot() -> str:
-    """The robot YAML of the README's "Your own robot"."""
-    section = README.read_text(encoding="utf-8").split("#### Your own robot", 1)[1]
-    return re.findall(r"```yaml\n(.*?)```", section, flags=re.S)[0]
 
 
 def robot_yaml(ur5, robot_id: str, side: str) -> str:
@@ -79,15 +70,21 @@ def frame(rotation: np.ndarray, position) -> np.ndarray:
 
 
 @pytest.fixture(scope="module")
-def kb(tmp_path_factory, ur5) -> Path:
-    """The built-in KB with the one-arm robot (``rover``: the README's, its arm named
+def docs_robot(docs) -> str:
+    """The robot YAML the documentation shows for "your own robot" (marked ``own-robot``)."""
+    return docs.example("own-robot").text
+
+
+@pytest.fixture(scope="module")
+def kb(tmp_path_factory, ur5, docs_robot) -> Path:
+    """The built-in KB with the one-arm robot (``rover``: the documentation's, its arm named
     ``right``; ``lefty``: the same robot with its arm named ``left``), a heavy-tagged bottle
     and two scenes."""
     root = tmp_path_factory.mktemp("user_robot") / "kb"
     shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
     robots = root / "robots"
     (robots / "rover.urdf").write_text(ur5.urdf(), encoding="utf-8")
-    (robots / "rover.yaml").write_text(readme_robot(), encoding="utf-8")
+    (robots / "rover.yaml").write_text(docs_robot, encoding="utf-8")
     (robots / "lefty.yaml").write_text(robot_yaml(ur5, "lefty", "left"), encoding="utf-8")
     (root / "scenes" / "high_shelf.yaml").write_text(SHELF, encoding="utf-8")
     (root / "scenes" / "close.yaml").write_text(CLOSE, encoding="utf-8")
@@ -122,9 +119,10 @@ def assert_within_1_mm_and_1_degree(a: np.ndarray, b: np.ndarray) -> None:
     assert np.degrees(np.arccos(cos)) < 1.0
 
 
-def test_the_readme_s_robot_is_the_one_planned_here(ur5):
-    """The README's example is the robot these tests plan with (and check by its DH)."""
-    assert yaml.safe_load(readme_robot()) == yaml.safe_load(robot_yaml(ur5, "rover", "right"))
+def test_the_documented_robot_is_the_one_planned_here(ur5, docs_robot):
+    """The documentation's example is the robot these tests plan with (and check by its
+    DH)."""
+    assert yaml.safe_load(docs_robot) == yaml.safe_load(robot_yaml(ur5, "rover", "right"))
 
 
 @pytest.mark.parametrize(("robot", "side"), [("rover", "right"), ("lefty", "left")])
