@@ -1,6 +1,6 @@
 """The project's own errors and the exit codes the CLI maps them to.
 
-Exit codes (documented in README.md):
+Exit codes (documented in docs/cli.md):
 
 ====  =====================================================================
 0     a plan was found (or the command succeeded)

@@ -100,9 +100,9 @@ def refusal_text(ctx: PlanContext, c: CompiledRule) -> str:
 
 def fallback_rules(kb: KB, ctx: PlanContext, tried: list[Attempt]) -> list[CompiledRule]:
     """The hard rules with ``fallback: place`` that blocked the handover, when no mode is
-    feasible (the policy, README "Outcomes"): the hard mode rule that required a mode that
-    failed, and every hard rule in one of the smallest blocking rule sets of a mode tried, or
-    named in its reason. Rules in KB order, each once."""
+    feasible (the policy, docs/planning.md, "Outcomes"): the hard mode rule that required a
+    mode that failed, and every hard rule in one of the smallest blocking rule sets of a mode
+    tried, or named in its reason. Rules in KB order, each once."""
     import re
 
     from handover.engine.plan.blocking import blocking_sets
@@ -131,7 +131,7 @@ def fallback_rules(kb: KB, ctx: PlanContext, tried: list[Attempt]) -> list[Compi
 
 
 def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
-    """The outcome of a query (README "Outcomes"):
+    """The outcome of a query (docs/planning.md, "Outcomes"):
 
     - ``refuse``: an active hard ``refuse`` rule applies: no mode is tried; when every such
       rule names ``fallback: place`` the object is set down instead (``place``) if it can be.

@@ -1,6 +1,6 @@
 """Rotations, frames and rigid transforms, vectorised over leading dimensions.
 
-Conventions (see ARCHITECTURE.md): a grasp frame has columns ``n, o, a`` (x, y, z) with
+Conventions (see docs/architecture.md): a grasp frame has columns ``n, o, a`` (x, y, z) with
 ``n = o x a``; a pose is the 4x4 matrix ``[n o a p]``. Euler angles in degrees are
 *extrinsic* rotations about the fixed x, then y, then z axes, i.e. ``R = Rz @ Ry @ Rx``
 (the KB's ``rotation_deg``). Angles in radians everywhere else.

@@ -22,8 +22,8 @@ import pytest
 import yaml
 
 import handover
-import handover.engine.spec.applies
 import handover.engine.planner
+import handover.engine.spec.applies
 from handover.engine.cli.app import main
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,4 +1,4 @@
-"""The plan result: the contract other tools read (see ARCHITECTURE.md, "The JSON result").
+"""The plan result: the contract other tools read (docs/json.md).
 
 A :class:`PlanResult` is plain data (dicts, lists, floats) so that JSON, the text trace and
 the rerun recording all render the same thing. ``to_json`` rounds floats to micrometres and
@@ -50,7 +50,7 @@ def dumps(data: Any) -> str:
 
 @dataclass
 class PlanResult:
-    """A plan, feasible or not. Field meanings: ARCHITECTURE.md; extras documented here.
+    """A plan, feasible or not. Field meanings: docs/json.md; extras documented here.
 
     modes_tried : [{"mode", "feasible", "reason"}] in the order tried.
     mode_reason : why this mode was chosen (or forced).
@@ -66,7 +66,7 @@ class PlanResult:
     and ``reason``) or ``infeasible`` (nothing works: ``reason``). ``feasible`` is true for
     ``handover`` and ``place``.
     placement : with ``place``: {"object_pose" (4, 4) world, "position" (3,) world (the
-    object's centre of mass), "rest", "receiver_site", "measured", "robot_grasp" (as a
+    object's centre of mass), "orientation", "receiver_site", "measured", "robot_grasp" (as a
     ``robot_grasps`` entry), "why", "rules" (the placement grasp's trace), "considered"}.
     refused : with ``refuse`` (and ``place`` after a refusal): the refusing rules [{"rule",
     "source", "why", "fallback"}].

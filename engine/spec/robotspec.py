@@ -1,7 +1,7 @@
 """The robot's KB document (``kb/robots/*.yaml``): hands, payload, gripper, and optionally its
 arms (a URDF file with one kinematic chain per hand) and its body.
 
-Frames (see README, "Robots"): ``base_pose`` places the URDF's root link (the robot's base
+Frames (see docs/robots.md): ``base_pose`` places the URDF's root link (the robot's base
 frame) in the world, z up, the robot facing +x by convention. Each arm is the URDF chain from
 ``base_link`` to ``tip_link``; its ``tcp`` is the fixed transform from the tip link to the
 planner's grasp frame (origin between the finger pads, ``a`` = z approach, ``o`` = y closing).
