@@ -27,10 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from handover.engine import batch  # noqa: E402
-from handover.engine.load.loader import load_kb  # noqa: E402
+from handover.engine.tools import batch
+from handover.engine.load.loader import load_kb
 
 
 def make_meshes(folder: Path, count: int, seed: int = 0) -> None:

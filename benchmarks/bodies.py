@@ -21,27 +21,22 @@ Tables:
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+import numpy as np
+import trimesh
+from scipy.spatial.transform import Rotation
 
-import numpy as np  # noqa: E402
-import trimesh  # noqa: E402
-from scipy.spatial.transform import Rotation  # noqa: E402
-
-from handover.geometry.body_mesh import (  # noqa: E402
-    _fcl_primitives,  # noqa: E402
+from handover.geometry.body_mesh import (
+    _fcl_primitives,
     mesh_clearances,
     mesh_hits,
 )
-from handover.geometry.collision import ObjectCollider, _bvh_object  # noqa: E402
-from handover.geometry.frames import transform_from  # noqa: E402
-from handover.geometry.gripper import Gripper  # noqa: E402
-from handover.geometry.human import human_body  # noqa: E402
-from handover.geometry.locations import handover_locations  # noqa: E402
+from handover.geometry.collision import ObjectCollider, _bvh_object
+from handover.geometry.frames import transform_from
+from handover.geometry.gripper import Gripper
+from handover.geometry.human import human_body
+from handover.geometry.locations import handover_locations
 
 ROBOT_SHOULDER = np.array([0.0, -0.2, 1.1])
 

@@ -22,20 +22,13 @@ Tables:
 from __future__ import annotations
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
-# Run as a file, this folder comes first on sys.path, where benchmarks/geometry.py would
-# shadow the geometry package. Drop it.
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+import numpy as np
+import trimesh
+from scipy.spatial.transform import Rotation
 
-import numpy as np  # noqa: E402
-import trimesh  # noqa: E402
-from scipy.spatial.transform import Rotation  # noqa: E402
-
-from handover.geometry.collision import (  # noqa: E402
+from handover.geometry.collision import (
     BoxWorld,
     ObjectCollider,
     _bvh_object,
@@ -43,8 +36,8 @@ from handover.geometry.collision import (  # noqa: E402
     boxes_overlap,
     grippers_collide,
 )
-from handover.geometry.gripper import Gripper  # noqa: E402
-from handover.geometry.hand import HumanHand  # noqa: E402
+from handover.geometry.gripper import Gripper
+from handover.geometry.hand import HumanHand
 
 
 def candidate_poses(

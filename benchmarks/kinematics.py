@@ -13,25 +13,20 @@ few reachable poses), recall = IK-solved poses the map accepts / IK-solved poses
 from __future__ import annotations
 
 import argparse
-import sys
 import tempfile
 import time
+from importlib.resources import files
 from pathlib import Path
 
-# Run as a file, this folder comes first on sys.path, where benchmarks/geometry.py would
-# shadow the geometry package. Drop it.
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+import numpy as np
 
-import numpy as np  # noqa: E402
+from handover.geometry.armcollision import Targets, arms_hits, world_hits
+from handover.geometry.frames import frame_from_o_a, transform_from
+from handover.geometry.kinematics import Kinematics
+from handover.geometry.reach import ReachMap
+from handover.geometry.urdf import load_urdf
 
-from handover.geometry.armcollision import Targets, arms_hits, world_hits  # noqa: E402
-from handover.geometry.frames import frame_from_o_a, transform_from  # noqa: E402
-from handover.geometry.kinematics import Kinematics  # noqa: E402
-from handover.geometry.reach import ReachMap  # noqa: E402
-from handover.geometry.urdf import load_urdf  # noqa: E402
-
-ROBOT = _HERE.parent / "kb" / "robots" / "idro_arms.urdf"
+ROBOT = Path(str(files("handover.kb") / "robots" / "idro_arms.urdf"))
 TCP = transform_from(None, [0.0, 0.0, 0.11])  # flange to between the finger pads, about
 
 

@@ -18,32 +18,25 @@ from __future__ import annotations
 
 import argparse
 import statistics
-import sys
 import time
 from importlib.resources import files
-from pathlib import Path
 
-# Run as a file, this folder comes first on sys.path, where benchmarks/geometry.py would
-# shadow the geometry package. Drop it.
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+import numpy as np
+from scipy.spatial.transform import Rotation
 
-import numpy as np  # noqa: E402
-from scipy.spatial.transform import Rotation  # noqa: E402
-
-from handover.geometry.bodies import Body  # noqa: E402
-from handover.geometry.collision import ObjectCollider  # noqa: E402
-from handover.geometry.corridor import check_corridors  # noqa: E402
-from handover.geometry.frames import frame_from_o_a, transform_from  # noqa: E402
-from handover.geometry.gripper import Gripper  # noqa: E402
-from handover.geometry.motion import (  # noqa: E402
+from handover.geometry.bodies import Body
+from handover.geometry.collision import ObjectCollider
+from handover.geometry.corridor import check_corridors
+from handover.geometry.frames import frame_from_o_a, transform_from
+from handover.geometry.gripper import Gripper
+from handover.geometry.motion import (
     ArmModel,
     PlanningFailure,
     ValidityChecker,
     obstacles,
     plan_segment,
 )
-from handover.geometry.urdf import load_urdf  # noqa: E402
+from handover.geometry.urdf import load_urdf
 
 ROBOT = files("handover.kb") / "robots" / "idro_arms.urdf"  # the installed package's file
 TCP = transform_from(None, [0.0, 0.0, 0.11])  # kb/robots/idro.yaml

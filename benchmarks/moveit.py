@@ -24,12 +24,7 @@ import tempfile
 import time
 from pathlib import Path
 
-# Run as a file, this folder comes first on sys.path, where a sibling script named like a
-# package (benchmarks/geometry.py) would shadow it. Nothing here imports a sibling: drop it.
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
-
-from handover.engine.report.moveit import moveit_messages, write_mcap  # noqa: E402
+from handover.engine.report.moveit import moveit_messages, write_mcap
 
 PLANS = {
     "knife": ["knife"],

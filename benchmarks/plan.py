@@ -29,17 +29,14 @@ import cProfile
 import io
 import pstats
 import statistics
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from handover.engine.assets.graspdb import GraspDB, cached_candidates  # noqa: E402
-from handover.engine.load.loader import load_kb  # noqa: E402
-from handover.engine.planner import plan  # noqa: E402
-from handover.engine.spec.query import Query  # noqa: E402
+from handover.engine.assets.graspdb import GraspDB, cached_candidates
+from handover.engine.load.loader import load_kb
+from handover.engine.planner import plan
+from handover.engine.spec.query import Query
 
 RADIUS = 0.015  # m: a 3 cm ball; a larger one is too deep for 2 cm of finger past the contacts
 

@@ -24,28 +24,23 @@ import time
 from pathlib import Path
 from types import SimpleNamespace
 
-# Run as a file, this folder comes first on sys.path, where a sibling script named like a
-# package (benchmarks/geometry.py) would shadow it. Nothing here imports a sibling: drop it.
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from handover.engine.plan.attempt import Attempt  # noqa: E402
-from handover.engine.plan.compiler import CompiledRule  # noqa: E402
-from handover.engine.plan.context import PlanContext  # noqa: E402
-from handover.engine.plan.evaluate import Decision  # noqa: E402
-from handover.engine.plan.phase import Hands, Phase  # noqa: E402
-from handover.engine.plan.presentation import presentation_rotations  # noqa: E402
-from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites  # noqa: E402
-from handover.engine.report.rerun.writer import write_recording  # noqa: E402
-from handover.engine.report.result import PlanResult  # noqa: E402
-from handover.engine.spec.schema import parse_rule  # noqa: E402
-from handover.geometry.candidates import SOURCE_ANTIPODAL, CandidateSet  # noqa: E402
-from handover.geometry.frames import perpendicular, unit  # noqa: E402
-from handover.geometry.gripper import Gripper  # noqa: E402
-from handover.geometry.hand import HumanHand  # noqa: E402
-from handover.geometry.mesh import PartMesh, capsule  # noqa: E402
+from handover.engine.plan.attempt import Attempt
+from handover.engine.plan.compiler import CompiledRule
+from handover.engine.plan.context import PlanContext
+from handover.engine.plan.evaluate import Decision
+from handover.engine.plan.phase import Hands, Phase
+from handover.engine.plan.presentation import presentation_rotations
+from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites
+from handover.engine.report.rerun.writer import write_recording
+from handover.engine.report.result import PlanResult
+from handover.engine.spec.schema import parse_rule
+from handover.geometry.candidates import SOURCE_ANTIPODAL, CandidateSet
+from handover.geometry.frames import perpendicular, unit
+from handover.geometry.gripper import Gripper
+from handover.geometry.hand import HumanHand
+from handover.geometry.mesh import PartMesh, capsule
 
 K = 24
 HARD = [

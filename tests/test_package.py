@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import zipfile
@@ -72,3 +73,25 @@ def test_a_users_geometry_folder_does_not_break_the_planner(tmp_path):
                           text=True, timeout=300)  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     assert "mode H1G1: feasible" in proc.stdout
+
+
+@pytest.mark.parametrize("script", sorted(p.name for p in (ROOT / "benchmarks").glob("*.py")))
+def test_a_benchmark_runs_against_the_installed_package(wheel, tmp_path, script):
+    """Every benchmark script imports ``handover`` as installed (here: the wheel itself on
+    the path, as after a plain ``pip install .``), not the repository's folders: run from
+    elsewhere, it starts and prints its usage. A script that put the repository root first
+    on ``sys.path`` found ``handover/`` (the facade alone) there and failed with ``No module
+    named 'handover.engine'``."""
+    code = ("import runpy, sys; sys.argv = [sys.argv[1], '--help']; "
+            "runpy.run_path(sys.argv[0], run_name='__main__')")
+    probe = ("import sys, handover; assert handover.__file__.startswith(sys.argv[1]), "
+             "handover.__file__")
+    env = {**os.environ, "PYTHONPATH": str(wheel)}
+    where = subprocess.run([sys.executable, "-c", probe, str(wheel)], cwd=tmp_path, env=env,
+                           capture_output=True, text=True, timeout=120)  # fmt: skip
+    assert where.returncode == 0, where.stderr  # the wheel's handover, not the tree's
+    proc = subprocess.run([sys.executable, "-c", code, str(ROOT / "benchmarks" / script)],
+                          cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=300)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "usage:" in proc.stdout

@@ -100,7 +100,7 @@ def test_pairs_stay_inside_the_material_of_a_non_convex_object():
 
 
 def torus():
-    """The torus of benchmarks/geometry.py: ring radius 30 mm, tube radius 12 mm."""
+    """The torus of benchmarks/candidates.py: ring radius 30 mm, tube radius 12 mm."""
     import trimesh
 
     t = trimesh.creation.torus(0.03, 0.012, major_sections=64, minor_sections=32)

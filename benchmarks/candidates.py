@@ -1,6 +1,6 @@
 """Candidate generation speed: facet pairs, antipodal sites, candidates, collision filter.
 
-Run: ``.venv/bin/python benchmarks/geometry.py [--repeat 3] [--no-kb]``
+Run: ``.venv/bin/python benchmarks/candidates.py [--repeat 3] [--no-kb]``
 
 For icospheres of 80 to 81,920 faces (radius 20 mm, so that some grasps clear the palm), a
 box, a composite hammer (handle cylinder + head box, unioned) and the built-in KB objects it
@@ -35,24 +35,17 @@ Numbers vary +-30-50 % from run to run on a shared machine.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 import warnings
 from collections.abc import Callable
-from pathlib import Path
 
-# This script is named like the package it measures: run as a file, its own folder comes
-# first on sys.path and ``import geometry`` would import this script. Drop that folder.
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+import numpy as np
 
-import numpy as np  # noqa: E402
-
-from handover.geometry import mesh as gm  # noqa: E402
-from handover.geometry.collision import ObjectCollider, bare_fcl_loop_seconds  # noqa: E402
-from handover.geometry.frames import rotation_about_axis, transform_from  # noqa: E402
-from handover.geometry.generate import generate_with_stats  # noqa: E402
-from handover.geometry.gripper import Gripper  # noqa: E402
+from handover.geometry import mesh as gm
+from handover.geometry.collision import ObjectCollider, bare_fcl_loop_seconds
+from handover.geometry.frames import rotation_about_axis, transform_from
+from handover.geometry.generate import generate_with_stats
+from handover.geometry.gripper import Gripper
 
 
 def hammer() -> gm.PartMesh:
