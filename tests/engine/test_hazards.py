@@ -246,6 +246,8 @@ def test_a_hot_object_is_taken_by_a_cool_part_and_kept_level(planner, obj, hot):
     assert trace_status(result, "hot_kept_level") == {"pass"}
 
 
+@pytest.mark.xfail(strict=True, reason="refused today, as people do not: the receiver's hand has "
+                   "one shape (a wrap round the whole glass) that the gripper leaves no room for")
 def test_a_glass_of_water_stays_upright_with_no_finger_in_the_water(planner):
     plan = planner.plan("water_glass")
     result = plan.to_dict()
@@ -257,9 +259,7 @@ def test_a_glass_of_water_stays_upright_with_no_finger_in_the_water(planner):
     pts = c.contacts.reshape(-1, 3)
     assert ((np.linalg.norm(pts[:, :2], axis=1) < GLASS_R - GLASS_WALL + 1e-4)
             & (pts[:, 2] > GLASS_FLOOR)).any()
-    if result["outcome"] != "handover":  # a glass with no handle is hard to share
-        assert any("out_of_the_opening" in (t["reason"] or "") for t in result["modes_tried"])
-        return
+    assert result["outcome"] == "handover", result["reason"]
     assert angle(axis_in_world(result, [0, 0, 1]), [0, 0, 1]) <= 20.0 + 1e-6
     for g in handover_grasps(result):
         assert not in_glass(gripper_points(plan, g)).any()
@@ -270,16 +270,14 @@ def test_a_glass_of_water_stays_upright_with_no_finger_in_the_water(planner):
     assert trace_status(result, "out_of_the_opening") == {"pass"}
 
 
+@pytest.mark.xfail(strict=True, reason="refused today: no pick-up grasp both clear of the water "
+                   "and within the arms' reach; a glass is handed over by people every day")
 def test_a_midair_regrasp_never_puts_a_finger_in_the_water_either(planner):
-    """The pick-up grasp of a regrasp is judged by the opening rule too: either no finger of
-    either grasp is in the water, or the regrasp is refused because the pick-up grasps would
-    put one there (this glass has no solid base: every grasp pinches its wall)."""
+    """The pick-up grasp of a regrasp is judged by the opening rule too: no finger of either
+    grasp is in the water (this glass has no solid base: every grasp pinches its wall)."""
     plan = planner.plan("water_glass", mode="h2g2")
     result = plan.to_dict()
-    if result["outcome"] != "handover":
-        assert "pick the object" in result["reason"]
-        assert "out_of_the_opening" in result["reason"], result["reason"]
-        return
+    assert result["outcome"] == "handover", result["reason"]
     for g in result["robot_grasps"]:  # the pick-up grasp included
         assert not in_glass(gripper_points(plan, g)).any(), g
 

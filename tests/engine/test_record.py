@@ -697,9 +697,7 @@ def test_the_arm_is_drawn_at_its_joints_at_pick_up_and_at_the_handover(kb, tmp_p
 
 def test_real_h2g2_plan_records_pick_midair_and_handover(kb, tmp_path):
     result, ctx, path = _real(kb, tmp_path, "hammer", "h2g2", "hammer_by_wall")
-    if not result.feasible:
-        pytest.xfail(f"H2G2 on hammer_by_wall is infeasible in the current KB/engine: "
-                     f"{result.reason}")  # fmt: skip
+    assert result.feasible, result.reason
     summary = read_recording(path)
     assert [s["stage"] for s in summary["stages"]] == list(range(8))
     cols = read_columns(path)

@@ -89,15 +89,30 @@ def receiver_landmarks(result: dict):
     return lm
 
 
-@pytest.mark.parametrize("receiver", RECEIVERS)
-@pytest.mark.parametrize("obj", OBJECTS)
+REFUSED = {(obj, "child") for obj in ("knife", "pen", "scissors", "screwdriver")}
+"""Built-in cases a rule refuses: a sharp or pointed object to a child under 8."""
+NOT_YET = {("book", "child"), ("book", "child_10")}
+"""Built-in cases refused today that a careful person would hand over: a book to a child (the
+receiver's hand has one shape, a wrap round the whole section, too small for a book)."""
+
+
+def _case(obj: str, receiver: str):
+    if (obj, receiver) in NOT_YET:
+        return pytest.param(obj, receiver, marks=pytest.mark.xfail(
+            strict=True, reason="the receiver's hand has one shape: a child's cannot take a book"))
+    return pytest.param(obj, receiver)
+
+
+@pytest.mark.parametrize(("obj", "receiver"), [_case(o, r) for o in OBJECTS for r in RECEIVERS])
 def test_every_object_to_every_receiver_is_offered_in_free_space_within_reach(
     planner, obj, receiver
 ):
     plan = planner.plan(obj, receiver=receiver)
-    if not plan.feasible:
-        assert plan.reason  # said why
+    if (obj, receiver) in REFUSED:
+        assert plan.outcome == "refuse", plan.reason
+        assert "no_hazards_to_young_children" in plan.reason
         return
+    assert plan.outcome == "handover", plan.reason
     check_in_the_world(plan)
     r = plan.to_dict()
     lm = receiver_landmarks(r)
@@ -217,9 +232,7 @@ def test_an_obstacle_at_the_old_handover_point_moves_the_location_or_says_why(wo
 
 def test_a_long_object_passes_through_neither_body(world_kb):
     plan = Planner(kb=world_kb).plan("broom")
-    if not plan.feasible:
-        assert plan.reason
-        return
+    assert plan.outcome == "handover", plan.reason
     check_in_the_world(plan)
 
 
@@ -270,9 +283,7 @@ def test_a_robot_body_of_zero_size_is_a_kb_error_at_its_line(capsys, make_kb):
 @pytest.mark.parametrize("obj", ["pen", "scissors", "knife", "hammer"])
 def test_a_midair_regrasp_happens_in_free_space(planner, obj):
     plan = planner.plan(obj, mode="h2g2", receiver="seated_adult")
-    if not plan.feasible:
-        assert plan.reason
-        return
+    assert plan.outcome == "handover", plan.reason
     r = plan.to_dict()
     midair = np.asarray(r["regrasp"]["midair_pose"])
     mesh = plan.context.part_mesh.mesh
