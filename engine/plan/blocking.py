@@ -20,7 +20,7 @@ from handover.engine.plan.evaluate import Decision, evaluate
 from handover.engine.plan.hands import hands_for
 from handover.engine.spec.applies import check
 
-__all__ = ["blocking_sets", "verified_sets", "minimal_patterns", "SETS_CHECKED"]
+__all__ = ["blocking_sets", "verified_sets", "minimal_patterns", "SETS_CHECKED", "lifted"]
 
 
 def blocking_sets(decision: Decision, limit: int = 5) -> list[tuple[tuple[str, ...], int]]:
@@ -115,7 +115,7 @@ def verified_sets(decision: Decision) -> list[tuple[tuple[str, ...], int, np.nda
     return decision._sets
 
 
-def _lifted(decision: Decision, removed: set[str]) -> tuple[int, Decision | None]:
+def lifted(decision: Decision, removed: set[str]) -> tuple[int, Decision | None]:
     """How many rows pass every hard rule once ``removed`` rules are lifted from the
     decision's graph (the rules whose conditions then stop holding leave too, those that
     start to hold join), and the decision judged anew (None when the receiver's hands stay
@@ -175,20 +175,20 @@ def _without(cg: ConstraintGraph, ctx, removed: set[str]) -> ConstraintGraph:
 def _check_set(decision: Decision, ids: set[str]) -> tuple[set[str], int] | None:
     """``ids`` made blocking (rules the rows judged anew fail join it, once) and minimal
     (rules not needed leave it), with the rows it lets through; None when it cannot be."""
-    n, again = _lifted(decision, ids)
+    n, again = lifted(decision, ids)
     if n == 0 and again is not None:
         extra = verified_sets(again)[:1] if not again.kept.any() else []
         if not extra:
             return None
         ids = ids | set(extra[0][0])
-        n, _ = _lifted(decision, ids)
+        n, _ = lifted(decision, ids)
     if n == 0:
         return None
     changed = True
     while changed and len(ids) > 1:
         changed = False
         for r in sorted(ids):
-            m, _ = _lifted(decision, ids - {r})
+            m, _ = lifted(decision, ids - {r})
             if m > 0:
                 ids, n, changed = ids - {r}, m, True
                 break

@@ -111,6 +111,6 @@ def test_explaining_an_attempt_at_moved_locations_judges_them_there(builtin_kb, 
 
     monkeypatch.setattr(blocking, "hands_for", spy)
     rule = next(c.id for c in cg.order if c.rule.kind == "location" and c.rule.hard)
-    n, again = blocking._lifted(decision, {rule})
+    n, again = blocking.lifted(decision, {rule})
     assert asked == [avoid]
     assert again is not None and again.judged_in[1].hands.avoid == avoid
