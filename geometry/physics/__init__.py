@@ -1,0 +1,56 @@
+"""The physics check of grasps in MuJoCo: the object, the grippers and the receiver's pads
+simulated through pick-up, lift, carry, hold, shake and the hand-over.
+
+This package knows nothing of the knowledge base: primitives or meshes, poses and numbers
+in, typed results out. Its parts: :mod:`.protocol` (every parameter with its reason, the
+phases as targets over time), :mod:`.model` (the MjSpec of object, hands and pads),
+:mod:`.check` (run, measure, the robustness ensemble) and :mod:`.decompose` (a mesh's convex
+parts by CoACD, cached by the mesh's hash).
+"""
+
+from handover.geometry.physics.check import (
+    GRASP_KINDS,
+    CheckResult,
+    EnsembleResult,
+    Grasp,
+    PhaseSlip,
+    check,
+    ensemble,
+)
+from handover.geometry.physics.model import ConvexPart, Hand, ObjectModel, Primitive
+from handover.geometry.physics.protocol import (
+    DEFAULT_ENSEMBLE,
+    GRIP_FORCES,
+    MODES,
+    RECEIVER_PINCH_FORCES,
+    Motion,
+    Perturbation,
+    Protocol,
+    Solver,
+    Thresholds,
+    receiver_grip_force,
+)
+
+__all__ = [
+    "GRASP_KINDS",
+    "CheckResult",
+    "EnsembleResult",
+    "Grasp",
+    "PhaseSlip",
+    "check",
+    "ensemble",
+    "ConvexPart",
+    "Hand",
+    "ObjectModel",
+    "Primitive",
+    "DEFAULT_ENSEMBLE",
+    "GRIP_FORCES",
+    "MODES",
+    "RECEIVER_PINCH_FORCES",
+    "Motion",
+    "Perturbation",
+    "Protocol",
+    "Solver",
+    "Thresholds",
+    "receiver_grip_force",
+]

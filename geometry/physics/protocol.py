@@ -1,0 +1,549 @@
+"""The physics check's parameters as data, and its phases as targets over time.
+
+Every number the check uses is a field of a frozen record here, with the reason for its
+default: :class:`Solver` (MuJoCo's options and contact softness), :class:`Protocol` (what is
+done to the object and for how long), :class:`Thresholds` (what counts as holding),
+:class:`Perturbation` and :data:`DEFAULT_ENSEMBLE` (the robustness runs), and the grip forces
+(:data:`GRIP_FORCES`, :data:`RECEIVER_PINCH_FORCES`, :func:`receiver_grip_force`).
+
+:func:`schedule` turns a protocol, the object's motion and the hands taking part into a
+:class:`Schedule`: one row per simulation step of the object's nominal world pose, each
+hand's palm target and finger target, the share of the weight the hands carry, and the
+phases (step ranges, who holds the object during each). The support the object rests on at
+pick-up is not simulated: until the lift its weight is cancelled by an upward force at its
+centre of mass, and the lift takes it on over :attr:`Protocol.weight_ramp_time`, as a table
+does when the hand rises off it.
+
+Units: metres, kilograms, seconds, radians, newtons.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from handover.geometry.frames import rotation_about_axis, transform_from
+from handover.geometry.gripper import check_poses
+
+__all__ = [
+    "Solver",
+    "Protocol",
+    "Thresholds",
+    "Perturbation",
+    "DEFAULT_ENSEMBLE",
+    "GRIP_FORCES",
+    "RECEIVER_PINCH_FORCES",
+    "receiver_grip_force",
+    "MODES",
+    "Motion",
+    "HandPlan",
+    "Phase",
+    "Schedule",
+    "schedule",
+    "min_jerk",
+]
+
+def _positive(record: str, **values: float) -> None:
+    for name, value in values.items():
+        if not (np.isfinite(value) and value > 0):
+            raise ValueError(f"{record}.{name} must be a positive number, got {value}")
+
+
+MODES = ("H1G1", "H2G2", "H2G1")
+"""One gripper; two grippers one after the other (a midair regrasp); two grippers at once."""
+
+GRIP_FORCES = {
+    "franka_hand": 70.0,
+    "franka_hand_peak": 140.0,
+    "robotiq_2f85_min": 20.0,
+    "robotiq_2f85_max": 235.0,
+}
+"""N, squeeze force of one jaw on the object. Franka Hand: 70 N continuous, 140 N peak
+(Franka Emika, *Product Manual Franka Hand*, technical data); Robotiq 2F-85: 20-235 N
+adjustable (Robotiq 2F-85/2F-140 instruction manual, specifications). A holding test uses a
+continuous force: the peak lasts seconds at most."""
+
+RECEIVER_PINCH_FORCES = {"adult": 95.0, "elder": 60.0, "child": 35.0}
+"""N, a person's greatest lateral (key) pinch, the pinch a hand takes an object with:
+about 9.7 kgf for adults of 20-59 years (mean of men ~11 and women ~7.5 kgf), about 6 kgf at
+70-79 years (Mathiowetz et al. 1985, *Grip and pinch strength: normative data for adults*,
+Arch Phys Med Rehabil 66:69-74) and about 3.5 kgf at 6-7 years (Mathiowetz et al. 1986,
+*Grip and pinch strength: norms for 6- to 19-year-olds*, Am J Occup Ther 40:705-711);
+rounded. These are maxima; :func:`receiver_grip_force` takes the share used."""
+
+
+def receiver_grip_force(who: str, effort: float = 0.3) -> float:
+    """N, the pinch force a receiver holds a handed object with: ``effort`` (0-1] of the
+    greatest lateral pinch of ``who`` (``"adult"``, ``"elder"`` or ``"child"``).
+
+    The default 0.3 is a comfortable, sustained pinch (people hold objects with a safety
+    margin of 1.5-2 over the slip force, well below their maximum). Raises ``ValueError`` for
+    an unknown ``who`` or an effort outside (0, 1].
+    """
+    if who not in RECEIVER_PINCH_FORCES:
+        raise ValueError(
+            f"unknown receiver {who!r}: expected one of {sorted(RECEIVER_PINCH_FORCES)}"
+        )
+    if not (0.0 < effort <= 1.0):
+        raise ValueError(f"effort must be in (0, 1], got {effort}")
+    return RECEIVER_PINCH_FORCES[who] * effort
+
+
+@dataclass(frozen=True)
+class Solver:
+    """MuJoCo's options for a holding test (each default measured to matter).
+
+    timestep : s. 2 ms: a check of ~7 s simulated stays near 3,500 steps.
+    impratio : frictional-to-normal impedance ratio. With elliptic cones, >= 10 stops the
+        creep soft contacts show in holding tests (at 1 even a pen held at its tip slips).
+    noslip_iterations : iterations of the post-solver that removes the residual slip of soft
+        friction; 20 is enough at this size.
+    iterations, tolerance : the main solver's (Newton) budget.
+    contact_solref : (time constant s, damping ratio) of the pads' contacts. 0.004 s is
+        the stiffest stable at 2 ms (twice the step); softer lets light objects sink.
+    contact_solimp : MuJoCo's impedance curve (d0, dwidth, width m, midpoint, power).
+    weld_solref : the palm's weld to its target. Stiff: the palm follows the arm.
+    """
+
+    timestep: float = 0.002
+    impratio: float = 10.0
+    noslip_iterations: int = 20
+    iterations: int = 50
+    tolerance: float = 1e-8
+    contact_solref: tuple[float, float] = (0.004, 1.0)
+    contact_solimp: tuple[float, float, float, float, float] = (0.95, 0.99, 0.001, 0.5, 2.0)
+    weld_solref: tuple[float, float] = (0.004, 1.0)
+
+    def __post_init__(self) -> None:
+        _positive("Solver", timestep=self.timestep, impratio=self.impratio,
+                  iterations=self.iterations, tolerance=self.tolerance)  # fmt: skip
+        if self.noslip_iterations < 0:
+            raise ValueError("Solver.noslip_iterations must not be negative")
+        for name in ("contact_solref", "weld_solref"):
+            ref = getattr(self, name)
+            if len(ref) != 2 or ref[0] < 2 * self.timestep:
+                raise ValueError(
+                    f"Solver.{name} must be (time constant, damping) with a time constant "
+                    f"of at least two steps ({2 * self.timestep} s), got {ref}"
+                )
+
+
+@dataclass(frozen=True)
+class Protocol:
+    """What the check does to the object, in order (durations in s, lengths in m).
+
+    close_time : the hands close and the grip settles (fingers close at the hand's speed).
+    lift_height, lift_time : straight up from the pick-up pose (10 cm in 0.5 s).
+    weight_ramp_time : the share of the lift over which the weight passes from the support
+        to the hands.
+    carry_time : along the motion's poses to the end pose (the presentation turn included),
+        minimum-jerk in time.
+    hold_time : still at the end pose; creep shows here (1.5 s).
+    shake_amplitude, shake_angle, shake_frequency, shake_cycles : a sinusoidal shake of
+        +-2 cm along the world's z and +-15 deg about the holding gripper's closing axis
+        (the axis the weight's torque acts about), 2 Hz, 2 cycles (0.32 g and 41 rad/s^2 at
+        the peaks), eased in and out over half a cycle.
+    approach_distance, approach_time : a hand that takes the object (the second gripper of
+        a regrasp, the receiver) comes from this far back along its approach axis.
+    open_time : a gripper letting go opens its fingers; retreat_distance, retreat_time : then
+        it backs off along its approach axis.
+    receiver_hold_time : the receiver holds the object alone.
+    """
+
+    close_time: float = 0.3
+    lift_height: float = 0.10
+    lift_time: float = 0.5
+    weight_ramp_time: float = 0.2
+    carry_time: float = 1.5
+    hold_time: float = 1.5
+    shake_amplitude: float = 0.02
+    shake_angle: float = float(np.radians(15.0))
+    shake_frequency: float = 2.0
+    shake_cycles: float = 2.0
+    approach_distance: float = 0.08
+    approach_time: float = 0.3
+    open_time: float = 0.2
+    retreat_distance: float = 0.08
+    retreat_time: float = 0.3
+    receiver_hold_time: float = 1.0
+
+    def __post_init__(self) -> None:
+        _positive("Protocol", close_time=self.close_time, lift_time=self.lift_time,
+                  carry_time=self.carry_time, open_time=self.open_time,
+                  approach_time=self.approach_time, retreat_time=self.retreat_time,
+                  weight_ramp_time=self.weight_ramp_time)  # fmt: skip
+        for name in ("lift_height", "hold_time", "shake_amplitude", "shake_angle",
+                     "shake_frequency", "shake_cycles", "approach_distance",
+                     "retreat_distance", "receiver_hold_time"):  # fmt: skip
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ValueError(f"Protocol.{name} must be a non-negative number, got {value}")
+        if self.weight_ramp_time > self.lift_time:
+            raise ValueError("Protocol.weight_ramp_time must not exceed lift_time")
+        if (self.shake_amplitude > 0 or self.shake_angle > 0) and (
+            self.shake_frequency <= 0 or self.shake_cycles <= 0
+        ):
+            raise ValueError("a shake needs a positive shake_frequency and shake_cycles")
+
+
+@dataclass(frozen=True)
+class Thresholds:
+    """What passes (slip of the object in the holding hand's frame, since its grip settled).
+
+    max_slip_mm, max_slip_deg : a grasp holds if its slip stays within 5 mm and 5 deg over
+        every phase (a held hammer's handle sags ~2-3 mm as its weight comes on).
+    drop_mm, drop_deg : a slip beyond 20 mm or a turn beyond 30 deg is a drop (the object
+        leaves the fingers or swings out of the grasp: it is no longer where the plan has it).
+    ensemble_fraction : an ensemble is robust if at least this share of its runs pass.
+    """
+
+    max_slip_mm: float = 5.0
+    max_slip_deg: float = 5.0
+    drop_mm: float = 20.0
+    drop_deg: float = 30.0
+    ensemble_fraction: float = 0.75
+
+    def __post_init__(self) -> None:
+        _positive("Thresholds", max_slip_mm=self.max_slip_mm, max_slip_deg=self.max_slip_deg,
+                  drop_mm=self.drop_mm, drop_deg=self.drop_deg)  # fmt: skip
+        if self.drop_mm < self.max_slip_mm or self.drop_deg < self.max_slip_deg:
+            raise ValueError("Thresholds.drop_mm and drop_deg must not be below the max slips")
+        if not (0.0 <= self.ensemble_fraction <= 1.0):
+            raise ValueError("Thresholds.ensemble_fraction must be in [0, 1]")
+
+
+@dataclass(frozen=True)
+class Perturbation:
+    """One run of the robustness ensemble: scales on the nominal parameters of every hand
+    (the receiver's included): sliding friction, grip force, torsional friction."""
+
+    label: str
+    friction: float = 1.0
+    force: float = 1.0
+    torsion: float = 1.0
+
+    def __post_init__(self) -> None:
+        _positive("Perturbation", friction=self.friction, force=self.force,
+                  torsion=self.torsion)  # fmt: skip
+
+
+DEFAULT_ENSEMBLE = (
+    Perturbation("friction -30%", friction=0.7),
+    Perturbation("friction +30%", friction=1.3),
+    Perturbation("force -30%", force=0.7),
+    Perturbation("force +30%", force=1.3),
+    Perturbation("torsion x0.5", torsion=0.5),
+    Perturbation("torsion x2", torsion=2.0),
+    Perturbation("all low", friction=0.7, force=0.7, torsion=0.5),
+    Perturbation("all high", friction=1.3, force=1.3, torsion=2.0),
+)
+"""Friction and force +-30 % one at a time, torsion x0.5 and x2, and the two corners."""
+
+
+@dataclass(frozen=True)
+class Motion:
+    """The object's world poses along the plan (4x4, metres).
+
+    pickup : (4, 4) the object at pick-up, where the first hands close on it.
+    carry : (k, 4, 4), k >= 1, poses after the lift, the last one the end of the first
+        leg: the handover pose (H1G1, H2G1) or the midair regrasp pose (H2G2). The carry
+        runs from the lifted pick-up pose through them in order (the plan's motion sampled;
+        a presentation turn is a change of rotation along them).
+    regrasp_carry : (k2, 4, 4), H2G2 only: from the midair pose to the handover pose, the
+        last one the handover pose.
+    """
+
+    pickup: np.ndarray
+    carry: np.ndarray
+    regrasp_carry: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        pickup, _ = check_poses(self.pickup, 0.0)
+        if len(pickup) != 1:
+            raise ValueError("Motion.pickup must be one (4, 4) pose")
+        object.__setattr__(self, "pickup", pickup[0])
+        for name in ("carry", "regrasp_carry"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            poses, _ = check_poses(value, 0.0)
+            object.__setattr__(self, name, poses)
+
+
+@dataclass(frozen=True)
+class HandPlan:
+    """One hand as the schedule needs it.
+
+    name : the hand's name (a result names holders by it).
+    pose : (4, 4) the hand body's frame in the object frame while it holds.
+    closed_target : m, the finger (or press) target when closed, in joint coordinates
+        (0 = open, positive closing); past the contact, so the force limit is what presses.
+    speed : m/s, how fast the target moves when closing or opening.
+    """
+
+    name: str
+    pose: np.ndarray
+    closed_target: float
+    speed: float
+
+
+@dataclass(frozen=True)
+class Phase:
+    """Steps ``[start, stop)`` of one phase; ``holders``: the hands whose grip is measured
+    (they hold the object, their grip settled before the phase began)."""
+
+    name: str
+    start: int
+    stop: int
+    holders: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """Targets per step (N steps of ``dt`` s), for H hands in the order given.
+
+    object_poses : (N, 4, 4) the object's nominal world pose (where it would be if no hand
+        slipped); hand_poses : (H, N, 4, 4) each palm's world target; finger_targets :
+        (H, N) m, each hand's finger target (0 open, positive closing); weight : (N,) the
+        share of the object's weight the hands carry (0 before the lift, then 1).
+    phases : the phases in order; settled : (H,) the step at which each hand's grip is
+        taken as settled (its slip is measured from there), -1 for a hand that never holds.
+    """
+
+    dt: float
+    object_poses: np.ndarray
+    hand_poses: np.ndarray
+    finger_targets: np.ndarray
+    weight: np.ndarray
+    phases: tuple[Phase, ...]
+    settled: np.ndarray
+
+    @property
+    def steps(self) -> int:
+        """Number of simulation steps."""
+        return len(self.weight)
+
+
+def min_jerk(tau: np.ndarray) -> np.ndarray:
+    """The minimum-jerk profile ``10 t^3 - 15 t^4 + 6 t^5`` of ``tau`` clipped to [0, 1]."""
+    t = np.clip(np.asarray(tau, dtype=float), 0.0, 1.0)
+    return t**3 * (10.0 - 15.0 * t + 6.0 * t * t)
+
+
+def _path(poses: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Poses (len(s), 4, 4) along ``poses`` (k, 4, 4) at path parameters ``s`` in [0, 1]:
+    piecewise linear in position and spherical-linear in rotation, the parameter spread
+    by each segment's length plus 0.1 m per radian of turn."""
+    if len(poses) == 1:
+        return np.repeat(poses, len(s), axis=0)
+    rot = Rotation.from_matrix(poses[:, :3, :3])
+    turn = (rot[1:] * rot[:-1].inv()).magnitude()
+    cost = np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1) + 0.1 * turn
+    knots = np.concatenate([[0.0], np.cumsum(cost)])
+    if knots[-1] <= 1e-12:
+        return np.repeat(poses[:1], len(s), axis=0)
+    keep = np.concatenate([[True], cost > 1e-12])  # drop repeated poses
+    knots, poses, rot = knots[keep] / knots[-1], poses[keep], rot[keep]
+    out = np.empty((len(s), 4, 4))
+    out[:, :3, :3] = Slerp(knots, rot)(s).as_matrix()
+    for k in range(3):
+        out[:, k, 3] = np.interp(s, knots, poses[:, k, 3])
+    out[:, 3] = [0.0, 0.0, 0.0, 1.0]
+    return out
+
+
+class _Builder:
+    """Appends phases; keeps each hand's current state (away, holding, open) as it goes."""
+
+    def __init__(self, hands: list[HandPlan], start: np.ndarray, protocol: Protocol,
+                 dt: float) -> None:  # fmt: skip
+        self.hands, self.protocol, self.dt = hands, protocol, dt
+        self.pose = start
+        self.objs: list[np.ndarray] = []
+        self.back: list[np.ndarray] = []  # (H, n) distance back along -a per hand
+        self.fingers: list[np.ndarray] = []
+        self.weights: list[np.ndarray] = []
+        self.phases: list[Phase] = []
+        self.n = 0
+        self.back_now = np.zeros(len(hands))
+        self.finger_now = np.zeros(len(hands))
+        self.weight_now = 0.0
+        self.settled = np.full(len(hands), -1, dtype=np.int64)
+
+    def steps(self, duration: float) -> int:
+        return max(1, int(round(duration / self.dt)))
+
+    def add(self, name: str, holders: tuple[str, ...], objs: np.ndarray,
+            back: np.ndarray | None = None, fingers: np.ndarray | None = None,
+            weight: np.ndarray | None = None) -> None:  # fmt: skip
+        n = len(objs)
+        self.objs.append(objs)
+        self.back.append(np.repeat(self.back_now[:, None], n, 1) if back is None else back)
+        self.fingers.append(
+            np.repeat(self.finger_now[:, None], n, 1) if fingers is None else fingers
+        )
+        self.weights.append(np.full(n, self.weight_now) if weight is None else weight)
+        self.phases.append(Phase(name, self.n, self.n + n, holders))
+        self.n += n
+        self.pose = objs[-1]
+        self.back_now = self.back[-1][:, -1].copy()
+        self.finger_now = self.fingers[-1][:, -1].copy()
+        self.weight_now = float(self.weights[-1][-1])
+
+    def still(self, duration: float) -> np.ndarray:
+        return np.repeat(self.pose[None], self.steps(duration), axis=0)
+
+    def ramp(self, which: list[int], target: str, duration: float) -> np.ndarray:
+        """(H, n) finger targets: the hands ``which`` move to closed or open at their speed."""
+        n = self.steps(duration)
+        t = np.arange(1, n + 1) * self.dt
+        out = np.repeat(self.finger_now[:, None], n, 1)
+        for h in which:
+            goal = self.hands[h].closed_target if target == "closed" else 0.0
+            step = np.sign(goal - self.finger_now[h]) * self.hands[h].speed * t
+            out[h] = self.finger_now[h] + step
+            out[h] = np.minimum(out[h], goal) if goal >= self.finger_now[h] else np.maximum(
+                out[h], goal
+            )
+        return out
+
+    def move_back(self, which: list[int], distance: float, duration: float) -> np.ndarray:
+        """(H, n) back-offs: the hands ``which`` go to ``distance`` back, minimum-jerk."""
+        n = self.steps(duration)
+        s = min_jerk(np.arange(1, n + 1) / n)
+        out = np.repeat(self.back_now[:, None], n, 1)
+        for h in which:
+            out[h] = self.back_now[h] + (distance - self.back_now[h]) * s
+        return out
+
+    def close(self, name: str, which: list[int], holders: tuple[str, ...]) -> None:
+        objs = self.still(self.protocol.close_time)
+        self.add(name, holders, objs, fingers=self.ramp(which, "closed", self.protocol.close_time))
+        for h in which:
+            self.settled[h] = self.n - 1
+
+    def release(self, name: str, which: list[int], holders: tuple[str, ...]) -> None:
+        """The hands ``which`` open their fingers, then back off (one phase)."""
+        p = self.protocol
+        opening = self.ramp(which, "open", p.open_time)
+        n_open, n_back = opening.shape[1], self.steps(p.retreat_time)
+        self.finger_now = opening[:, -1].copy()
+        back = self.move_back(which, p.retreat_distance, p.retreat_time)
+        fingers = np.concatenate([opening, np.repeat(opening[:, -1:], n_back, 1)], axis=1)
+        back = np.concatenate([np.repeat(self.back_now[:, None], n_open, 1), back], axis=1)
+        objs = np.repeat(self.pose[None], n_open + n_back, axis=0)
+        self.add(name, holders, objs, back=back, fingers=fingers)
+
+    def approach(self, name: str, which: list[int], holders: tuple[str, ...]) -> None:
+        p = self.protocol
+        self.add(name, holders, self.still(p.approach_time),
+                 back=self.move_back(which, 0.0, p.approach_time))
+
+    def lift(self, holders: tuple[str, ...]) -> None:
+        p = self.protocol
+        n = self.steps(p.lift_time)
+        tau = np.arange(1, n + 1) / n
+        objs = np.repeat(self.pose[None], n, axis=0)
+        objs[:, 2, 3] += p.lift_height * min_jerk(tau)
+        weight = min_jerk(np.arange(1, n + 1) * self.dt / p.weight_ramp_time)
+        self.add("lift", holders, objs, weight=weight)
+
+    def carry(self, name: str, poses: np.ndarray, holders: tuple[str, ...]) -> None:
+        n = self.steps(self.protocol.carry_time)
+        keys = np.concatenate([self.pose[None], poses])
+        self.add(name, holders, _path(keys, min_jerk(np.arange(1, n + 1) / n)))
+
+    def shake(self, name: str, holder: int, holders: tuple[str, ...]) -> None:
+        p = self.protocol
+        if p.shake_amplitude == 0 and p.shake_angle == 0:
+            return
+        duration = p.shake_cycles / p.shake_frequency
+        n = self.steps(duration)
+        t = np.arange(1, n + 1) * self.dt
+        ease = min(0.5 / p.shake_frequency, duration / 2)
+        envelope = np.minimum(np.minimum(t, duration - t) / ease, 1.0)
+        envelope = np.sin(0.5 * np.pi * np.clip(envelope, 0.0, 1.0)) ** 2
+        wave = np.sin(2 * np.pi * p.shake_frequency * t) * envelope
+        grasp = self.pose @ self.hands[holder].pose
+        centre, axis = grasp[:3, 3], grasp[:3, 1]
+        turn = rotation_about_axis(axis, p.shake_angle * wave)  # (n, 3, 3)
+        offset = centre + np.outer(p.shake_amplitude * wave, [0.0, 0.0, 1.0])
+        about = transform_from(turn, offset - np.einsum("nij,j->ni", turn, centre))
+        self.add(name, holders, about @ self.pose)
+
+    def hold(self, name: str, duration: float, holders: tuple[str, ...]) -> None:
+        if duration > 0:
+            self.add(name, holders, self.still(duration))
+
+    def build(self) -> Schedule:
+        objs = np.concatenate(self.objs)
+        back = np.concatenate(self.back, axis=1)
+        hand_poses = np.empty((len(self.hands), len(objs), 4, 4))
+        for h, hand in enumerate(self.hands):
+            offset = transform_from(translation=np.outer(-back[h], [0.0, 0.0, 1.0]))
+            hand_poses[h] = objs @ hand.pose @ offset
+        return Schedule(self.dt, objs, hand_poses, np.concatenate(self.fingers, axis=1),
+                        np.concatenate(self.weights), tuple(self.phases),
+                        self.settled.copy())  # fmt: skip
+
+
+def schedule(
+    mode: str,
+    grippers: list[HandPlan],
+    motion: Motion,
+    protocol: Protocol,
+    dt: float,
+    receiver: HandPlan | None = None,
+) -> Schedule:
+    """The check's targets step by step (see the module docstring and :class:`Schedule`).
+
+    mode : ``"H1G1"`` (one gripper), ``"H2G1"`` (two grippers hold together) or ``"H2G2"``
+        (the first picks up and carries to the midair pose, the second takes the object
+        there and carries it to the handover). grippers : one or two hands as ``mode``
+        needs; receiver : the receiver's hand, or None (the check ends after the shake).
+    The phases: close, lift, carry, hold, shake; in H2G2 then regrasp_approach,
+    regrasp_close, regrasp_release, regrasp_carry, regrasp_hold, regrasp_shake; with a
+    receiver handover_approach, handover_close, handover_release, handover_hold.
+    Hands that take the object later start ``approach_distance`` back along their approach.
+    Raises ``ValueError`` if the mode, the number of grippers or the motion do not agree.
+    """
+    if mode not in MODES:
+        raise ValueError(f"unknown mode {mode!r}: expected one of {MODES}")
+    want = 1 if mode == "H1G1" else 2
+    if len(grippers) != want:
+        raise ValueError(f"{mode} needs {want} gripper grasp(s), got {len(grippers)}")
+    if (mode == "H2G2") != (motion.regrasp_carry is not None):
+        raise ValueError("Motion.regrasp_carry is required for H2G2 and only for it")
+    hands = list(grippers) + ([receiver] if receiver is not None else [])
+    names = [h.name for h in hands]
+    if len(set(names)) != len(names):
+        raise ValueError(f"hand names must be unique, got {names}")
+    b = _Builder(hands, motion.pickup, protocol, dt)
+    p = protocol
+    first = [0, 1] if mode == "H2G1" else [0]
+    later = list(range(1, len(hands))) if mode == "H2G2" else list(range(len(first), len(hands)))
+    b.back_now[later] = p.approach_distance
+    holding = tuple(names[h] for h in first)
+    b.close("close", first, ())
+    b.lift(holding)
+    b.carry("carry", motion.carry, holding)
+    b.hold("hold", p.hold_time, holding)
+    b.shake("shake", first[0], holding)
+    if mode == "H2G2":
+        b.approach("regrasp_approach", [1], holding)
+        b.close("regrasp_close", [1], holding)
+        b.release("regrasp_release", [0], (names[1],))
+        holding = (names[1],)
+        b.carry("regrasp_carry", motion.regrasp_carry, holding)
+        b.hold("regrasp_hold", p.hold_time, holding)
+        b.shake("regrasp_shake", 1, holding)
+    if receiver is not None:
+        r = len(hands) - 1
+        robot = [names.index(n) for n in holding]
+        b.approach("handover_approach", [r], holding)
+        b.close("handover_close", [r], holding)
+        b.release("handover_release", robot, (names[r],))
+        b.hold("handover_hold", p.receiver_hold_time, (names[r],))
+    return b.build()
