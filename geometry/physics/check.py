@@ -26,7 +26,14 @@ from scipy.spatial.transform import Rotation
 
 from handover.geometry.frames import transform_from
 from handover.geometry.gripper import check_poses
-from handover.geometry.physics.model import Built, Hand, HandIn, ObjectModel, build
+from handover.geometry.physics.model import (
+    Built,
+    Hand,
+    HandIn,
+    ObjectModel,
+    build,
+    squeeze_target,
+)
 from handover.geometry.physics.protocol import (
     DEFAULT_ENSEMBLE,
     HandPlan,
@@ -203,11 +210,14 @@ def _hand_frame(grasp: Grasp) -> np.ndarray:
 
 
 def _plan(grasp: Grasp, name: str) -> HandPlan:
+    hand = grasp.hand
     if grasp.kind == "pinch":
-        target = grasp.hand.opening(grasp.width) / 2.0 + _CLOSE_PAST
+        target = hand.opening(grasp.width) / 2.0 + _CLOSE_PAST
+        contact = (hand.opening(grasp.width) - grasp.width) / 2.0
     else:
-        target = grasp.hand.clearance + _CLOSE_PAST
-    return HandPlan(name, _hand_frame(grasp), target, grasp.hand.speed)
+        target, contact = squeeze_target(hand), hand.clearance
+    return HandPlan(name, _hand_frame(grasp), target, hand.speed, contact,
+                    axis=1 if grasp.kind == "pinch" else 2)
 
 
 def _offsets(m: mujoco.MjModel, parts: list[int]) -> dict[int, int]:

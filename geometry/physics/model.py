@@ -43,6 +43,7 @@ __all__ = [
     "HandIn",
     "Built",
     "build",
+    "squeeze_target",
 ]
 
 PRIMITIVE_KINDS = ("box", "cylinder", "sphere", "capsule")
@@ -182,6 +183,16 @@ class Hand:
         and opening speed of the finger target. hand_mass : kg, the palm body.
     palm_collides : False for a receiver's pads (a person's palm is not modelled).
     coupled : the two fingers move together (one drive), as in a parallel gripper.
+    squeeze_stiffness : N/m, how stiffly a squeezing hand holds its place along ``a``: the
+        arm presses as an impedance controller does (Cartesian stiffness of 1-3 kN/m),
+        preloaded to ``grip_force``, so an object squeezed by two arms stays put against
+        inertial loads instead of drifting between two pure force sources.
+    pad_tiles : (along n, along a) flush boxes each finger is made of. MuJoCo puts the force
+        of a box pressed on a face at the corners of their overlap: one box per pad holds the
+        torque about its normal of a rigid, edge-loaded pad (an upper bound: a 22 mm line
+        contact holds 1.6x, a 22 x 50 mm face 1.6x what 3 x 3 tiles give, the uniformly
+        pressed soft pad). Tiles cost time (3 x 3: 3-5x per step); the default is the fast
+        bound and the ensemble's torsion x0.5 covers part of the difference.
     """
 
     finger_width: float
@@ -199,6 +210,8 @@ class Hand:
     hand_mass: float = 0.7
     palm_collides: bool = True
     coupled: bool = True
+    pad_tiles: tuple[int, int] = (1, 1)
+    squeeze_stiffness: float = 2000.0
 
     def __post_init__(self) -> None:
         palm = tuple(float(v) for v in self.palm)
@@ -207,7 +220,7 @@ class Hand:
         object.__setattr__(self, "palm", palm)
         for name in ("finger_width", "finger_thickness", "finger_length", "max_opening",
                      "grip_force", "friction", "finger_mass", "armature", "speed",
-                     "hand_mass"):  # fmt: skip
+                     "hand_mass", "squeeze_stiffness"):  # fmt: skip
             value = getattr(self, name)
             if not (np.isfinite(value) and value > 0):
                 raise ValueError(f"Hand.{name} must be a positive number, got {value}")
@@ -217,6 +230,10 @@ class Hand:
                 raise ValueError(f"Hand.{name} must be a non-negative number, got {value}")
         if min(palm) <= 0:
             raise ValueError("Hand.palm extents must be positive")
+        tiles = tuple(int(v) for v in self.pad_tiles)
+        if len(tiles) != 2 or min(tiles) < 1:
+            raise ValueError(f"Hand.pad_tiles must be two counts >= 1, got {self.pad_tiles}")
+        object.__setattr__(self, "pad_tiles", tiles)
 
     @classmethod
     def from_gripper(cls, gripper: Gripper, grip_force: float, **overrides: float) -> Hand:
@@ -347,6 +364,33 @@ def _object_inertia(obj: ObjectModel) -> tuple[np.ndarray, np.ndarray]:
     return m.body_ipos[1].copy(), rot @ np.diag(m.body_inertia[1]) @ rot.T
 
 
+def squeeze_target(hand: Hand) -> float:
+    """m, a squeezing hand's press target from where it starts (``clearance`` off the face):
+    the face, then ``grip_force / squeeze_stiffness`` further, where the spring presses with
+    the grip force."""
+    return hand.clearance + hand.grip_force / hand.squeeze_stiffness
+
+
+def _add_tiles(body: mujoco.MjsBody, prefix: str, extents: tuple[float, float, float],
+               centre: list[float], tiles: tuple[int, int], mass: float,
+               pad: dict) -> list[str]:  # fmt: skip
+    """A finger box (extents along n, o, a, centred at ``centre``) as ``tiles`` = (along n,
+    along a) flush boxes; returns their names."""
+    width, thick, length = extents
+    tn, ta = tiles
+    names = []
+    for i in range(tn):
+        for j in range(ta):
+            name = f"{prefix}_{i}_{j}"
+            pos = [centre[0] + (i + 0.5 - tn / 2) * width / tn, centre[1],
+                   centre[2] + (j + 0.5 - ta / 2) * length / ta]  # fmt: skip
+            body.add_geom(name=name, type=mujoco.mjtGeom.mjGEOM_BOX,
+                          size=[width / tn / 2, thick / 2, length / ta / 2], pos=pos,
+                          mass=mass / (tn * ta), **pad)  # fmt: skip
+            names.append(name)
+    return names
+
+
 def _add_hand(spec: mujoco.MjSpec, h: HandIn, solver: Solver) -> tuple[list[str], list[str]]:
     """The hand's mocap target, free body, weld, fingers and actuators; returns the names of
     its actuators and of its pad geoms."""
@@ -369,30 +413,28 @@ def _add_hand(spec: mujoco.MjSpec, h: HandIn, solver: Solver) -> tuple[list[str]
                              name1=f"{name}_target", name2=name)  # fmt: skip
     weld.data = np.array([0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 1, 0], dtype=float)[: len(weld.data)]
     weld.solref = list(solver.weld_solref)
-    kp = hand.grip_force / 0.002  # saturates 2 mm past the contact
-    kv = 2.0 * np.sqrt(kp * (hand.armature + hand.finger_mass))
     actuators, pads = [], [f"{name}_palm"] if hand.palm_collides else []
 
-    def actuator(joint: str) -> None:
+    def actuator(joint: str, kp: float, limit: float) -> None:
+        kv = 2.0 * np.sqrt(kp * (hand.armature + hand.finger_mass))  # critically damped
         spec.add_actuator(name=f"{joint}_drive", trntype=mujoco.mjtTrn.mjTRN_JOINT,
                           target=joint, gaintype=mujoco.mjtGain.mjGAIN_FIXED,
                           gainprm=[kp] + [0.0] * 9, biastype=mujoco.mjtBias.mjBIAS_AFFINE,
                           biasprm=[0.0, -kp, -kv] + [0.0] * 7, forcelimited=True,
-                          forcerange=[-hand.grip_force, hand.grip_force])  # fmt: skip
+                          forcerange=[-limit, limit])  # fmt: skip
         actuators.append(f"{joint}_drive")
 
     if h.kind == "squeeze":
         press = body.add_body(name=f"{name}_press", gravcomp=1.0)
         joint = f"{name}_press_slide"
+        reach = squeeze_target(hand) + 0.05
         press.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 0, 1],
-                        range=[0.0, hand.clearance + 0.05], armature=hand.armature)  # fmt: skip
+                        range=[0.0, reach], armature=hand.armature)  # fmt: skip
         for side in (-1, 1):
             geom = f"{name}_finger{(side + 1) // 2}"
-            press.add_geom(name=geom, type=mujoco.mjtGeom.mjGEOM_BOX,
-                           size=[width / 2, thick / 2, length / 2],
-                           pos=[0, side * thick / 2, 0], mass=hand.finger_mass, **pad)  # fmt: skip
-            pads.append(geom)
-        actuator(joint)
+            pads += _add_tiles(press, geom, (width, thick, length), [0, side * thick / 2, 0],
+                               (hand.pad_tiles[0], 1), hand.finger_mass, pad)  # fmt: skip
+        actuator(joint, hand.squeeze_stiffness, 3.0 * hand.grip_force)
         return actuators, pads
     for k, side in enumerate((-1, 1)):
         finger = body.add_body(name=f"{name}_finger{k}", gravcomp=1.0,
@@ -400,10 +442,9 @@ def _add_hand(spec: mujoco.MjSpec, h: HandIn, solver: Solver) -> tuple[list[str]
         joint = f"{name}_slide{k}"
         finger.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, -side, 0],
                          range=[0.0, h.opening / 2], armature=hand.armature)  # fmt: skip
-        finger.add_geom(name=f"{name}_pad{k}", type=mujoco.mjtGeom.mjGEOM_BOX,
-                        size=[width / 2, thick / 2, length / 2], mass=hand.finger_mass, **pad)
-        pads.append(f"{name}_pad{k}")
-        actuator(joint)
+        pads += _add_tiles(finger, f"{name}_pad{k}", (width, thick, length), [0, 0, 0],
+                           hand.pad_tiles, hand.finger_mass, pad)  # fmt: skip
+        actuator(joint, hand.grip_force / 0.002, hand.grip_force)  # saturates 2 mm past contact
     if hand.coupled:
         couple = spec.add_equality(type=mujoco.mjtEq.mjEQ_JOINT,
                                    objtype=mujoco.mjtObj.mjOBJ_JOINT, name1=f"{name}_slide1",

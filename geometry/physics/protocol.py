@@ -142,9 +142,9 @@ class Protocol:
         minimum-jerk in time.
     hold_time : still at the end pose; creep shows here (1.5 s).
     shake_amplitude, shake_angle, shake_frequency, shake_cycles : a sinusoidal shake of
-        +-2 cm along the world's z and +-15 deg about the holding gripper's closing axis
-        (the axis the weight's torque acts about), 2 Hz, 2 cycles (0.32 g and 41 rad/s^2 at
-        the peaks), eased in and out over half a cycle.
+        +-2 cm along the world's z and +-15 deg about the first holding gripper's axis
+        through its contacts (the axis the weight's torque is hardest to hold about), 2 Hz,
+        2 cycles (0.32 g and 41 rad/s^2 at the peaks), eased in and out over half a cycle.
     approach_distance, approach_time : a hand that takes the object (the second gripper of
         a regrasp, the receiver) comes from this far back along its approach axis.
     open_time : a gripper letting go opens its fingers; retreat_distance, retreat_time : then
@@ -281,12 +281,18 @@ class HandPlan:
     closed_target : m, the finger (or press) target when closed, in joint coordinates
         (0 = open, positive closing); past the contact, so the force limit is what presses.
     speed : m/s, how fast the target moves when closing or opening.
+    contact : m, where the fingers (or the press) meet the object, joint coordinates: an
+        opening hand's target drops there at once (the grip lets go), then runs to 0.
+    axis : the column of ``pose`` through the contacts (1 = o for a pinch, 2 = a for a
+        squeeze): the shake turns about it.
     """
 
     name: str
     pose: np.ndarray
     closed_target: float
     speed: float
+    contact: float
+    axis: int = 1
 
 
 @dataclass(frozen=True)
@@ -401,12 +407,12 @@ class _Builder:
         t = np.arange(1, n + 1) * self.dt
         out = np.repeat(self.finger_now[:, None], n, 1)
         for h in which:
-            goal = self.hands[h].closed_target if target == "closed" else 0.0
-            step = np.sign(goal - self.finger_now[h]) * self.hands[h].speed * t
-            out[h] = self.finger_now[h] + step
-            out[h] = np.minimum(out[h], goal) if goal >= self.finger_now[h] else np.maximum(
-                out[h], goal
-            )
+            hand = self.hands[h]
+            if target == "closed":
+                out[h] = np.minimum(self.finger_now[h] + hand.speed * t, hand.closed_target)
+            else:
+                start = min(self.finger_now[h], hand.contact)
+                out[h] = np.maximum(start - hand.speed * t, 0.0)
         return out
 
     def move_back(self, which: list[int], distance: float, duration: float) -> np.ndarray:
@@ -467,7 +473,7 @@ class _Builder:
         envelope = np.sin(0.5 * np.pi * np.clip(envelope, 0.0, 1.0)) ** 2
         wave = np.sin(2 * np.pi * p.shake_frequency * t) * envelope
         grasp = self.pose @ self.hands[holder].pose
-        centre, axis = grasp[:3, 3], grasp[:3, 1]
+        centre, axis = grasp[:3, 3], grasp[:3, self.hands[holder].axis]
         turn = rotation_about_axis(axis, p.shake_angle * wave)  # (n, 3, 3)
         offset = centre + np.outer(p.shake_amplitude * wave, [0.0, 0.0, 1.0])
         about = transform_from(turn, offset - np.einsum("nij,j->ni", turn, centre))
