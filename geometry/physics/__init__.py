@@ -2,10 +2,11 @@
 simulated through pick-up, lift, carry, hold, shake and the hand-over.
 
 This package knows nothing of the knowledge base: primitives or meshes, poses and numbers
-in, typed results out. Its parts: :mod:`.protocol` (every parameter with its reason, the
-phases as targets over time), :mod:`.model` (the MjSpec of object, hands and pads),
-:mod:`.check` (run, measure, the robustness ensemble) and :mod:`.decompose` (a mesh's convex
-parts by CoACD, cached by the mesh's hash).
+in, typed results out. Its parts: :mod:`.params` (every parameter with its reason),
+:mod:`.shapes` (the object), :mod:`.hands` (grippers and a receiver's pads),
+:mod:`.protocol` (the phases as targets over time), :mod:`.model` (the MjSpec of object,
+hands and pads), :mod:`.check` (run, measure, the robustness ensemble) and
+:mod:`.decompose` (a mesh's convex parts by CoACD, cached by the mesh's hash).
 """
 
 from handover.geometry.physics.check import (
@@ -17,19 +18,19 @@ from handover.geometry.physics.check import (
     check,
     ensemble,
 )
-from handover.geometry.physics.model import ConvexPart, Hand, ObjectModel, Primitive
-from handover.geometry.physics.protocol import (
+from handover.geometry.physics.hands import Hand
+from handover.geometry.physics.params import (
     DEFAULT_ENSEMBLE,
     GRIP_FORCES,
-    MODES,
     RECEIVER_PINCH_FORCES,
-    Motion,
     Perturbation,
     Protocol,
     Solver,
     Thresholds,
     receiver_grip_force,
 )
+from handover.geometry.physics.protocol import MODES, Motion
+from handover.geometry.physics.shapes import ConvexPart, ObjectModel, Primitive
 
 __all__ = [
     "GRASP_KINDS",

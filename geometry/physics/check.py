@@ -6,7 +6,7 @@ targets and the support's force are its open-loop inputs, so no Python runs per 
 Slip is the motion of the object in the holding hand's frame (the palm body, not its
 target) since the hand's grip settled: the displacement of the object's point that sat at
 the grasp origin (mm) and the angle it turned (deg). :func:`ensemble` runs the same check
-with the friction, grip force and torsion scaled (:data:`.protocol.DEFAULT_ENSEMBLE`) in one
+with the friction, grip force and torsion scaled (:data:`.params.DEFAULT_ENSEMBLE`) in one
 batched rollout and gives the share that pass and the worst slip.
 
 Same inputs give identical numbers (MuJoCo is deterministic on one thread; nothing is
@@ -26,25 +26,17 @@ from scipy.spatial.transform import Rotation
 
 from handover.geometry.frames import transform_from
 from handover.geometry.gripper import check_poses
-from handover.geometry.physics.model import (
-    Built,
-    Hand,
-    HandIn,
-    ObjectModel,
-    build,
-    squeeze_target,
-)
-from handover.geometry.physics.protocol import (
+from handover.geometry.physics.hands import Hand, squeeze_target
+from handover.geometry.physics.model import Built, HandIn, build
+from handover.geometry.physics.params import (
     DEFAULT_ENSEMBLE,
-    HandPlan,
-    Motion,
     Perturbation,
     Protocol,
-    Schedule,
     Solver,
     Thresholds,
-    schedule,
 )
+from handover.geometry.physics.protocol import HandPlan, Motion, Schedule, schedule
+from handover.geometry.physics.shapes import ObjectModel
 
 __all__ = [
     "GRASP_KINDS",
@@ -68,7 +60,7 @@ _CLOSE_PAST = 0.01  # m: the closed target lies this far past the contact (force
 class Grasp:
     """One hand's grasp on the object.
 
-    hand : the :class:`~.model.Hand` (a gripper, or the receiver's pads).
+    hand : the :class:`~.hands.Hand` (a gripper, or the receiver's pads).
     pose : (4, 4) the grasp frame in the object frame: for a pinch, origin midway between
         the pads' contacts, ``o`` closing, ``a`` approach; for a squeeze, origin on the face
         pressed, ``a`` into the object.

@@ -6,16 +6,14 @@ a non-convex mesh, which MuJoCo would collide as its single convex hull). Its ma
 given total, spread over the shapes by their own masses where given, else by volume; a
 given centre of mass moves the inertia there (parallel axes).
 
-A :class:`Hand` is a parallel-jaw gripper as boxes in its grasp frame (ARCHITECTURE.md:
-origin between the pads, ``a`` = z approach, ``o`` = y closing, ``n`` = x), the numbers of
-:class:`handover.geometry.gripper.Gripper` (:meth:`Hand.from_gripper`): two fingers on
-slide joints along ``o``, driven by force-limited position actuators (the target runs past
-the contact, so the jaw presses with exactly the grip force), coupled to move together as a
-rack or linkage makes them; a palm behind them. The hand body is free and welded to a mocap
-target the schedule moves (the arm); it is gravity-compensated. A *squeeze* hand keeps its
-jaws closed and presses its fingertips on a face along ``a`` through a force-limited slide.
-The receiver's pinch is a hand whose fingers are two pads and whose palm does not collide
-(:meth:`Hand.receiver_pads`).
+A :class:`~handover.geometry.physics.hands.Hand` becomes a palm box and two finger boxes in
+its grasp frame: the fingers on slide joints along ``o``, driven by force-limited position
+actuators (the target runs past the contact, so each jaw presses with exactly the grip
+force), coupled to move together as a rack or linkage makes them. The hand body is free,
+gravity-compensated and welded to a mocap target the schedule moves (the arm). A *squeeze*
+hand keeps its jaws closed and presses its fingertips on a face along ``a`` through a slide
+sprung as an impedance-controlled arm (preloaded to the grip force). The receiver's pinch is
+a hand whose fingers are two pads and whose palm does not collide.
 
 Only the object collides with the hands (hands do not collide with each other). The pads
 take priority in contacts, so their friction (sliding, torsional), condim 4 and the solver's
@@ -24,263 +22,21 @@ contact softness decide every object-pad contact.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
-from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
-from handover.geometry.gripper import Gripper, check_poses
-from handover.geometry.physics.protocol import Solver
+from handover.geometry.physics.hands import Hand, squeeze_target
+from handover.geometry.physics.params import Solver
+from handover.geometry.physics.shapes import ConvexPart, ObjectModel
 
-__all__ = [
-    "PRIMITIVE_KINDS",
-    "Primitive",
-    "ConvexPart",
-    "ObjectModel",
-    "Hand",
-    "HandIn",
-    "Built",
-    "build",
-    "squeeze_target",
-]
-
-PRIMITIVE_KINDS = ("box", "cylinder", "sphere", "capsule")
+__all__ = ["HandIn", "Built", "build"]
 
 _OBJECT_BITS = (1, 2)  # contype, conaffinity: collides with hands only
 _HAND_BITS = (2, 0)
 _NONE_BITS = (0, 0)
-
-
-@dataclass(frozen=True)
-class Primitive:
-    """A solid primitive of the object.
-
-    kind : ``"box"``, ``"cylinder"``, ``"sphere"`` or ``"capsule"``.
-    size : m. box: (3,) full extents along its x, y, z; sphere: (radius,); cylinder and
-        capsule: (radius, length), the length of the cylindrical part along its z.
-    pose : (4, 4) its frame in the object frame (centre at the origin).
-    mass : kg, or None (a share of the object's remaining mass by volume).
-    """
-
-    kind: str
-    size: tuple[float, ...]
-    pose: np.ndarray = field(default_factory=lambda: np.eye(4))
-    mass: float | None = None
-
-    def __post_init__(self) -> None:
-        if self.kind not in PRIMITIVE_KINDS:
-            raise ValueError(f"unknown primitive {self.kind!r}: expected one of {PRIMITIVE_KINDS}")
-        size = tuple(float(v) for v in np.atleast_1d(self.size))
-        want = {"box": 3, "sphere": 1, "cylinder": 2, "capsule": 2}[self.kind]
-        if len(size) != want or not all(np.isfinite(v) and v > 0 for v in size):
-            raise ValueError(f"a {self.kind} needs {want} positive size(s) in metres, got {size}")
-        object.__setattr__(self, "size", size)
-        object.__setattr__(self, "pose", check_poses(self.pose, 0.0)[0][0])
-        _check_mass(self.mass)
-
-    @property
-    def volume(self) -> float:
-        """m^3."""
-        s = self.size
-        if self.kind == "box":
-            return s[0] * s[1] * s[2]
-        if self.kind == "sphere":
-            return 4.0 / 3.0 * np.pi * s[0] ** 3
-        cylinder = np.pi * s[0] ** 2 * s[1]
-        return cylinder + (4.0 / 3.0 * np.pi * s[0] ** 3 if self.kind == "capsule" else 0.0)
-
-
-@dataclass(frozen=True)
-class ConvexPart:
-    """A convex piece of the object: vertices (V, 3) float m in the object frame, faces
-    (F, 3) int (MuJoCo collides and weighs it as the hull of its vertices); mass as for
-    :class:`Primitive`."""
-
-    vertices: np.ndarray
-    faces: np.ndarray
-    mass: float | None = None
-
-    def __post_init__(self) -> None:
-        v = np.asarray(self.vertices, dtype=float)
-        f = np.asarray(self.faces, dtype=np.int64)
-        if v.ndim != 2 or v.shape[1] != 3 or len(v) < 4 or not np.isfinite(v).all():
-            raise ValueError("a convex part needs at least 4 finite (V, 3) vertices")
-        if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0 or f.min() < 0 or f.max() >= len(v):
-            raise ValueError("a convex part needs (F, 3) faces indexing its vertices")
-        object.__setattr__(self, "vertices", v)
-        object.__setattr__(self, "faces", f)
-        _check_mass(self.mass)
-        if self.volume <= 1e-12:
-            raise ValueError("a convex part is flat: it has no volume")
-
-    @property
-    def volume(self) -> float:
-        """m^3, of the hull of the vertices."""
-        try:
-            return float(ConvexHull(self.vertices).volume)
-        except Exception:  # scipy's QhullError: coplanar points
-            return 0.0
-
-
-@dataclass(frozen=True)
-class ObjectModel:
-    """The object: shapes (primitives and/or convex parts, object frame), total mass (kg)
-    and optionally its centre of mass (3,) m in the object frame (else the shapes')."""
-
-    shapes: tuple[Primitive | ConvexPart, ...]
-    mass: float
-    com: np.ndarray | None = None
-
-    def __post_init__(self) -> None:
-        shapes = tuple(self.shapes)
-        if not shapes or not all(isinstance(s, Primitive | ConvexPart) for s in shapes):
-            raise ValueError("ObjectModel.shapes must be one or more Primitive or ConvexPart")
-        object.__setattr__(self, "shapes", shapes)
-        if not (np.isfinite(self.mass) and self.mass > 0):
-            raise ValueError(f"ObjectModel.mass must be a positive number of kg, got {self.mass}")
-        given = sum(s.mass for s in shapes if s.mass is not None)
-        free = [s for s in shapes if s.mass is None]
-        if given > self.mass * (1 + 1e-9) or (not free and abs(given - self.mass) > 1e-9 *
-                                               self.mass):  # fmt: skip
-            raise ValueError(
-                f"the shapes' masses ({given:.4g} kg) do not add up to the object's "
-                f"({self.mass:.4g} kg)"
-            )
-        if free and given >= self.mass:
-            raise ValueError("the shapes with a mass leave none for those without")
-        if self.com is not None:
-            com = np.asarray(self.com, dtype=float)
-            if com.shape != (3,) or not np.isfinite(com).all():
-                raise ValueError("ObjectModel.com must be 3 finite numbers (m, object frame)")
-            object.__setattr__(self, "com", com)
-
-    def shape_masses(self) -> np.ndarray:
-        """(S,) kg, each shape's mass: its own, or the rest shared by volume."""
-        given = sum(s.mass for s in self.shapes if s.mass is not None)
-        volume = sum(s.volume for s in self.shapes if s.mass is None)
-        rest = self.mass - given
-        return np.array([s.mass if s.mass is not None else rest * s.volume / volume
-                         for s in self.shapes])  # fmt: skip
-
-
-@dataclass(frozen=True)
-class Hand:
-    """A parallel-jaw hand (see the module docstring). Metres, kilograms, newtons.
-
-    finger_width, finger_thickness, finger_length : a finger's box along n, o, a; its inner
-        face is the pad. palm : (3,) extents along n, o, a, behind the fingers'
-        roots at ``a = -finger_length / 2``. max_opening : the largest distance between the
-        pads. clearance : added on each side of the object's width when the hand opens.
-    grip_force : N, the force each jaw presses with (the actuators' limit).
-    friction : the pads' sliding friction coefficient.
-    torsional_friction : m, MuJoCo's torsional coefficient: the torque a contact resists per
-        newton of normal force, about 2/3 mu r for a patch of radius r (0.003 for rubber at
-        0.5 on a 9 mm patch).
-    finger_mass : kg. armature : kg, the finger drive's reflected inertia on the slide
-        (0.2: at 0.01 a light finger oscillates at a 2 ms step). speed : m/s, the closing
-        and opening speed of the finger target. hand_mass : kg, the palm body.
-    palm_collides : False for a receiver's pads (a person's palm is not modelled).
-    coupled : the two fingers move together (one drive), as in a parallel gripper.
-    squeeze_stiffness : N/m, how stiffly a squeezing hand holds its place along ``a``: the
-        arm presses as an impedance controller does (Cartesian stiffness of 1-3 kN/m),
-        preloaded to ``grip_force``, so an object squeezed by two arms stays put against
-        inertial loads instead of drifting between two pure force sources.
-    pad_tiles : (along n, along a) flush boxes each finger is made of. MuJoCo puts the force
-        of a box pressed on a face at the corners of their overlap: one box per pad holds the
-        torque about its normal of a rigid, edge-loaded pad (an upper bound: a 22 mm line
-        contact holds 1.6x, a 22 x 50 mm face 1.6x what 3 x 3 tiles give, the uniformly
-        pressed soft pad). Tiles cost time (3 x 3: 3-5x per step); the default is the fast
-        bound and the ensemble's torsion x0.5 covers part of the difference.
-    """
-
-    finger_width: float
-    finger_thickness: float
-    finger_length: float
-    palm: tuple[float, float, float]
-    max_opening: float
-    clearance: float
-    grip_force: float
-    friction: float
-    torsional_friction: float = 0.003
-    finger_mass: float = 0.05
-    armature: float = 0.2
-    speed: float = 0.1
-    hand_mass: float = 0.7
-    palm_collides: bool = True
-    coupled: bool = True
-    pad_tiles: tuple[int, int] = (1, 1)
-    squeeze_stiffness: float = 2000.0
-
-    def __post_init__(self) -> None:
-        palm = tuple(float(v) for v in self.palm)
-        if len(palm) != 3:
-            raise ValueError(f"Hand.palm needs 3 extents, got {len(palm)}")
-        object.__setattr__(self, "palm", palm)
-        for name in ("finger_width", "finger_thickness", "finger_length", "max_opening",
-                     "grip_force", "friction", "finger_mass", "armature", "speed",
-                     "hand_mass", "squeeze_stiffness"):  # fmt: skip
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ValueError(f"Hand.{name} must be a positive number, got {value}")
-        for name in ("clearance", "torsional_friction"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"Hand.{name} must be a non-negative number, got {value}")
-        if min(palm) <= 0:
-            raise ValueError("Hand.palm extents must be positive")
-        tiles = tuple(int(v) for v in self.pad_tiles)
-        if len(tiles) != 2 or min(tiles) < 1:
-            raise ValueError(f"Hand.pad_tiles must be two counts >= 1, got {self.pad_tiles}")
-        object.__setattr__(self, "pad_tiles", tiles)
-
-    @classmethod
-    def from_gripper(cls, gripper: Gripper, grip_force: float, **overrides: float) -> Hand:
-        """The planner's gripper model as a simulated hand: its finger and palm boxes,
-        stroke, clearance and pad friction; ``grip_force`` (N, per jaw) and any other
-        field of :class:`Hand` as keywords. A gripper given as meshes is simulated as its
-        parts' bounding boxes (``Gripper.part_extents``)."""
-        ext = gripper.part_extents()
-        values = dict(
-            finger_width=float(ext[1, 0]),
-            finger_thickness=float(ext[1, 1]),
-            finger_length=float(ext[1, 2]),
-            palm=tuple(float(v) for v in ext[0]),
-            max_opening=gripper.max_opening,
-            clearance=gripper.clearance,
-            grip_force=grip_force,
-            friction=gripper.friction,
-        )
-        values.update(overrides)
-        return cls(**values)
-
-    @classmethod
-    def receiver_pads(
-        cls,
-        grip_force: float,
-        pad: tuple[float, float, float] = (0.016, 0.008, 0.02),
-        friction: float = 0.7,
-        torsional_friction: float = 0.004,
-        max_opening: float = 0.12,
-        clearance: float = 0.01,
-    ) -> Hand:
-        """A receiver's pinch as two pads: ``pad`` = (width along n, thickness along o,
-        length along a) m, a fingertip's (16 x 20 mm); skin on household objects has a
-        friction of 0.5-1.0; soft fingertips spread a wide patch (torsion 0.004 m).
-        ``grip_force`` in N (:func:`~handover.geometry.physics.protocol.receiver_grip_force`).
-        """
-        return cls(
-            finger_width=pad[0], finger_thickness=pad[1], finger_length=pad[2],
-            palm=(0.02, 0.02, 0.02), max_opening=max_opening, clearance=clearance,
-            grip_force=grip_force, friction=friction, torsional_friction=torsional_friction,
-            finger_mass=0.05, armature=0.2, speed=0.1, hand_mass=0.5, palm_collides=False,
-        )  # fmt: skip
-
-    def opening(self, width: float) -> float:
-        """m, the distance between the pads when open for an object ``width`` across."""
-        return float(min(width + 2.0 * self.clearance, self.max_opening))
-
 
 @dataclass(frozen=True)
 class HandIn:
@@ -314,12 +70,6 @@ class Built:
     pad_geoms: list[np.ndarray]
     object_body: int
     weight: float
-
-
-def _check_mass(mass: float | None) -> None:
-    if mass is not None and not (np.isfinite(mass) and mass > 0):
-        raise ValueError(f"a shape's mass must be a positive number of kg, got {mass}")
-
 
 def _quat(rotation: np.ndarray) -> np.ndarray:
     """(4,) w, x, y, z of a rotation matrix."""
@@ -362,14 +112,6 @@ def _object_inertia(obj: ObjectModel) -> tuple[np.ndarray, np.ndarray]:
     mujoco.mju_quat2Mat(rot, m.body_iquat[1])
     rot = rot.reshape(3, 3)
     return m.body_ipos[1].copy(), rot @ np.diag(m.body_inertia[1]) @ rot.T
-
-
-def squeeze_target(hand: Hand) -> float:
-    """m, a squeezing hand's press target from where it starts (``clearance`` off the face):
-    the face, then ``grip_force / squeeze_stiffness`` further, where the spring presses with
-    the grip force."""
-    return hand.clearance + hand.grip_force / hand.squeeze_stiffness
-
 
 def _add_tiles(body: mujoco.MjsBody, prefix: str, extents: tuple[float, float, float],
                centre: list[float], tiles: tuple[int, int], mass: float,
