@@ -222,15 +222,19 @@ def _offsets(m: mujoco.MjModel, parts: list[int]) -> dict[int, int]:
 
 
 def _prepare(obj: ObjectModel, grasps: list[Grasp], motion: Motion, mode: str,
-             receiver: Grasp | None, protocol: Protocol, solver: Solver) -> _Prepared:  # fmt: skip
+             receiver: Grasp | list[Grasp] | None, protocol: Protocol,
+             solver: Solver) -> _Prepared:  # fmt: skip
     names = [f"gripper{k}" for k in range(len(grasps))]
     plans = [_plan(g, n) for g, n in zip(grasps, names, strict=True)]
-    everyone = list(grasps)
-    if receiver is not None:
-        names.append("receiver")
-        everyone.append(receiver)
-    rplan = _plan(receiver, "receiver") if receiver is not None else None
-    sched = schedule(mode, plans, motion, protocol, solver.timestep, rplan)
+    takers = [] if receiver is None else [receiver] if isinstance(receiver, Grasp) else list(
+        receiver
+    )
+    taker_names = ["receiver"] if len(takers) == 1 else [f"receiver{k}" for k in
+                                                          range(len(takers))]  # fmt: skip
+    everyone = list(grasps) + takers
+    names += taker_names
+    rplans = [_plan(g, n) for g, n in zip(takers, taker_names, strict=True)]
+    sched = schedule(mode, plans, motion, protocol, solver.timestep, rplans)
     hands = []
     for h, (n, g) in enumerate(zip(names, everyone, strict=True)):
         opening = g.hand.opening(g.width) if g.kind == "pinch" else 0.0
@@ -324,8 +328,8 @@ def _measure(prep: _Prepared, states: np.ndarray, thresholds: Thresholds, mode: 
     within = all(p.translation_mm <= thresholds.max_slip_mm and
                  p.rotation_deg <= thresholds.max_slip_deg for p in phases)  # fmt: skip
     receiver_held = None
-    if "receiver" in prep.names:
-        mine = [p for p in phases if p.holder == "receiver"]
+    if any(n.startswith("receiver") for n in prep.names):
+        mine = [p for p in phases if p.holder.startswith("receiver")]
         receiver_held = bool(mine) and all(
             not p.dropped and p.translation_mm <= thresholds.max_slip_mm
             and p.rotation_deg <= thresholds.max_slip_deg for p in mine
@@ -353,7 +357,7 @@ def check(
     grasps: list[Grasp],
     motion: Motion,
     mode: str = "H1G1",
-    receiver: Grasp | None = None,
+    receiver: Grasp | list[Grasp] | None = None,
     protocol: Protocol | None = None,
     solver: Solver | None = None,
     thresholds: Thresholds | None = None,
@@ -365,8 +369,9 @@ def check(
         together from pick-up) and H2G2 (the first to the midair pose, the second from there
         to the handover). Their hands are named ``gripper0``, ``gripper1`` in the result.
     motion : the object's world poses (pick-up, carry, H2G2's second carry).
-    receiver : the receiver's grasp (pads, object frame), closing at the handover, after
-        which the grippers open and retreat; or None.
+    receiver : the receiver's grasp (pads, object frame), or a list of them (one per hand,
+        named ``receiver0``, ``receiver1``), closing at the handover, after which the
+        grippers open and retreat; or None.
     protocol, solver, thresholds : the parameters (their defaults if None).
     Raises ``ValueError`` on inconsistent input (mode against grasps and motion, a grasp
     wider than its hand opens).
@@ -397,7 +402,7 @@ def ensemble(
     grasps: list[Grasp],
     motion: Motion,
     mode: str = "H1G1",
-    receiver: Grasp | None = None,
+    receiver: Grasp | list[Grasp] | None = None,
     protocol: Protocol | None = None,
     solver: Solver | None = None,
     thresholds: Thresholds | None = None,

@@ -293,14 +293,15 @@ def schedule(
     motion: Motion,
     protocol: Protocol,
     dt: float,
-    receiver: HandPlan | None = None,
+    receivers: list[HandPlan] | None = None,
 ) -> Schedule:
     """The check's targets step by step (see the module docstring and :class:`Schedule`).
 
     mode : ``"H1G1"`` (one gripper), ``"H2G1"`` (two grippers hold together) or ``"H2G2"``
         (the first picks up and carries to the midair pose, the second takes the object
         there and carries it to the handover). grippers : one or two hands as ``mode``
-        needs; receiver : the receiver's hand, or None (the check ends after the shake).
+        needs; receivers : the receiver's hands (one pinch, or one per hand), closing
+        together at the handover; none: the check ends after the shake.
     The phases: close, lift, carry, hold, shake; in H2G2 then regrasp_approach,
     regrasp_close, regrasp_release, regrasp_carry, regrasp_hold, regrasp_shake; with a
     receiver handover_approach, handover_close, handover_release, handover_hold.
@@ -314,7 +315,8 @@ def schedule(
         raise ValueError(f"{mode} needs {want} gripper grasp(s), got {len(grippers)}")
     if (mode == "H2G2") != (motion.regrasp_carry is not None):
         raise ValueError("Motion.regrasp_carry is required for H2G2 and only for it")
-    hands = list(grippers) + ([receiver] if receiver is not None else [])
+    receivers = list(receivers or [])
+    hands = list(grippers) + receivers
     names = [h.name for h in hands]
     if len(set(names)) != len(names):
         raise ValueError(f"hand names must be unique, got {names}")
@@ -337,11 +339,12 @@ def schedule(
         b.carry("regrasp_carry", motion.regrasp_carry, holding)
         b.hold("regrasp_hold", p.hold_time, holding)
         b.shake("regrasp_shake", 1, holding)
-    if receiver is not None:
-        r = len(hands) - 1
+    if receivers:
+        taking = list(range(len(grippers), len(hands)))
+        takers = tuple(names[h] for h in taking)
         robot = [names.index(n) for n in holding]
-        b.approach("handover_approach", [r], holding)
-        b.close("handover_close", [r], holding)
-        b.release("handover_release", robot, (names[r],))
-        b.hold("handover_hold", p.receiver_hold_time, (names[r],))
+        b.approach("handover_approach", taking, holding)
+        b.close("handover_close", taking, holding)
+        b.release("handover_release", robot, takers)
+        b.hold("handover_hold", p.receiver_hold_time, takers)
     return b.build()

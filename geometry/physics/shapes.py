@@ -121,6 +121,23 @@ class ObjectModel:
                 raise ValueError("ObjectModel.com must be 3 finite numbers (m, object frame)")
             object.__setattr__(self, "com", com)
 
+    def centre_of_mass(self) -> np.ndarray:
+        """(3,) m, object frame: the given ``com``, else the shapes' mass-weighted centres
+        (a primitive's at its pose, a convex part's at its hull's volume centroid)."""
+        if self.com is not None:
+            return self.com.copy()
+        import trimesh
+
+        from handover.geometry.mesh import mass_centre
+
+        centres = [
+            s.pose[:3, 3] if isinstance(s, Primitive)
+            else mass_centre(trimesh.convex.convex_hull(s.vertices))
+            for s in self.shapes
+        ]  # fmt: skip
+        masses = self.shape_masses()
+        return (masses[:, None] * np.asarray(centres)).sum(axis=0) / masses.sum()
+
     def shape_masses(self) -> np.ndarray:
         """(S,) kg, each shape's mass: its own, or the rest shared by volume."""
         given = sum(s.mass for s in self.shapes if s.mass is not None)
