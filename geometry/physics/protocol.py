@@ -61,6 +61,8 @@ class Motion:
             if value is None:
                 continue
             poses, _ = check_poses(value, 0.0)
+            if len(poses) == 0:
+                raise ValueError(f"Motion.{name} needs at least one pose (its end)")
             object.__setattr__(self, name, poses)
 
 
@@ -194,14 +196,25 @@ class _Builder:
         return np.repeat(self.pose[None], self.steps(duration), axis=0)
 
     def ramp(self, which: list[int], target: str, duration: float) -> np.ndarray:
-        """(H, n) finger targets: the hands ``which`` move to closed or open at their speed."""
+        """(H, n) finger targets: the hands ``which`` close or open.
+
+        Closing, the target runs at the hand's speed to the contact, then on to the closed
+        target within the first half of ``duration`` (faster if it must), so the grip force
+        (or a squeeze's preload) is reached and settles before the phase ends. Opening, it
+        drops to the contact (the grip lets go) and runs back to 0 at the hand's speed.
+        """
         n = self.steps(duration)
         t = np.arange(1, n + 1) * self.dt
         out = np.repeat(self.finger_now[:, None], n, 1)
         for h in which:
             hand = self.hands[h]
             if target == "closed":
-                out[h] = np.minimum(self.finger_now[h] + hand.speed * t, hand.closed_target)
+                start = self.finger_now[h]
+                reach = max(0.0, hand.contact - start) / hand.speed
+                press = max(hand.speed, (hand.closed_target - hand.contact) / (0.5 * duration))
+                out[h] = np.where(t <= reach, start + hand.speed * t,
+                                  max(start, hand.contact) + press * (t - reach))  # fmt: skip
+                out[h] = np.minimum(out[h], hand.closed_target)
             else:
                 start = min(self.finger_now[h], hand.contact)
                 out[h] = np.maximum(start - hand.speed * t, 0.0)

@@ -313,3 +313,61 @@ def test_the_hand_takes_the_planners_gripper_numbers():
     assert hand.friction == g.friction and hand.clearance == g.clearance
     assert hand.grip_force == 40.0 and hand.torsional_friction == 0.002
     assert hand.opening(0.03) == pytest.approx(g.opening(0.03))
+
+
+SLOW = Protocol(lift_time=2.0, carry_time=0.5, hold_time=1.0, shake_amplitude=0.0,
+                shake_angle=0.0)  # fmt: skip
+STAY = Motion(PICK, (PICK @ transform_from(None, [0, 0, 0.1]))[None])  # lift only
+
+
+@pytest.mark.parametrize("kind", ["pinch", "squeeze"])
+def test_the_jaws_press_with_the_grip_force_friction_holds_up_to_2_mu_f(kind):
+    # At 20 N per jaw and mu 0.5 the pads' friction carries 20 N: 2.04 kg (a slow lift adds
+    # 1.5 % at most). Just below holds, just above slides out.
+    hand = Hand.from_gripper(GRIPPER, grip_force=20.0)
+    limit = 2 * hand.friction * hand.grip_force / G
+    if kind == "pinch":
+        grasps = [Grasp(hand, frame(*FROM_ABOVE, [0, 0, 0.04]), width=0.06)]
+        mode = "H1G1"
+    else:  # two arms, each one pad: the same 2 mu F
+        grasps = [Grasp(hand, frame([0, 0, 1], [0, 1, 0], [-1, 0, 0], [0.03, 0, 0]),
+                        kind="squeeze"),
+                  Grasp(hand, frame([0, 0, -1], [0, 1, 0], [1, 0, 0], [-0.03, 0, 0]),
+                        kind="squeeze")]  # fmt: skip
+        mode = "H2G1"
+    held = check(box(0.9 * limit), grasps, STAY, mode=mode, protocol=SLOW)
+    slid = check(box(1.15 * limit), grasps, STAY, mode=mode, protocol=SLOW)
+    assert held.passed
+    assert slid.dropped
+
+
+def test_two_pinches_of_a_receiver_take_the_object_together_and_are_measured_each():
+    pads = Hand.receiver_pads(receiver_grip_force("child"))
+    # One child's pinch carries 2 mu F = 14.7 N, two carry 29.4 N: a 2 kg box (19.6 N)
+    # slides out of one and is held by both.
+    assert 2 * pads.friction * pads.grip_force < 2.0 * G < 4 * pads.friction * pads.grip_force
+    below = Grasp(pads, frame([0, -1, 0], [1, 0, 0], [0, 0, 1], [0, 0, -0.03]), 0.06)
+    side = Grasp(pads, frame([0, 0, -1], [0, 1, 0], [1, 0, 0], [-0.015, 0, -0.05]), 0.06)
+    assert not check(box(2.0), [BOX_TOP], MOTION, receiver=below).receiver_held
+    result = check(box(2.0), [BOX_TOP], MOTION, receiver=[below, side])
+    assert result.passed and result.receiver_held
+    assert {p.holder for p in result.phases if p.phase == "handover_hold"} == {
+        "receiver0", "receiver1"}  # fmt: skip
+
+
+def test_the_centre_of_mass_is_where_mujoco_puts_it():
+    import mujoco
+
+    obj = hammer()
+    spec = mujoco.MjSpec()
+    body = spec.worldbody.add_body()
+    body.add_freejoint()
+    for s, m in zip(obj.shapes, obj.shape_masses(), strict=True):
+        size = [s.size[0], s.size[1] / 2, 0] if s.kind == "cylinder" else [v / 2 for v in s.size]
+        kind = mujoco.mjtGeom.mjGEOM_CYLINDER if s.kind == "cylinder" else mujoco.mjtGeom.mjGEOM_BOX
+        quat = np.zeros(4)
+        mujoco.mju_mat2Quat(quat, s.pose[:3, :3].ravel())
+        body.add_geom(type=kind, size=size, pos=s.pose[:3, 3], quat=quat, mass=m)
+    model = spec.compile()
+    np.testing.assert_allclose(obj.centre_of_mass(), model.body_ipos[1], atol=1e-9)
+    np.testing.assert_allclose(obj.centre_of_mass(), [hammer_com_x(), 0, 0], atol=1e-9)
