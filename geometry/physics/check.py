@@ -155,7 +155,8 @@ class EnsembleResult:
     margin : the share of the perturbed runs that pass (0-1). robust : the margin reaches
     ``Thresholds.ensemble_fraction`` and the nominal passes. worst_translation_mm,
     worst_rotation_deg : the largest slip over all runs (the nominal's included).
-    seconds : wall time of the nominal and the ensemble together.
+    seconds : wall time of the nominal and the ensemble together (each run's own
+    ``seconds`` is its share of it: they run in one batch).
     """
 
     nominal: CheckResult

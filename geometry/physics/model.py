@@ -38,6 +38,7 @@ _OBJECT_BITS = (1, 2)  # contype, conaffinity: collides with hands only
 _HAND_BITS = (2, 0)
 _NONE_BITS = (0, 0)
 
+
 @dataclass(frozen=True)
 class HandIn:
     """A hand as placed in the model: ``name``, its :class:`Hand`, ``kind`` (``"pinch"``
@@ -70,6 +71,7 @@ class Built:
     pad_geoms: list[np.ndarray]
     object_body: int
     weight: float
+
 
 def _quat(rotation: np.ndarray) -> np.ndarray:
     """(4,) w, x, y, z of a rotation matrix."""
@@ -112,6 +114,7 @@ def _object_inertia(obj: ObjectModel) -> tuple[np.ndarray, np.ndarray]:
     mujoco.mju_quat2Mat(rot, m.body_iquat[1])
     rot = rot.reshape(3, 3)
     return m.body_ipos[1].copy(), rot @ np.diag(m.body_inertia[1]) @ rot.T
+
 
 def _add_tiles(body: mujoco.MjsBody, prefix: str, extents: tuple[float, float, float],
                centre: list[float], tiles: tuple[int, int], mass: float,

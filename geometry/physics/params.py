@@ -33,6 +33,7 @@ def _positive(record: str, **values: float) -> None:
         if not (np.isfinite(value) and value > 0):
             raise ValueError(f"{record}.{name} must be a positive number, got {value}")
 
+
 GRIP_FORCES = {
     "franka_hand": 70.0,
     "franka_hand_peak": 140.0,

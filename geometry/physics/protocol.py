@@ -34,6 +34,8 @@ __all__ = [
 
 MODES = ("H1G1", "H2G2", "H2G1")
 """One gripper; two grippers one after the other (a midair regrasp); two grippers at once."""
+
+
 @dataclass(frozen=True)
 class Motion:
     """The object's world poses along the plan (4x4, metres).

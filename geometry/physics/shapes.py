@@ -18,6 +18,8 @@ from handover.geometry.gripper import check_poses
 __all__ = ["PRIMITIVE_KINDS", "Primitive", "ConvexPart", "ObjectModel"]
 
 PRIMITIVE_KINDS = ("box", "cylinder", "sphere", "capsule")
+
+
 @dataclass(frozen=True)
 class Primitive:
     """A solid primitive of the object.
