@@ -21,6 +21,7 @@ from handover.geometry.physics import (
     ObjectModel,
     Primitive,
     Protocol,
+    Solver,
     Thresholds,
     check,
     ensemble,
@@ -302,6 +303,12 @@ def test_bad_input_is_refused_with_a_reason():
         check(box(), [Grasp(HAND, frame(*FROM_ABOVE, [0, 0, 0.04]), width=0.03)], MOTION)
     with pytest.raises(ValueError, match="unknown receiver"):
         receiver_grip_force("giant")
+    with pytest.raises(ValueError, match="at least two steps"):
+        Solver(timestep=0.004)  # the default contacts' 4 ms time constant is one step
+    with pytest.raises(ValueError, match="weight_ramp_time must not exceed"):
+        Protocol(lift_time=0.1)
+    with pytest.raises(ValueError, match="must not be below the max slips"):
+        Thresholds(drop_mm=2.0)
 
 
 def test_the_hand_takes_the_planners_gripper_numbers():
@@ -371,3 +378,22 @@ def test_the_centre_of_mass_is_where_mujoco_puts_it():
     model = spec.compile()
     np.testing.assert_allclose(obj.centre_of_mass(), model.body_ipos[1], atol=1e-9)
     np.testing.assert_allclose(obj.centre_of_mass(), [hammer_com_x(), 0, 0], atol=1e-9)
+
+
+@pytest.mark.parametrize("tiles, holds", [((1, 1), True), ((3, 3), False)])
+def test_a_box_pad_holds_torque_as_if_loaded_at_its_corners_and_tiles_spread_it(tiles, holds):
+    # A 2 mm plate pinched over 22 x 50 mm of each pad, its weight 10 cm off the closing
+    # axis: 1.57 N m. Coulomb friction at 70 N, mu 0.5 holds 2 mu F r plus torsion: with
+    # the force at the patch's corners (r = 27.3 mm) 1.9 + 0.4 N m, spread evenly over it
+    # (mean r = 14.4 mm) 1.0 + 0.4 N m. One box per pad is the first, 3 x 3 tiles the second.
+    hand = Hand.from_gripper(GRIPPER, grip_force=70.0, pad_tiles=tiles)
+    plate = ObjectModel((Primitive("box", (0.2, 0.002, 0.05)),), mass=1.6,
+                        com=np.array([0.1, 0.0, 0.0]))  # fmt: skip
+    torque = 1.6 * G * 0.1
+    corners = 2 * hand.friction * hand.grip_force * np.hypot(0.011, 0.025)
+    spread = 2 * hand.friction * hand.grip_force * 0.0144
+    torsion = 2 * hand.torsional_friction * hand.grip_force
+    assert spread + torsion < torque < corners + torsion
+    grasp = Grasp(hand, frame(*FROM_ABOVE, [0, 0, 0]), width=0.002)
+    result = check(plate, [grasp], STAY, protocol=SLOW)
+    assert result.passed == holds
