@@ -11,10 +11,12 @@ hands and pads), :mod:`.check` (run, measure, the robustness ensemble) and
 
 from handover.geometry.physics.check import (
     GRASP_KINDS,
+    RECORD_HZ,
     CheckResult,
     EnsembleResult,
     Grasp,
     PhaseSlip,
+    Trajectory,
     check,
     ensemble,
 )
@@ -38,6 +40,8 @@ __all__ = [
     "EnsembleResult",
     "Grasp",
     "PhaseSlip",
+    "RECORD_HZ",
+    "Trajectory",
     "check",
     "ensemble",
     "ConvexPart",

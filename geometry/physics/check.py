@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import copy
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import mujoco
 import numpy as np
@@ -42,6 +42,8 @@ __all__ = [
     "GRASP_KINDS",
     "Grasp",
     "PhaseSlip",
+    "Trajectory",
+    "RECORD_HZ",
     "CheckResult",
     "EnsembleResult",
     "check",
@@ -54,6 +56,9 @@ closed and the fingertips press a face along the approach axis (two arms squeezi
 no single gripper spans)."""
 
 _CLOSE_PAST = 0.01  # m: the closed target lies this far past the contact (force-limited)
+
+RECORD_HZ = 50.0
+"""Hz, how often a recorded :class:`Trajectory` samples the simulation."""
 
 
 @dataclass(frozen=True)
@@ -106,6 +111,25 @@ class PhaseSlip:
 
 
 @dataclass(frozen=True)
+class Trajectory:
+    """The simulated motion for drawing (a recording), sampled at :data:`RECORD_HZ`.
+
+    times : (T,) s from the start. object_poses : (T, 4, 4) the object's frame, world.
+    hands : the hands' names; hand_poses : (H, T, 4, 4) each hand body (its grasp frame;
+    for a squeeze, set back from the face), world; travel : (H, T) m, how far each hand's
+    fingers (or a squeeze's press) have moved from open towards the object.
+    phases : (name, start s) of each phase in order.
+    """
+
+    times: np.ndarray
+    object_poses: np.ndarray
+    hands: tuple[str, ...]
+    hand_poses: np.ndarray
+    travel: np.ndarray
+    phases: tuple[tuple[str, float], ...]
+
+
+@dataclass(frozen=True)
 class CheckResult:
     """One check's outcome.
 
@@ -115,6 +139,7 @@ class CheckResult:
     (None without a receiver). phases : every (phase, holder) measured, in order.
     max_translation_mm, max_rotation_deg : the largest slip of any phase. seconds : wall
     time of the check (build, run, measure); simulated_seconds : the protocol's length.
+    trajectory : the motion, when the check was asked to record it (not in ``to_dict``).
     """
 
     mode: str
@@ -127,6 +152,7 @@ class CheckResult:
     max_rotation_deg: float
     seconds: float
     simulated_seconds: float
+    trajectory: Trajectory | None = None
 
     def slip(self, phase: str, holder: str | None = None) -> PhaseSlip:
         """The :class:`PhaseSlip` of ``phase`` (and ``holder``, if several hold in it)."""
@@ -296,6 +322,23 @@ def _poses(qpos: np.ndarray, adr: int) -> tuple[np.ndarray, Rotation]:
     return qpos[:, adr:adr + 3], Rotation.from_quat(qpos[:, adr + 3:adr + 7], scalar_first=True)
 
 
+def _pose_matrices(positions: np.ndarray, rotations: Rotation) -> np.ndarray:
+    return transform_from(rotations.as_matrix(), positions)
+
+
+def _trajectory(prep: _Prepared, states: np.ndarray) -> Trajectory:
+    m, sched = prep.built.model, prep.schedule
+    stride = max(1, int(round(1.0 / (RECORD_HZ * sched.dt))))
+    rows = np.arange(stride - 1, sched.steps, stride)
+    qpos = states[rows, 1:1 + m.nq]
+    obj = _pose_matrices(*_poses(qpos, prep.built.object_qpos))
+    hands = np.stack([_pose_matrices(*_poses(qpos, int(a))) for a in prep.built.hand_qpos])
+    joints = [m.actuator_trnid[acts[0], 0] for acts in prep.built.actuators]
+    travel = np.stack([qpos[:, m.jnt_qposadr[j]] for j in joints])
+    phases = tuple((p.name, p.start * sched.dt) for p in sched.phases)
+    return Trajectory((rows + 1) * sched.dt, obj, tuple(prep.names), hands, travel, phases)
+
+
 def _measure(prep: _Prepared, states: np.ndarray, thresholds: Thresholds, mode: str,
              seconds: float) -> CheckResult:  # fmt: skip
     m, sched = prep.built.model, prep.schedule
@@ -362,6 +405,7 @@ def check(
     protocol: Protocol | None = None,
     solver: Solver | None = None,
     thresholds: Thresholds | None = None,
+    record: bool = False,
 ) -> CheckResult:
     """Simulate the grasps through the protocol and measure how the object slips.
 
@@ -374,6 +418,7 @@ def check(
         named ``receiver0``, ``receiver1``), closing at the handover, after which the
         grippers open and retreat; or None.
     protocol, solver, thresholds : the parameters (their defaults if None).
+    record : also return the motion (``CheckResult.trajectory``) for drawing.
     Raises ``ValueError`` on inconsistent input (mode against grasps and motion, a grasp
     wider than its hand opens).
     """
@@ -382,7 +427,10 @@ def check(
     thresholds = thresholds or Thresholds()
     prep = _prepare(obj, list(grasps), motion, mode, receiver, protocol, solver)
     states = _run(prep, [prep.built.model])[0]
-    return _measure(prep, states, thresholds, mode, time.perf_counter() - start)
+    result = _measure(prep, states, thresholds, mode, time.perf_counter() - start)
+    if record:
+        result = replace(result, trajectory=_trajectory(prep, states))
+    return result
 
 
 def _perturbed(built: Built, p: Perturbation) -> mujoco.MjModel:

@@ -397,3 +397,17 @@ def test_a_box_pad_holds_torque_as_if_loaded_at_its_corners_and_tiles_spread_it(
     grasp = Grasp(hand, frame(*FROM_ABOVE, [0, 0, 0]), width=0.002)
     result = check(plate, [grasp], STAY, protocol=SLOW)
     assert result.passed == holds
+
+
+def test_a_recorded_check_gives_the_motion_where_the_schedule_puts_it():
+    result = check(box(), [BOX_TOP], MOTION, record=True)
+    traj = result.trajectory
+    assert traj is not None and traj.hands == ("gripper0",)
+    assert traj.times[-1] == pytest.approx(result.simulated_seconds)
+    # The box ends held at the handover pose, turned a quarter about z; the gripper's
+    # jaws have closed 5 mm (its clearance) each.
+    np.testing.assert_allclose(traj.object_poses[-1], END, atol=2e-3)
+    np.testing.assert_allclose(traj.hand_poses[0, -1], END @ BOX_TOP.pose, atol=2e-3)
+    assert traj.travel[0, -1] == pytest.approx(HAND.clearance, abs=5e-4)
+    assert [name for name, _ in traj.phases] == ["close", "lift", "carry", "hold", "shake"]
+    assert check(box(), [BOX_TOP], MOTION).trajectory is None
