@@ -83,7 +83,7 @@ def main() -> None:
 
     arms = RobotArms.load(load_kb(builtin_kb_dir()), "idro")
     world = arms.fk("left", arms.arm("left").kin.random_configurations(200, rng))
-    arms.solve("left", world[:1])  # the seed library, once
+    arms.solve("left", world[:1])  # the start library, once
     t0 = time.perf_counter()
     ok = np.array([arms.solve("left", world[i : i + 1]).ok[0] for i in range(len(world))])
     dt = time.perf_counter() - t0

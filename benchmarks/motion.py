@@ -94,7 +94,7 @@ def stages(left):
     targets = np.linalg.inv(left.base) @ np.array([poses[k] for k in names])
     q, prev = {}, REST_LEFT
     for name, target in zip(names, targets, strict=True):  # each from the previous
-        ik = left.kin.ik(target[None], seed=prev, restarts=20, rng_seed=0)
+        ik = left.kin.ik(target[None], q0=prev, restarts=20, rng_seed=0)
         if not ik.success[0]:
             raise SystemExit(f"inverse kinematics found no joints for {name}")
         q[name] = prev = ik.q[0]

@@ -239,7 +239,7 @@ class Robot:
 
 @dataclass(frozen=True)
 class HumanGrasp:
-    """The receiver's predicted grasp (the seed's C). position : (3,) m, object frame;
+    """The receiver's predicted grasp (the paper's C). position : (3,) m, object frame;
     position_world : (3,) m at the handover; part : the part under it."""
 
     hand: str

@@ -1,6 +1,6 @@
 """Grasp candidates as a struct of arrays: one row per (grasp site, roll angle, depth).
 
-A candidate is the seed's F_gsite: ``centre`` midway between the two contacts, ``o`` the
+A candidate is the paper's F_gsite: ``centre`` midway between the two contacts, ``o`` the
 closing direction (from contact 0 to contact 1), ``a`` the approach direction (palm to
 fingertips), ``n = o x a``. Its pose, the gripper's F_grasp placed on it, is the 4x4 matrix
 ``[n o a p]`` with ``p = centre - offset * a``: with ``offset`` 0 the finger pads are
@@ -17,7 +17,7 @@ import numpy as np
 
 __all__ = ["CandidateSet", "SOURCE_FACET", "SOURCE_ANTIPODAL"]
 
-SOURCE_FACET = 0  # from a pair of antiparallel planar facets (seed 3.1)
+SOURCE_FACET = 0  # from a pair of antiparallel planar facets (the paper's 3.1)
 SOURCE_ANTIPODAL = 1  # from ray-cast antipodal points on curved or non-planar surface
 
 

@@ -1,9 +1,9 @@
-"""Grasp sites on pairs of parallel planar facets: the seed's section 3.1, at scale.
+"""Grasp sites on pairs of parallel planar facets: the paper's section 3.1, at scale.
 Longer than 500 lines: one pipeline (facets, antiparallel pairs, projected overlaps, site
 points) whose steps share private polygon helpers and are used only through
 :func:`facet_sites`.
 
-The seed tests every pair of faces of a convex polyhedron: nearly antiparallel, closer
+The paper tests every pair of faces of a convex polyhedron: nearly antiparallel, closer
 than the gripper's opening, and overlapping enough when projected along their common
 normal; the overlap's centre is a grasp site. Here:
 
@@ -27,7 +27,7 @@ normal; the overlap's centre is a grasp site. Here:
    it). On a wide flat object (a book, a tray's wall) only sites near an edge leave the palm
    clear, and the centre grid alone can miss them. An overlap with no point gets one site
    at its representative point. A small overlap therefore has exactly one site, at its
-   centroid (the seed's ``P_ic``) when the centroid lies inside it.
+   centroid (the paper's ``P_ic``) when the centroid lies inside it.
 5. Contacts: the line through a site along the common normal meets each facet's plane; the
    grasp centre is their midpoint. A ray cast (embree) from each contact to the other must
    meet the other facet first, at the expected distance: the material between the
@@ -508,7 +508,7 @@ def overlap_site_points(
     missing = np.setdiff1d(np.arange(p_count), owner)
     if len(missing):
         base = np.where(shapely.is_empty(shrunk[missing]), overlap[missing], shrunk[missing])
-        # the centroid when it lies inside (the seed's P_ic), else GEOS's point on surface
+        # the centroid when it lies inside (the paper's P_ic), else GEOS's point on surface
         # (found along a horizontal line of the 2D frame: frame-dependent, so second choice)
         inner = shapely.centroid(base)
         outside = ~shapely.covers(base, inner)

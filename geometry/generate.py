@@ -1,6 +1,6 @@
 """Every physically sensible parallel-jaw grasp on an object: the candidate pipeline.
 
-1. Sites on pairs of parallel planar facets (:mod:`geometry.facets`, the seed's 3.1).
+1. Sites on pairs of parallel planar facets (:mod:`geometry.facets`, the paper's 3.1).
 2. Sites on the rest of the surface by sampled antipodal pairs (:mod:`geometry.antipodal`),
    on the faces the facet step left alone.
 3. Each site gets every roll angle ``k * roll_step`` (``k = 0, 1, ...`` while below 360
@@ -11,7 +11,7 @@
    Each contact is labelled with the part at its point (``PartMesh.part_at``: the region
    box or primitive surface it lies in), not the part of the face it lies on.
 4. With a collider, candidates whose gripper (open at ``width + 2 * clearance``) touches
-   or penetrates the object are dropped (the seed: "storing the angles without
+   or penetrates the object are dropped (the paper: "storing the angles without
    collisions"). This step is separate: ``collider=None`` skips it.
 
 Row order (deterministic): facet sites first, by facet pair then grid order; then antipodal

@@ -1,6 +1,6 @@
 """A parallel-jaw gripper as three boxes: a palm and two fingers.
 
-The grasp frame (the seed's F_grasp, ``[n o a p]``):
+The grasp frame (the paper's F_grasp, ``[n o a p]``):
 
 - origin: midway between the centres of the two finger pads (the fingers' inner faces).
   Matching F_grasp to a candidate's F_gsite therefore puts the pads centred on the two

@@ -1,5 +1,5 @@
 """A simple human hand, as boxes wrapped around the part it holds (an obstacle for the
-robot's gripper when the receiver takes the object, the seed's section 3.3).
+robot's gripper when the receiver takes the object, the paper's section 3.3).
 
 The hand frame at a grasp site:
 

@@ -266,7 +266,7 @@ class Kinematics:
         self,
         targets: np.ndarray,
         *,
-        seed: np.ndarray | None = None,
+        q0: np.ndarray | None = None,
         restarts: int = 5,
         rng_seed: int = 0,
         max_iterations: int = 100,
@@ -279,14 +279,14 @@ class Kinematics:
         """Joint values reaching each target pose, by damped least squares.
 
         targets : (m, 4, 4) tip (or tool) poses in the base frame, m.
-        seed : (dof,) or (m, dof) first guess (default: the middle of each joint's range).
-        restarts : targets that fail from the seed are retried up to this many times from
+        q0 : (dof,) or (m, dof) first guess (default: the middle of each joint's range).
+        restarts : targets that fail from ``q0`` are retried up to this many times from
             configurations drawn uniformly within the limits by ``numpy.random
             .default_rng(rng_seed)`` (same input, same answer).
         max_iterations : per start. position_tolerance : m. rotation_tolerance : rad.
         damping : m, the damping factor lambda of ``dq = J^T (J J^T + lambda^2 I)^-1 e``.
         max_step : rad, the largest change of any joint in one iteration.
-        shared_restarts : every target not reached from its seed restarts from the same
+        shared_restarts : every target not reached from its first guess restarts from the same
             ``restarts`` configurations (drawn once), all in one batch: a target's answer
             does not depend on the other targets asked with it, and a few targets cost
             about two runs.
@@ -299,10 +299,10 @@ class Kinematics:
         if not np.isfinite(targets).all():
             raise RobotModelError("targets must be finite")
         m = len(targets)
-        if seed is None:
+        if q0 is None:
             start = np.tile(self.chain.mid, (m, 1))
         else:
-            start = np.broadcast_to(self._check_q(seed), (m, self.dof)).copy()
+            start = np.broadcast_to(self._check_q(q0), (m, self.dof)).copy()
         if restarts < 0 or max_iterations < 1:
             raise RobotModelError("restarts must be >= 0 and max_iterations >= 1")
         rng = np.random.default_rng(rng_seed)
@@ -313,7 +313,7 @@ class Kinematics:
         success = np.zeros(m, dtype=bool)
         attempts = np.zeros(m, dtype=np.int64)
         rows = np.arange(m)
-        if shared is not None and restarts:  # the seed, then every restart in one batch
+        if shared is not None and restarts:  # the first guess, then every restart in one batch
             return self._ik_shared(targets, start, shared, max_iterations, position_tolerance,
                                    rotation_tolerance, damping, max_step)
         for attempt in range(restarts + 1):
@@ -384,10 +384,10 @@ class Kinematics:
 
     def _ik_shared(self, targets, start, shared, iterations, pos_tol, rot_tol, damping,
                    max_step) -> IKResult:
-        """:meth:`ik` with ``shared_restarts``: every target from its seed, then the targets
-        not reached from each of the ``shared`` configurations (r, dof), all restarts in one
-        batch (a few targets then cost about one run); a target's answer is the seed's if it
-        reaches it, else the first restart that does, else the closest attempt."""
+        """:meth:`ik` with ``shared_restarts``: every target from its first guess, then the
+        targets not reached from each of the ``shared`` configurations (r, dof), all restarts in
+        one batch (a few targets then cost about one run); a target's answer is the first
+        guess's if it reaches it, else the first restart that does, else the closest attempt."""
         m, r = len(targets), len(shared)
         q, pos_err, rot_err = self._solve(targets, self.clamp(start), iterations, pos_tol,
                                           rot_tol, damping, max_step, _PATIENCE)

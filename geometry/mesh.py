@@ -334,7 +334,7 @@ def cylinder(
 def icosphere(
     radius: float, subdivisions: int = 2, transform: np.ndarray | None = None
 ) -> trimesh.Trimesh:
-    """An icosphere (the seed's convex polyhedral sphere) of ``radius`` m centred at the
+    """An icosphere (the paper's convex polyhedral sphere) of ``radius`` m centred at the
     origin: 20 * 4**subdivisions faces, then ``transform`` applied."""
     import trimesh
 

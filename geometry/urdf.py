@@ -126,7 +126,7 @@ class Chain:
 
     @property
     def mid(self) -> np.ndarray:
-        """(dof,) the middle of each joint's range (a neutral seed configuration)."""
+        """(dof,) the middle of each joint's range (a neutral start)."""
         return 0.5 * (self.lower + self.upper)
 
     def within_limits(self, q: np.ndarray, tol: float = 1e-9) -> np.ndarray:

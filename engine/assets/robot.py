@@ -65,17 +65,17 @@ REACH_FOLDER = "reach"
 """The folder of reachability maps inside the grasp database's folder."""
 
 IK_RESTARTS = 10
-"""Random restarts per target after the seed (the field notes: one seed misses 19-28 % of
+"""Random restarts per target after its first start (the field notes: one start misses 19-28 % of
 reachable poses; 5 restarts 3 %, 20 restarts 0.3 %)."""
 
 _MAPS: dict[tuple, ReachMap] = {}
 
-SEED_LIBRARY = 4096
+START_LIBRARY = 4096
 
 SPARED_SAMPLES = 256
 """Configurations per arm that find the robot body's primitives its links always touch
 (:meth:`RobotArms.spared`)."""
-"""Configurations per arm whose grasp poses seed inverse kinematics (the nearest first)."""
+"""Configurations per arm whose grasp poses start inverse kinematics (the nearest first)."""
 
 CORE = 1
 """The map's core (:meth:`RobotArms.reach_map` with ``core``): its rim eroded by one voxel,
@@ -274,21 +274,21 @@ class RobotArms:
         self,
         side: str,
         poses_world: np.ndarray,
-        seed: np.ndarray | None = None,
+        q0: np.ndarray | None = None,
         *,
         restarts: int = IK_RESTARTS,
     ) -> Solution:
         """Joint values putting the arm's grasp frame at poses (m, 4, 4), world, m.
 
-        seed : (dof,) or (m, dof) first guess, then (for the targets not reached) the
-        ``restarts`` configurations of the seed library whose poses lie nearest; without a
-        seed, the ``restarts + 1`` nearest. A target's answer depends on it alone (not on
+        q0 : (dof,) or (m, dof) first guess, then (for the targets not reached) the
+        ``restarts`` configurations of the start library whose poses lie nearest; without a
+        first guess, the ``restarts + 1`` nearest. A target's answer depends on it alone (not on
         the others asked with it); the same input gives the same answer.
         """
         arm = self.arm(side)
         targets = self._to_base(arm, poses_world)
-        if seed is not None:
-            start = np.broadcast_to(np.asarray(seed, dtype=float).reshape(-1, arm.dof),
+        if q0 is not None:
+            start = np.broadcast_to(np.asarray(q0, dtype=float).reshape(-1, arm.dof),
                                     (len(targets), arm.dof))
             result = arm.kin.ik_from(targets, start[:, None, :])
             if restarts and not result.success.all():  # then from the library
@@ -319,14 +319,14 @@ class RobotArms:
         """Several inverse-kinematics answers per pose, for a caller that wants one whose
         links clear something: ``q`` (m, count, dof), ``ok``, ``position_error``,
         ``rotation_error`` (m, count), each pose solved from each of ``count`` starts on its
-        own. The starts: among the ``pool`` configurations of the seed library whose grasp
+        own. The starts: among the ``pool`` configurations of the start library whose grasp
         poses lie nearest the pose (as :meth:`solve`), those whose links touch none of
         ``avoid`` (bodies, world) first, nearest first. Deterministic; a pose's answers depend
         on it alone."""
         arm = self.arm(side)
         targets = self._to_base(arm, poses_world)
         m, dof = len(targets), arm.dof
-        pool = min(max(count, pool), SEED_LIBRARY)
+        pool = min(max(count, pool), START_LIBRARY)
         starts = self._nearest(side, targets, pool)  # (m, pool, dof)
         if avoid and m:
             obstacles = Targets()
@@ -346,13 +346,13 @@ class RobotArms:
 
     def _library_distances(self, side: str, targets: np.ndarray) -> np.ndarray:
         """(m, L) distances from targets (m, 4, 4), base frame, to the grasp poses of the
-        arm's seed library (:data:`SEED_LIBRARY` configurations drawn within the limits, seed
+        arm's start library (:data:`START_LIBRARY` configurations drawn within the limits, seed
         0): metres of position plus 0.1 m per radian-like unit of the rotations' Frobenius
         distance."""
         arm = self.arm(side)
         if side not in self._library:
             rng = np.random.default_rng(0)
-            q = arm.kin.random_configurations(SEED_LIBRARY, rng)
+            q = arm.kin.random_configurations(START_LIBRARY, rng)
             self._library[side] = (q, arm.kin.fk(q))
         _, poses = self._library[side]
         d = np.linalg.norm(targets[:, None, :3, 3] - poses[None, :, :3, 3], axis=2)
@@ -360,16 +360,16 @@ class RobotArms:
                                   .reshape(len(targets), len(poses), 9), axis=2)
         return d
 
-    def seed_distance(self, side: str, poses_world: np.ndarray) -> np.ndarray:
+    def start_distance(self, side: str, poses_world: np.ndarray) -> np.ndarray:
         """(m,) how far each grasp pose (m, 4, 4), world, lies from the nearest pose of the
-        arm's seed library (:meth:`_library_distances`): the smaller, the likelier inverse
+        arm's start library (:meth:`_library_distances`): the smaller, the likelier inverse
         kinematics reaches it from there."""
         arm = self.arm(side)
         return self._library_distances(side, self._to_base(arm, poses_world)).min(axis=1)
 
     def _nearest(self, side: str, targets: np.ndarray, count: int) -> np.ndarray:
         """(m, count, dof) starts for targets (m, 4, 4), base frame: the configurations of the
-        arm's seed library whose grasp poses lie nearest each target
+        arm's start library whose grasp poses lie nearest each target
         (:meth:`_library_distances`), nearest first."""
         d = self._library_distances(side, targets)
         q = self._library[side][0]

@@ -57,7 +57,7 @@ def hands(ctx: PlanContext, roles: Roles, count: int = 1, location_rules: tuple 
 def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
            key: tuple, avoid: tuple[int, ...] = ()) -> Hands:
     """See :func:`hands`. The giver's graspable region (parts the robot may
-    hold) gives ``s_range``, whose robot-side half the ``giver_side`` rule measures (seed
+    hold) gives ``s_range``, whose robot-side half the ``giver_side`` rule measures (the paper's
     3.1: "the half of the graspable region near the robot")."""
     mesh = ctx.part_mesh.mesh
     centroids = np.asarray(mesh.triangles_center)

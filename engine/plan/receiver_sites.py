@@ -1,7 +1,7 @@
 """Where the receiver will hold the object in each presentation: the region of the parts they
 may hold, and their predicted grasp site (one hand or two).
 
-The receiver's grasp site (the seed's C, section 3.1) lies on the part the task or etiquette
+The receiver's grasp site (the paper's C, section 3.1) lies on the part the task or etiquette
 gives the receiver. Along the robot->receiver direction, the receiver takes the middle of the
 half of that part near them (``middle``) or its far end (``far_end``); the robot keeps to the
 half of the object near itself (a ``giver_side`` rule). The presentations themselves are
@@ -173,7 +173,7 @@ def predict_receiver_sites(
     hand: HumanHand | None = None,
     mesh: trimesh.Trimesh | None = None,
 ) -> ReceiverSites:
-    """The seed's C for every presentation.
+    """The paper's C for every presentation.
 
     Along the robot->receiver direction (``toward``, world, seen in the object frame through
     each rotation), the region spans [s_min, s_max]. ``middle``: C is centred at the middle of
@@ -424,7 +424,7 @@ def predict_two_hand_sites(
     toward: np.ndarray,
     grip_width: float,
 ) -> list[ReceiverSites]:
-    """Sites of the receiver's two hands for a large object (seed 3.3, four hands): on the
+    """Sites of the receiver's two hands for a large object (the paper's 3.3, four hands): on the
     receiver's edge of the region (s* = s_max - grip_width / 2 along robot->receiver), one
     hand width in from its left and right ends. Returns [receiver's right, receiver's left].
 

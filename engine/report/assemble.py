@@ -113,7 +113,7 @@ def grasp_record(ctx: PlanContext, hand: str, i: int, pose_k: np.ndarray,
 
 def human_record(ctx: PlanContext, k: int, hand: str, hands: Hands,
                  sites: ReceiverSites) -> dict | None:
-    """A receiver's predicted grasp (seed's C) in presentation ``k``: one hand's ``sites`` of
+    """A receiver's predicted grasp (the paper's C) in presentation ``k``: one hand's ``sites`` of
     ``hands``."""
     if not sites.valid[k]:
         return None

@@ -84,7 +84,7 @@ class Primitive(KBModel):
     Solids. box: ``extents`` (x, y, z sizes); cylinder and capsule: ``radius`` and
     ``height`` along the primitive's local z (capsule height excludes the caps); sphere:
     ``radius`` and ``subdivisions`` (an icosphere: 0 gives the 20-face icosahedron, the
-    seed's convex polyhedral sphere is 2 or 3).
+    paper's convex polyhedral sphere is 2 or 3).
 
     Hollow shapes (open containers; their wall is a closed solid, their opening an interior
     no hand should enter), each with ``radius``, ``height`` and a wall ``thickness``, the
@@ -220,7 +220,7 @@ class Task(KBModel):
     """What the receiver will do with the object, hence how to hand it over.
 
     receiver_tags: the receiver should grasp a part carrying one of these tags.
-    receiver_site: where on that part: ``middle`` (the seed's C, middle of the receiver's
+    receiver_site: where on that part: ``middle`` (the paper's C, middle of the receiver's
     half) or ``far_end`` (the end of the part farthest from the giver, e.g. for leverage).
     present: object axes that should point along receiver-frame directions.
     """
@@ -344,7 +344,7 @@ class GripperMeshes(KBModel):
 
 
 class GripperSpec(KBModel):
-    """A parallel-jaw gripper (the seed's F_grasp: origin between the fingertips, ``a`` along
+    """A parallel-jaw gripper (the paper's F_grasp: origin between the fingertips, ``a`` along
     the fingers, ``o`` the closing direction). Lengths in metres."""
 
     id: Id

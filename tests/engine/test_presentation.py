@@ -1,4 +1,4 @@
-"""Presentations and the receiver's grasp site (seed 3.1's A/C split), by hand."""
+"""Presentations and the receiver's grasp site (the paper's 3.1: its A/C split), by hand."""
 
 from __future__ import annotations
 

@@ -82,7 +82,7 @@ def test_knife_is_handed_over_handle_first_tip_away(capsys):
     # The tip, in the world, points more than 90 degrees away from the receiver.
     tip = r["presentation"]["axes_world"]["tip"]
     assert angle_deg(tip, toward_receiver(r)) > 90
-    # The receiver's hand is nearer the receiver than the robot's grasp (seed: A and C).
+    # The receiver's hand is nearer the receiver than the robot's grasp (the paper: A and C).
     robot_centre = np.array([row[3] for row in r["robot_grasps"][0]["pose_world"][:3]])
     d = toward_receiver(r)
     assert np.dot(human["position_world"], d) > np.dot(robot_centre, d)

@@ -1,4 +1,4 @@
-"""Grasp sites on parallel facet pairs (geometry.facets, the seed's section 3.1)."""
+"""Grasp sites on parallel facet pairs (geometry.facets, the paper's section 3.1)."""
 
 from __future__ import annotations
 
@@ -91,7 +91,7 @@ def test_all_three_pairs_of_a_small_cube():
 
 
 def _slanted_octagonal_prism(radius: float, height: float, shift: float) -> trimesh.Trimesh:
-    """The seed's Fig. 3: a regular octagon (flat sides facing +-x and +-y) at z=0, the
+    """The paper's Fig. 3: a regular octagon (flat sides facing +-x and +-y) at z=0, the
     same octagon moved by (shift, 0, height) at the top, joined by slanted sides."""
     theta = np.deg2rad(22.5 + 45.0 * np.arange(8))
     ring = np.stack([radius * np.cos(theta), radius * np.sin(theta), np.zeros(8)], axis=1)

@@ -156,7 +156,7 @@ def test_ik_of_planar_arm_reaches_a_point_by_hand(planar):
     # Shoulder 0, elbow 90 deg, slide 0.1: the tip at (0.4, 0.45, 0) pointing +y.
     target = planar.fk(np.array([[0.0, np.pi / 2, 0.1]]))
     assert_allclose(target[0, :3, 3], [0.4, 0.45, 0], atol=1e-12)
-    result = planar.ik(target, seed=np.array([0.3, 1.0, 0.0]), restarts=3)
+    result = planar.ik(target, q0=np.array([0.3, 1.0, 0.0]), restarts=3)
     assert result.success[0]
     assert_allclose(planar.fk(result.q)[0, :3, 3], [0.4, 0.45, 0], atol=1e-3)
 

@@ -35,12 +35,12 @@ __all__ = ["LINK_STARTS", "LINK_POOL", "link_targets", "wrist_failures",
 
 LINK_STARTS = 8
 """Other inverse-kinematics answers tried for a stage reached with the arm's links touching
-something (in the canonical finger order, then the other): from this many of the seed library's
+something (in the canonical finger order, then the other): from this many of the start library's
 configurations nearest the pose, those whose own links are clear first
 (:meth:`~handover.engine.assets.robot.RobotArms.solve_each`)."""
 
 LINK_POOL = 32
-"""The nearest configurations of the seed library :data:`LINK_STARTS` are chosen among."""
+"""The nearest configurations of the start library :data:`LINK_STARTS` are chosen among."""
 
 def link_targets(ctx: PlanContext, phase: Phase, side: str, stage: str):
     """What the links of the arm on ``side`` must not touch at ``stage``

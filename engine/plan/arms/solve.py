@@ -147,7 +147,7 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
     """Exact checks of rows ``(gi, pk)`` ((R,) int) held by the arm ``side`` through the
     stages of ``phase``: IK per stage from the nearest of the arm's sampled poses, with
     restarts (:meth:`~handover.engine.assets.robot.RobotArms.solve`), the grasp in the finger order
-    nearer the arm's seed poses first (:func:`~handover.engine.plan.arms.stages.canonical_first`:
+    nearer the arm's start poses first (:func:`~handover.engine.plan.arms.stages.canonical_first`:
     the same in any frame), then, where the position was reached but not the rotation, the
     other. At each stage reached, the arm's links are tested against
     :func:`~handover.engine.plan.arms.links.link_targets` and the object held and the hands taking
@@ -182,8 +182,8 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
             pursued = ok[:, :t].all(axis=1) & np.array(
                 [not any(h[:t]) for h in hits], dtype=bool)
             # The same physical grasp is met the same way in any frame: the finger order
-            # nearer the arm's seed poses first (canonical_first), then the other.
-            tries, turned = canonical_first(poses[stage], arms.seed_distance, side)
+            # nearer the arm's start poses first (canonical_first), then the other.
+            tries, turned = canonical_first(poses[stage], arms.start_distance, side)
             for second in (False, True):
                 todo_r = np.flatnonzero(~ok[:, t] & pursued
                                         & (~second | (pos_err[:, t] < FLIP_WITHIN)))

@@ -107,7 +107,7 @@ def canonical_first(poses: np.ndarray, distance=None, side: str | None = None
     """The poses (n, 4, 4) to try first and second for each grasp, and (n,) bool, whether the
     first is the pose as planned turned half a turn about ``a`` (fingers swapped): with
     ``distance(side, poses) -> (n,)`` (an arm's :meth:`~handover.engine.assets.robot.RobotArms.
-    seed_distance`), the finger order nearer its seed poses first; on a tie (within 1e-9 m)
+    start_distance`), the finger order nearer its start poses first; on a tie (within 1e-9 m)
     or without it, the one whose closing direction has :func:`finger_sign` +1. Either way a
     property of the grasp in the world: inverse kinematics meets the same physical grasp the
     same way in any frame."""

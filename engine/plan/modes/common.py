@@ -32,7 +32,7 @@ Planner = Callable[..., "Attempt"]
 unexplained (only feasibility is asked)."""
 CATALOGUE = ("H1G1", "H2G2", "H2G1")
 """The modes in the order auto mode tries them (after a preferred mode and what it bends to):
-one hand, then the midair regrasp, then two hands (the seed's order of simplicity)."""
+one hand, then the midair regrasp, then two hands (the paper's order of simplicity)."""
 PLANNERS: dict[str, Planner] = {}
 """Mode name -> planner, in :data:`CATALOGUE` order whatever order they register in."""
 HANDS_NEEDED: dict[str, int] = {}

@@ -1,4 +1,4 @@
-"""H1G1: one hand, one grasp (seed 3.1). The robot picks the object at its initial pose and
+"""H1G1: one hand, one grasp (the paper's 3.1). The robot picks the object at its initial pose and
 hands it over with the same grasp; every hard rule filters, soft rules score, the best row
 wins."""
 

@@ -1,4 +1,4 @@
-"""H2G1: the robot gives the object with both hands (seed section 3.3).
+"""H2G1: the robot gives the object with both hands (the paper's section 3.3).
 
 For a large or heavy object, or when etiquette asks for two hands (an elder or a superior in
 some cultures), the robot holds the object at its far left and far right and presents it.

@@ -1,4 +1,4 @@
-"""H2G2: a two-step handover with a midair regrasp (seed section 3.2).
+"""H2G2: a two-step handover with a midair regrasp (the paper's section 3.2).
 
 The robot picks the object with its first hand, brings it to a midair pose in front of
 itself, grasps it there with its second hand, and hands it over with the second hand.

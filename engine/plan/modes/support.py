@@ -79,8 +79,8 @@ def support_poses(gripper: Gripper, grasp: np.ndarray, up: np.ndarray,
     in its frame, ordered by how much their approach points along ``up`` (3,) (most upward
     first; ties by angle)."""
     a = grasp[:3, 2]
-    seed = np.array([0.0, 0.0, 1.0]) if abs(a[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
-    e1 = np.cross(a, seed)
+    ref = np.array([0.0, 0.0, 1.0]) if abs(a[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    e1 = np.cross(a, ref)
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(a, e1)
     angles = 2.0 * np.pi * np.arange(directions) / directions

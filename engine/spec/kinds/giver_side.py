@@ -1,5 +1,5 @@
 """``giver_side``: the robot holds the object on its own share along robot->receiver (the
-seed's 3.1: the half of the graspable region near the robot)."""
+paper's 3.1: the half of the graspable region near the robot)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from handover.engine.spec.kinds.base import RuleBase, register
 
 @register
 class GiverSideRule(RuleBase):
-    """max_fraction: how far along the giver's region the grasp may be (0.5: the seed's
+    """max_fraction: how far along the giver's region the grasp may be (0.5: the paper's
     half near the robot)."""
 
     kind: Literal["giver_side"] = "giver_side"
