@@ -46,7 +46,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
-from handover.engine.assets.robot_load import Arm, assemble, body_targets, frame_pose, kb_relative
+from handover.engine.assets.robot_load import Arm, assemble, frame_pose, kb_relative
 from handover.engine.errors import KBError, UsageError
 from handover.engine.spec.robotspec import SIDES, RobotSpec
 from handover.geometry.armcollision import Targets, arms_hits, world_hits
@@ -331,7 +331,7 @@ class RobotArms:
         if avoid and m:
             obstacles = Targets()
             for body in avoid:
-                obstacles = obstacles + body_targets(body)
+                obstacles = obstacles + Targets.from_body(body)
             touch = world_hits(arm.shapes, self.link_poses(side, starts.reshape(-1, dof)),
                                obstacles).any(axis=(1, 2)).reshape(m, pool)  # fmt: skip
             order = np.argsort(touch, axis=1, kind="stable")  # clear ones first
@@ -400,11 +400,11 @@ class RobotArms:
         poses = self.link_poses(side, q)
         targets = Targets.from_boxes(list(boxes)) if boxes else Targets()
         for body in bodies:
-            targets = targets + body_targets(body)
+            targets = targets + Targets.from_body(body)
         if own_body and len(self.body):
             spared = set(self.spared(side))
             own = self.body.subset([name not in spared for name in self.body.names])
-            targets = targets + body_targets(own)
+            targets = targets + Targets.from_body(own)
         links = arm.shapes.links
         hits = world_hits(arm.shapes, poses, targets, margin=margin)  # (n, L, K)
         out = [[(links[j], targets.names[k]) for k, j in zip(*np.nonzero(row.T), strict=True)]
@@ -429,7 +429,7 @@ class RobotArms:
         if side not in self._spared:
             arm = self.arm(side)
             q = arm.kin.random_configurations(SPARED_SAMPLES, np.random.default_rng(0))
-            targets = body_targets(self.body)
+            targets = Targets.from_body(self.body)
             hits = world_hits(arm.shapes, self.link_poses(side, q), targets).any(axis=1)
             always = [targets.names[k] for k in np.flatnonzero(hits.all(axis=0))]
             self._spared[side] = tuple(dict.fromkeys([arm.mount, *always]))
@@ -466,7 +466,7 @@ class RobotArms:
         poses = np.asarray(poses_world, dtype=float).reshape(-1, 4, 4)
         targets = Targets()
         for body in bodies:
-            targets = targets + body_targets(body)
+            targets = targets + Targets.from_body(body)
         hits = world_hits(shapes, poses[:, None] @ rel[None], targets)  # (n, L', K)
         return [[(shapes.links[j], targets.names[k]) for k, j in zip(*np.nonzero(row.T),
                                                                      strict=True)]

@@ -19,8 +19,7 @@ import numpy as np
 
 from handover.engine.errors import KBIssue
 from handover.engine.spec.robotspec import SIDES, FramePose, RobotSpec
-from handover.geometry.armcollision import Targets
-from handover.geometry.bodies import Body, robot_body
+from handover.geometry.bodies import robot_body
 from handover.geometry.frames import rotation_from_euler_deg, transform_from
 from handover.geometry.kinematics import Kinematics
 from handover.geometry.reach import workspace
@@ -32,7 +31,6 @@ if TYPE_CHECKING:
 __all__ = [
     "Arm",
     "assemble",
-    "body_targets",
     "check_robot",
     "frame_pose",
     "kb_relative",
@@ -107,19 +105,6 @@ def yaml_body(spec: RobotSpec) -> tuple[list, list]:
             ends = pose[:3, :3] @ np.array([prim.p0, prim.p1]).T + pose[:3, 3:4]
             capsules.append((prim.id, ends[:, 0], ends[:, 1], float(prim.radius)))
     return capsules, boxes
-
-
-def body_targets(body: Body) -> Targets:
-    """A body's primitives as collision :class:`Targets`, one target per distinct name."""
-    names = tuple(dict.fromkeys(body.names))
-    index = {name: i for i, name in enumerate(names)}
-    return Targets(
-        names,
-        np.array([index[n] for n in body.box_names], dtype=np.intp),
-        body.poses[:, :3, 3], body.poses[:, :3, :3], body.extents,
-        np.array([index[n] for n in body.capsule_names], dtype=np.intp),
-        body.p0, body.p1, body.radius,
-    )  # fmt: skip
 
 
 @dataclass(frozen=True, eq=False)
