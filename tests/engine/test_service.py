@@ -334,3 +334,20 @@ def test_the_client_is_the_planner(service, kb_dir) -> None:
     with pytest.raises(UsageError, match="no planning context"):
         client.plan("knife").record(kb_dir / "x.rrd")
     assert client.health()["kb"]["counts"]["objects"] >= 10
+
+
+def test_the_documented_requests_are_answered(service, docs, tmp_path, monkeypatch) -> None:
+    import re
+
+    for line in docs.example("service-curl").text.splitlines():
+        m = re.search(r"(-X POST )?'?http://127\.0\.0\.1:8750(\S+?)'?( -d '(.*?)')?( -o .*)?$",
+                      line)
+        assert m, line
+        method = "POST" if m.group(1) else "GET"
+        status, _, body = service.request(method, m.group(2), m.group(4))
+        assert status == 200, (line, body[:300])
+    code = docs.example("service-python").text.replace("http://127.0.0.1:8750", service.url)
+    code = code.replace(f'Client("{service.url}")', f'Client("{service.url}", token="{TOKEN}")')
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "docs/service.md", "exec"), {})
+    assert (tmp_path / "book.mcap").stat().st_size > 0
