@@ -250,6 +250,7 @@ def _write_entry(folder: Path, kb: KB, yaml_files: dict[str, str]) -> None:
     folder.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
     try:
+        os.chmod(tmp, 0o777 & ~_umask())  # as mkdir makes a folder, not mkdtemp's 0o700
         (tmp / _OBJECTS).mkdir()
         index: dict[str, tuple[str, str, str]] = {}
         for k, (item_id, model) in enumerate(kb.objects.items()):
@@ -274,6 +275,12 @@ def _write_entry(folder: Path, kb: KB, yaml_files: dict[str, str]) -> None:
     finally:
         if tmp.exists():
             shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def _prune(cache: Path, keep: int = KEEP) -> None:

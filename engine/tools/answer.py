@@ -73,7 +73,7 @@ class PlanRequest:
                 or not (math.isfinite(self.mesh_scale) and self.mesh_scale > 0):
             raise UsageError(f"--mesh-scale must be a positive number, got {self.mesh_scale}")
         if (self.mode or "auto").lower() not in MODES:
-            raise UsageError(f"unknown mode '{self.mode}': choose {', '.join(MODES)}")
+            raise UsageError(f"unknown mode '{self.mode}': choose one of {', '.join(MODES)}")
         if self.format not in FORMATS:
             raise UsageError(f"unknown format '{self.format}': choose {', '.join(FORMATS)}")
 
