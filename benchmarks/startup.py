@@ -1,12 +1,21 @@
-"""Start-up cost of the command line, as whole processes, against the bare imports it needs.
+"""Start-up cost of the command line, as whole processes, against the bare imports it needs,
+and the cold plan with a 10- and a 500-object KB.
 
-    .venv/bin/python benchmarks/startup.py [--runs 7] [--importtime] [--profile]
+    .venv/bin/python benchmarks/startup.py [--runs 7] [--objects 10,500] [--importtime]
+                                            [--profile]
 
 Times (median of ``--runs``): ``python -c pass``; ``python -c "import numpy, trimesh, fcl,
 networkx, pydantic, yaml"`` (the libraries a plan cannot do without); ``handover --help``;
 ``handover plan knife --json``. Target: the plan within 2x the bare imports (lazy imports, no
 work at start-up). ``--importtime`` lists the slowest top-level imports of each command
 (``python -X importtime``); ``--profile`` shows cProfile's view of the plan process.
+
+Then, for each size of ``--objects``: a KB folder in a temporary folder holding the built-in
+KB and copies of its objects under new ids up to that many objects, and the cold ``handover
+--kb DIR plan knife --json`` (a new process; the KB read through the validated cache of the
+grasp database folder, after one untimed run that fills it), beside the full load and check
+of that KB (``load_kb``, what a plan paid for every object before the cache). Target: the
+500-object KB plans within 10 % of the 10-object one.
 """
 
 from __future__ import annotations
@@ -14,9 +23,11 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -63,9 +74,49 @@ def profile(args: list[str], env: dict, top: int = 30) -> None:
     print("\n".join(lines[max(0, start - 2) : start + top]))
 
 
+def kb_of(n: int, folder: Path) -> Path:
+    """The built-in KB with copies of its objects (ids ``<id>_<k>``) up to ``n`` objects."""
+    from handover.engine.store.kb import builtin_kb_dir
+
+    root = folder / f"kb{n}"
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    shipped = sorted((root / "objects").glob("*.yaml"))
+    for k in range(max(0, n - len(shipped))):
+        src = shipped[k % len(shipped)]
+        text = src.read_text(encoding="utf-8")
+        new = f"{src.stem}_{k}"
+        (root / "objects" / f"{new}.yaml").write_text(
+            text.replace(f"\nid: {src.stem}\n", f"\nid: {new}\n", 1), encoding="utf-8")
+    return root
+
+
+def kb_sizes(sizes: list[int], runs: int, env: dict) -> None:
+    print(f"\n## cold `handover --kb DIR plan knife --json` by KB size, median of {runs} (s)")
+    with tempfile.TemporaryDirectory() as tmp:
+        env = dict(env, HANDOVER_DB=str(Path(tmp) / "db"))
+        times = {}
+        for n in sizes:
+            root = kb_of(n, Path(tmp))
+            t, code = run([HANDOVER, "--kb", str(root), "plan", "knife", "--json"], runs, env)
+            load = subprocess.run(
+                [PY, "-c", "import sys, time; from handover.engine.load.loader import load_kb; "
+                 "load_kb(sys.argv[1], urdf=False); t = time.perf_counter(); "
+                 "load_kb(sys.argv[1], urdf=False); print(time.perf_counter() - t)", str(root)],
+                capture_output=True, text=True, env=env).stdout.strip()
+            times[n] = t
+            print(f"{n:4d} objects: plan {t:7.3f}   exit {code}   (full load and check of the "
+                  f"KB: {float(load):.3f} s)")
+        small, large = times[min(sizes)], times[max(sizes)]
+        verdict = "met" if large <= 1.1 * small else "MISSED"
+        print(f"{max(sizes)} / {min(sizes)} objects = {large / small:.3f} (target <= 1.10: "
+              f"{verdict})")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--runs", type=int, default=7)
+    ap.add_argument("--objects", default="10,500",
+                    help="KB sizes for the cold plan (comma list; empty: skip)")
     ap.add_argument("--importtime", action="store_true")
     ap.add_argument("--profile", action="store_true")
     args = ap.parse_args()
@@ -89,6 +140,9 @@ def main() -> None:
         f"plan / bare imports = {plan / bare:.2f} (target <= 2: {verdict}); "
         f"--help / bare imports = {results['handover --help'] / bare:.2f}"
     )
+    sizes = [int(v) for v in args.objects.split(",") if v.strip()]
+    if sizes:
+        kb_sizes(sizes, args.runs, env)
     if args.importtime:
         importtime(["--help"], env)
         importtime(["plan", "knife", "--json"], env)

@@ -25,6 +25,7 @@ __all__ = [
     "EXIT_BAD_MESH",
     "HandoverError",
     "UsageError",
+    "UnknownIdError",
     "KBIssue",
     "KBError",
     "InfeasibleError",
@@ -48,6 +49,11 @@ class UsageError(HandoverError):
     """The request names something that does not exist or combines options wrongly."""
 
     exit_code = EXIT_USAGE
+
+
+class UnknownIdError(UsageError):
+    """The request names an id (object, culture, receiver, ...) the knowledge base does not
+    hold."""
 
 
 @dataclass(frozen=True, order=True)

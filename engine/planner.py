@@ -347,9 +347,15 @@ class Plan:
         return self.result.to_json()
 
     def record(self, path: str | Path) -> Path:
-        """Write the rerun recording of this plan to ``path`` (``.rrd``)."""
+        """Write the rerun recording of this plan to ``path`` (``.rrd``). A plan read back
+        from its JSON (``handover.Client``) has no context to record: UsageError."""
         from handover.engine.report.rerun.writer import write_recording
 
+        if self.context is None:
+            from handover.engine.errors import UsageError
+
+            raise UsageError("this plan was read from its JSON (the plan service): it has no "
+                             "planning context to record; plan it with --rrd where it runs")
         write_recording(self.result, self.context, path, self.attempt)
         return Path(path)
 

@@ -32,6 +32,8 @@ PYTHON_PAGES = [p for p in PAGES if "\n```python\n" in p.read_text(encoding="utf
 
 # The marked YAML blocks and the test that reads each (every marked block is one of these).
 MARKED = {
+    "service-curl": "tests/engine/test_service.py: each request is answered by the service",
+    "service-python": "tests/engine/test_service.py: runs against the service",
     "shipped-robot": "tests/engine/test_robot.py: it is robots/idro.yaml",
     "own-robot": "tests/engine/test_user_robot.py: planned beside the URDF the test writes",
     "korean-bends": "here: it is the rule of etiquette/korean.yaml",

@@ -1,7 +1,7 @@
 """The source layout: the engine's layers, each importing only itself and the layers below
 it; no import cycle at all in the engine or in geometry; geometry never imports the engine; at
-most a dozen modules at the engine's top level; no module over 500 lines unless its docstring
-says why.
+most 13 entries at the engine's top level (its layers and three modules); no module over 500
+lines unless its docstring says why.
 
 Imports are read with :mod:`ast` (nothing is imported): module-level, function-level and
 ``if TYPE_CHECKING:`` imports all count (a type named in an annotation is a dependency too).
@@ -129,7 +129,9 @@ record, the trace, the rerun recording; 7 ``planner``: the facade; 8 ``tools``: 
 compare, KB tests; 9 the ``handover`` command and the plan service. ``handover.geometry`` lies
 below them all and imports none of them."""
 
-MAX_TOP_LEVEL = 12
+MAX_TOP_LEVEL = 13
+"""Entries at the engine's top level (``__init__.py`` counted): the ten layers of LAYERS
+(``service`` beside ``cli``), the errors, the file writes and the package itself."""
 
 
 def layer_of(module: str, layers: tuple[tuple[str, ...], ...] = LAYERS) -> int | None:

@@ -13,4 +13,5 @@ from handover.engine.cli import (
     kbtest,  # noqa: F401,E402  (kb test)
     plan,  # noqa: F401,E402  (plan, explain-graph)
     review,  # noqa: F401,E402  (review)
+    serve,  # noqa: F401,E402  (serve)
 )

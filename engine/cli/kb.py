@@ -18,7 +18,6 @@ from handover.engine.cli.app import kb_app, state
 if TYPE_CHECKING:
     from rich.console import Console
 
-    from handover.engine.errors import KBIssue
     from handover.engine.store.kb import KB
 
 __all__ = ["validate", "list_kb", "show", "schema"]
@@ -40,16 +39,6 @@ def _dump(data: Any) -> None:
     typer.echo(json.dumps(data, indent=2, sort_keys=False, ensure_ascii=False))
 
 
-def _issue_json(issue: KBIssue) -> dict[str, Any]:
-    return {
-        "file": issue.file,
-        "line": issue.line,
-        "col": issue.col,
-        "severity": issue.severity,
-        "message": issue.message,
-    }
-
-
 def _plural(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
@@ -67,35 +56,22 @@ def validate(
     """
     from handover.engine.errors import KBError
     from handover.engine.store.kb import KIND_ATTRS
+    from handover.engine.tools.answer import validate_data, validate_text
 
+    if json_out:
+        data, error = validate_data(state.kb_dir)
+        typer.echo(validate_text(data), nl=False)
+        if error is not None:
+            raise error
+        return
     try:
         kb = _load()
     except KBError as e:
-        warnings = list(getattr(e, "warnings", []))
-        if json_out:
-            _dump(
-                {
-                    "ok": False,
-                    "errors": [_issue_json(i) for i in e.issues],
-                    "warnings": [_issue_json(i) for i in warnings],
-                }
-            )
-        else:
-            err = _console(stderr=True)
-            for w in warnings:
-                err.print(str(w), markup=False)
+        err = _console(stderr=True)
+        for w in getattr(e, "warnings", []):
+            err.print(str(w), markup=False)
         raise
     counts = kb.counts()
-    if json_out:
-        _dump(
-            {
-                "ok": True,
-                "root": str(kb.root),
-                "counts": counts,
-                "warnings": [_issue_json(i) for i in kb.warnings],
-            }
-        )
-        return
     summary = ", ".join(_plural(counts[attr], noun) for attr, noun in KIND_ATTRS.values())
     warn = f" ({_plural(len(kb.warnings), 'warning')})" if kb.warnings else ""
     typer.echo(f"ok: {summary} in {kb.root}{warn}")

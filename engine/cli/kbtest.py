@@ -33,30 +33,13 @@ def test(
 
     Exit codes: 0 all cases passed, 1 some case failed, 3 invalid KB or test file.
     """
-    from handover.engine.errors import UsageError
     from handover.engine.load.loader import load_kb
-    from handover.engine.tools.kbtest import case_files, run_tests
+    from handover.engine.tools.answer import kb_tests, kb_tests_text
 
     kb = load_kb(state.kb_dir, urdf=False)
-    report = run_tests(kb, case_files(kb, list(paths or [])), select=select)
-    if not report.cases:
-        where = "the given paths" if paths else f"{kb.root / 'tests'}"
-        raise UsageError(f"no test cases in {where}" + (f" matching '{select}'" if select else ""))
-    cov = None
-    if coverage:
-        from handover.engine.tools.coverage import rule_coverage
-
-        cov = rule_coverage(kb, report.cases)
+    report, cov = kb_tests(kb, select=select, coverage=coverage, paths=list(paths or []))
     if json_out:
-        from handover.engine.report.result import dumps
-
-        data: dict[str, Any] = {"cases": [c.to_dict() for c in report.cases],
-                                "passed": report.passed, "failed": report.failed}
-        if cov is not None:
-            data["coverage"] = cov["rules"]
-            data["never_applied"] = cov["never_applied"]
-            data["unread_tags"] = cov["unread_tags"]
-        typer.echo(dumps(data), nl=False)
+        typer.echo(kb_tests_text(report, cov), nl=False)
     else:
         _render(report, cov)
     raise typer.Exit(1 if report.failed else 0)

@@ -26,21 +26,25 @@ def check_mesh_scale(mesh_scale: float) -> float:
     return mesh_scale
 
 
+def _request(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0,
+             robot=None, why_not=(), what_if=False, fmt="json"):
+    from handover.engine.tools.answer import PlanRequest
+
+    return PlanRequest(object=object_, task=task, receiver=receiver, culture=culture,
+                       scene=scene, mode=mode or "auto", gripper=gripper, robot=robot,
+                       mesh_scale=check_mesh_scale(mesh_scale), why_not=tuple(why_not),
+                       what_if=what_if, format=fmt)
+
+
 def _query(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0,
            robot=None):
-    from handover.engine.spec.query import DEFAULTS, Query
+    return _request(object_, task, receiver, culture, scene, mode, gripper, mesh_scale,
+                    robot).query()
 
-    return Query(
-        mesh_scale=check_mesh_scale(mesh_scale),
-        object=object_,
-        task=task,
-        receiver=receiver or DEFAULTS["receiver"],
-        culture=culture or DEFAULTS["culture"],
-        scene=scene or DEFAULTS["scene"],
-        mode=(mode or "auto").lower(),
-        gripper=gripper,
-        robot=robot or DEFAULTS["robot"],
-    )
+
+FORMAT_HELP = ("text (default: the trace), json (the result, as --json) or moveit (the "
+               "plan's ROS 2 messages, moveit_msgs/Grasp and trajectory_msgs/JointTrajectory, "
+               "as JSON).")
 
 
 @app.command()
@@ -55,6 +59,7 @@ def plan(
     robot: str | None = typer.Option(None, "--robot", help="Robot id (default: idro)."),
     mesh_scale: float = typer.Option(1.0, "--mesh-scale", help=MESH_SCALE_HELP),
     json_out: bool = typer.Option(False, "--json", help="Print the JSON result."),
+    fmt: str = typer.Option("text", "--format", "-f", help=FORMAT_HELP),
     output: Path | None = typer.Option(None, "-o", "--output", help="Write the JSON here."),
     explain: bool = typer.Option(False, "--explain", "-e", help="Show the full rule trace."),
     why_not: list[int] = typer.Option([], "--why-not", help="Explain why candidate ID lost."),
@@ -62,6 +67,8 @@ def plan(
         False, "--what-if", help="When infeasible, list the smallest verified changes that "
         "would make the plan feasible (rules, mode, gripper, scene, receiver)."),
     rrd: Path | None = typer.Option(None, "--rrd", help="Write a rerun recording here."),
+    mcap: Path | None = typer.Option(
+        None, "--mcap", help="Write the plan's ROS 2 messages here as an MCAP bag."),
     db: Path | None = typer.Option(
         None, "--db", help="Grasp database folder (default: $HANDOVER_DB, else the user cache)."
     ),
@@ -77,33 +84,48 @@ def plan(
     from rich.console import Console
 
     from handover.engine.assets.graspdb import open_db
-    from handover.engine.errors import EXIT_INFEASIBLE
-    from handover.engine.load.loader import load_kb
-    from handover.engine.planner import plan as run_plan
+    from handover.engine.errors import EXIT_INFEASIBLE, UsageError
+    from handover.engine.load.cache import kb_cache_dir, load_kb_cached
+    from handover.engine.tools.answer import plan_request, render
 
-    kb = load_kb(state.kb_dir, urdf=False)
-    query = _query(object_, task, receiver, culture, scene, mode, gripper, mesh_scale, robot)
-    planned = run_plan(kb, query, why_not=tuple(why_not), db=open_db(db, disabled=no_db),
-                       what_if=what_if)
+    fmt = fmt.lower()
+    if fmt not in ("text", "json", "moveit"):
+        raise UsageError(f"unknown --format '{fmt}': choose text, json or moveit")
+    if json_out and fmt == "moveit":
+        raise UsageError("--json and --format moveit ask for two answers: give one")
+    if json_out:
+        fmt = "json"
+    request = _request(object_, task, receiver, culture, scene, mode, gripper, mesh_scale,
+                       robot, why_not, what_if)
+    grasp_db = open_db(db, disabled=no_db)
+    kb = load_kb_cached(state.kb_dir, None if grasp_db is None else kb_cache_dir(grasp_db.root))
+    planned = plan_request(kb, request, grasp_db)
     result = planned.result
     data = result.to_dict()
     if rrd is not None:
         planned.record(rrd)
-    text = result.to_json()
+    text = render(planned, "json").decode("utf-8")
     if output is not None:
         try:
             write_atomic(output, text)
         except OSError as e:
             raise write_error("-o", output, e) from None
-    if json_out:
+    if mcap is not None:
+        try:
+            write_atomic(mcap, render(planned, "mcap"))
+        except OSError as e:
+            raise write_error("--mcap", mcap, e) from None
+    if fmt == "json":
         typer.echo(text, nl=False)
+    elif fmt == "moveit":
+        typer.echo(render(planned, "moveit").decode("utf-8"), nl=False)
     elif data["outcome"] in ("place", "refuse"):
         render_outcome(data, Console(highlight=False, soft_wrap=False), explain=explain)
     else:
         from handover.engine.report.trace import render_plan
 
         render_plan(data, Console(highlight=False, soft_wrap=False), explain=explain)
-    if what_if and not json_out:
+    if what_if and fmt == "text":
         _render_what_if(data, Console(highlight=False, soft_wrap=False))
     if data["outcome"] in EXIT_CODES_4:
         raise typer.Exit(EXIT_INFEASIBLE)

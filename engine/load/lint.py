@@ -57,9 +57,10 @@ from typing import TYPE_CHECKING
 
 from handover.engine.errors import KBIssue
 from handover.engine.load.lint_scene import lint_scene
+from handover.engine.spec.applies import Facts
 from handover.engine.spec.query import DEFAULTS
 from handover.engine.spec.schema import KBModel, KBTestFile, ObjectSpec, RobotSpec, RuleBase
-from handover.engine.store.cultures import _resolve, applies_to_object, object_tags
+from handover.engine.store.cultures import _resolve, applies_to_object, object_facts, object_tags
 
 if TYPE_CHECKING:
     from handover.engine.store.kb import KB
@@ -260,6 +261,7 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
         for obj in kb.objects.values():
             yield from lint_object_tags(kb, obj, known)
     used_axes = {a for o in kb.objects.values() for a in o.axes}
+    facts: dict[str, Facts] = {}  # each object's, computed once for every axis rule
     used_tasks = {t for o in kb.objects.values() for t in o.tasks}
     for culture in kb.cultures.values():
         for rule in culture.rules:
@@ -291,7 +293,11 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                     )
                     continue
                 for obj in kb.objects.values():
-                    if rule.axis not in obj.axes and applies_to_object(rule, obj):
+                    if rule.axis in obj.axes:
+                        continue
+                    if obj.id not in facts:
+                        facts[obj.id] = object_facts(obj)
+                    if applies_to_object(rule, obj, facts[obj.id]):
                         yield kb.issue(
                             rule,
                             f"rule '{rule.id}' applies to object '{obj.id}' ({obj.source}), "

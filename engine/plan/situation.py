@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.errors import UsageError
+from handover.engine.errors import UnknownIdError, UsageError
 from handover.engine.spec.query import MODES
 
 if TYPE_CHECKING:
@@ -115,7 +115,7 @@ def resolve_situation(kb: KB, query: Query, obj: ObjectSpec | None = None) -> Si
     if task_id is not None:
         if task_id not in obj.tasks:
             known = ", ".join(sorted(obj.tasks)) or "none"
-            raise UsageError(f"object '{obj.id}' has no task '{task_id}' (its tasks: {known})")
+            raise UnknownIdError(f"object '{obj.id}' has no task '{task_id}' (its tasks: {known})")
         task = obj.tasks[task_id]
 
     receiver_position = np.asarray(scene.receiver.position, dtype=float)

@@ -56,7 +56,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -417,20 +417,28 @@ def moveit_messages(result: dict) -> MoveItPlan:
     )
 
 
-def write_mcap(result: dict, path: str | Path) -> None:
-    """Write the plan's messages (:func:`moveit_messages`) to ``path`` as a ROS 2 MCAP bag
-    (``ros2`` profile, CDR, zstd chunks), readable by ``ros2 bag`` (the MCAP storage plugin)
-    and Foxglove. Deterministic: the same result gives the same bytes."""
+def write_mcap(result: dict, path: str | Path | BinaryIO) -> None:
+    """Write the plan's messages (:func:`moveit_messages`) to ``path`` (a file name, or a
+    binary stream written from its current position) as a ROS 2 MCAP bag (``ros2`` profile,
+    CDR, zstd chunks), readable by ``ros2 bag`` (the MCAP storage plugin) and Foxglove.
+    Deterministic: the same result gives the same bytes."""
+    plan = moveit_messages(result)
+    if isinstance(path, str | Path):
+        with open(path, "wb") as stream:
+            _write_bag(plan, stream)
+    else:
+        _write_bag(plan, path)
+
+
+def _write_bag(plan: MoveItPlan, stream: BinaryIO) -> None:
     from mcap_ros2.writer import Writer
 
-    plan = moveit_messages(result)
-    with open(path, "wb") as stream:
-        writer = Writer(stream)
-        schemas = {}
-        for k, (topic, message) in enumerate(plan.messages()):
-            kind = message.ROS_TYPE
-            if kind not in schemas:
-                schemas[kind] = writer.register_msgdef(kind, full_text(kind))
-            writer.write_message(topic, schemas[kind], message.to_dict(),
-                                 log_time=LOG_TIME_BASE_NS + k * LOG_TIME_STEP_NS, sequence=k)
-        writer.finish()
+    writer = Writer(stream)
+    schemas = {}
+    for k, (topic, message) in enumerate(plan.messages()):
+        kind = message.ROS_TYPE
+        if kind not in schemas:
+            schemas[kind] = writer.register_msgdef(kind, full_text(kind))
+        writer.write_message(topic, schemas[kind], message.to_dict(),
+                             log_time=LOG_TIME_BASE_NS + k * LOG_TIME_STEP_NS, sequence=k)
+    writer.finish()

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import MISSING, dataclass, field, fields
 from typing import Any
 
 import numpy as np
@@ -167,3 +167,21 @@ class PlanResult:
 
     def to_json(self) -> str:
         return dumps(self.to_dict())
+
+    @classmethod
+    def from_dict(cls, data: dict) -> PlanResult:
+        """The result whose :meth:`to_dict` is ``data`` (a result read back from its JSON,
+        e.g. the plan service's answer): ``to_json()`` gives that JSON again, byte for byte.
+        Raises ValueError for a key that is not a field of the result, or a missing one."""
+        if not isinstance(data, dict):
+            raise ValueError(f"a plan result is a JSON object, got {type(data).__name__}")
+        names = {f.name for f in fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown:
+            raise ValueError(f"not fields of a plan result: {', '.join(unknown)}")
+        required = [f.name for f in fields(cls) if f.default is MISSING
+                    and f.default_factory is MISSING]
+        missing = [name for name in required if name not in data]
+        if missing:
+            raise ValueError(f"a plan result needs {', '.join(missing)}")
+        return cls(**data)

@@ -265,7 +265,10 @@ def object_tags(obj: ObjectSpec) -> set[str]:
 
 def _half_extents(p: Primitive) -> tuple[float, float, float]:
     """Half extents (m) of the axis-aligned box around the ideal solid of ``p``."""
-    r = rotation_from_euler_deg(p.rotation_deg).tolist()
+    if any(p.rotation_deg):
+        r = rotation_from_euler_deg(p.rotation_deg).tolist()
+    else:  # the rotation of zero angles is exactly the identity: skip numpy's overhead
+        r = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
     if p.shape == "box":
         hx, hy, hz = (e / 2 for e in p.extents or (0.0, 0.0, 0.0))
         return tuple(abs(r[i][0]) * hx + abs(r[i][1]) * hy + abs(r[i][2]) * hz for i in range(3))
@@ -315,12 +318,14 @@ def object_facts(obj: ObjectSpec) -> Facts:
     return Facts(tags=frozenset(object_tags(obj)), mass=obj.mass, size=object_size(obj))
 
 
-def applies_to_object(rule: RuleBase, obj: ObjectSpec) -> bool | None:
+def applies_to_object(rule: RuleBase, obj: ObjectSpec, facts: Facts | None = None
+                      ) -> bool | None:
     """Whether the object-dependent conditions of ``rule`` (:data:`OBJECT_CONDITIONS`) hold
     for ``obj``, judged by :func:`handover.engine.spec.applies.check`. None when only the
     geometry of a mesh could tell (``min_size`` on a mesh object). The receiver, task, mode,
     payload and opening conditions depend on the query and are not judged here: a rule with
-    them "can apply"."""
+    them "can apply". facts : :func:`object_facts` of ``obj`` when the caller has them (a
+    check of many rules against many objects computes each object's once)."""
     only = Applies(**{f: getattr(rule.applies, f) for f in OBJECT_CONDITIONS})
-    return check(only, object_facts(obj))[0]
+    return check(only, object_facts(obj) if facts is None else facts)[0]
 

@@ -14,7 +14,7 @@ from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-from handover.engine.errors import KBIssue, UsageError
+from handover.engine.errors import KBIssue, UnknownIdError, UsageError
 from handover.engine.spec.schema import (
     Culture,
     GripperSpec,
@@ -70,7 +70,7 @@ class KB:
         known = ", ".join(sorted(items)) or "none"
         close = difflib.get_close_matches(str(item_id), list(items), n=1)
         hint = f" Did you mean '{close[0]}'?" if close else ""
-        raise UsageError(f"unknown {noun} '{item_id}' (known: {known}).{hint}")
+        raise UnknownIdError(f"unknown {noun} '{item_id}' (known: {known}).{hint}")
 
     def object(self, item_id: str) -> ObjectSpec:
         """The object ``item_id``; UsageError naming the known ids when there is none."""

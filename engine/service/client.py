@@ -1,0 +1,221 @@
+"""``handover.Client``: the plan service from Python, with the ``Planner``'s interface.
+
+>>> from handover import Client, Planner
+>>> planner = Client("http://127.0.0.1:8750")   # or Planner(): the same calls   # doctest: +SKIP
+>>> planner.plan("mug", receiver="elder", culture="korean").mode                # doctest: +SKIP
+'H1G1'
+
+``Client.plan`` takes the arguments of :meth:`handover.Planner.plan` (an object id, not a
+mesh) and returns the same :class:`handover.Plan` (built from the service's JSON, which is
+the JSON ``handover plan --json`` prints; ``to_json()`` gives those bytes back), and raises
+the same errors: :class:`~handover.engine.errors.UnknownIdError` for an unknown id,
+:class:`~handover.engine.errors.UsageError` for a bad request,
+:class:`~handover.engine.errors.KBError` for an invalid KB. What only a service can say
+(past the deadline, busy, unauthorised, a bug, not reachable) is a :class:`ServiceError`.
+A plan from the service has no planning context: ``Plan.record`` is the one thing it cannot
+do (ask the service's machine for a recording with ``handover plan --rrd``).
+
+Standard library only (``http.client``): one keep-alive connection per thread.
+"""
+
+from __future__ import annotations
+
+import http.client
+import json
+import threading
+import urllib.parse
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from handover.engine.errors import HandoverError
+
+if TYPE_CHECKING:
+    from handover.engine.planner import Plan
+
+__all__ = ["Client", "ServiceError", "DEFAULT_URL"]
+
+DEFAULT_URL = "http://127.0.0.1:8750"
+
+
+class ServiceError(HandoverError):
+    """The service did not answer the request: ``status`` (HTTP, 0 when it could not be
+    reached), ``code`` (``deadline_exceeded``, ``busy``, ``unauthorized``, ``internal``, ...)
+    and its message."""
+
+    def __init__(self, status: int, code: str, message: str):
+        super().__init__(f"{code} ({status}): {message}" if status else message)
+        self.status, self.code = status, code
+
+
+class Client:
+    """A client of the plan service at ``url``. token : the service's bearer token.
+    timeout : seconds to wait for an answer (socket level). deadline : the deadline each
+    request asks of the service (s; None: the service's own)."""
+
+    def __init__(self, url: str = DEFAULT_URL, *, token: str | None = None,
+                 timeout: float = 120.0, deadline: float | None = None):
+        parts = urllib.parse.urlsplit(url)
+        if parts.scheme != "http" or not parts.hostname:
+            raise ValueError(f"the service's address must be http://HOST:PORT, got {url!r}")
+        self.url = url.rstrip("/")
+        self._host, self._port = parts.hostname, parts.port or 80
+        self.token, self.timeout, self.deadline = token, timeout, deadline
+        self._local = threading.local()
+
+    def __repr__(self) -> str:
+        return f"Client({self.url!r})"
+
+    # ------------------------------------------------------------ transport
+
+    def _connection(self) -> http.client.HTTPConnection:
+        conn = getattr(self._local, "conn", None)
+        if conn is None:
+            conn = http.client.HTTPConnection(self._host, self._port, timeout=self.timeout)
+            self._local.conn = conn
+        return conn
+
+    def request(self, method: str, path: str, body: Any = None) -> tuple[int, dict, bytes]:
+        """Send one request (``body`` as JSON) and return (status, headers, body bytes);
+        ServiceError when the service cannot be reached."""
+        data = None if body is None else json.dumps(body).encode("utf-8")
+        headers = {"Content-Type": "application/json"}
+        if self.token:
+            headers["Authorization"] = f"Bearer {self.token}"
+        if self.deadline is not None:
+            path += ("&" if "?" in path else "?") + f"deadline={self.deadline:g}"
+        for attempt in (0, 1):  # a kept-alive connection the server closed: once again
+            conn = self._connection()
+            try:
+                conn.request(method, path, body=data, headers=headers)
+                response = conn.getresponse()
+                payload = response.read()
+                return response.status, {k.lower(): v for k, v in response.getheaders()}, \
+                    payload
+            except (ConnectionError, http.client.HTTPException, OSError) as e:
+                conn.close()
+                self._local.conn = None
+                if attempt or not isinstance(e, (http.client.RemoteDisconnected,
+                                                 ConnectionResetError, BrokenPipeError)):
+                    raise ServiceError(0, "unreachable", f"the plan service at {self.url} "
+                                       f"does not answer: {e}") from None
+        raise AssertionError("unreachable")
+
+    def _call(self, method: str, path: str, body: Any = None,
+              ok: tuple[int, ...] = (200,)) -> bytes:
+        status, _, payload = self.request(method, path, body)
+        if status in ok:
+            return payload
+        raise _error(status, payload)
+
+    def close(self) -> None:
+        """Close this thread's connection."""
+        conn = getattr(self._local, "conn", None)
+        if conn is not None:
+            conn.close()
+            self._local.conn = None
+
+    # ------------------------------------------------------------ the Planner's interface
+
+    def plan(self, obj: str | Path, *, receiver: str | None = None,
+             culture: str | None = None, task: str | None = None, scene: str | None = None,
+             mode: str = "auto", gripper: str | None = None, robot: str | None = None,
+             mesh_scale: float = 1.0, why_not: tuple[int, ...] = (),
+             what_if: bool = False) -> Plan:
+        """Plan as :meth:`handover.Planner.plan` does, on the service (``obj``: an object
+        id of the service's KB)."""
+        from handover.engine.planner import Plan
+        from handover.engine.report.result import PlanResult
+
+        body = self._query(obj, receiver, culture, task, scene, mode, gripper, robot,
+                           mesh_scale, why_not, what_if, "json")
+        data = json.loads(self._call("POST", "/v1/plan", body))
+        return Plan(PlanResult.from_dict(data), None, None)  # type: ignore[arg-type]
+
+    def plan_json(self, obj: str, **query: Any) -> bytes:
+        """The service's answer as it came: the bytes ``handover plan OBJ --json`` prints."""
+        return self._call("POST", "/v1/plan", self._query(obj, **_query_args(query),
+                                                          fmt="json"))
+
+    def moveit(self, obj: str, **query: Any) -> dict:
+        """The plan's ROS 2 messages (what ``handover plan OBJ --format moveit`` prints)."""
+        return json.loads(self._call("POST", "/v1/plan",
+                                     self._query(obj, **_query_args(query), fmt="moveit")))
+
+    def mcap(self, obj: str, path: str | Path, **query: Any) -> Path:
+        """Write the plan's ROS 2 messages to ``path`` as an MCAP bag (``--mcap``)."""
+        from handover.engine.files import write_atomic
+
+        write_atomic(path, self._call("POST", "/v1/plan",
+                                      self._query(obj, **_query_args(query), fmt="mcap")))
+        return Path(path)
+
+    def health(self) -> dict:
+        """``GET /v1/health``: the KB served (root, digest, counts), workers, pending."""
+        return json.loads(self._call("GET", "/v1/health"))
+
+    def validate(self) -> dict:
+        """``handover kb validate --json`` of the service's KB folder as it is on disk."""
+        return json.loads(self._call("GET", "/v1/kb/validate", ok=(200, 422)))
+
+    def verify(self, select: str | None = None, coverage: bool = False) -> dict:
+        """``handover kb test --json`` of the served KB (``select``: as ``-k``)."""
+        body: dict[str, Any] = {"coverage": coverage}
+        if select is not None:
+            body["k"] = select
+        return json.loads(self._call("POST", "/v1/verify", body))
+
+    def reload(self) -> dict:
+        """Load the KB folder again; KBError (every problem) when it does not validate, the
+        old KB still served."""
+        return json.loads(self._call("POST", "/v1/kb/reload", {}))
+
+    @staticmethod
+    def _query(obj: Any, receiver: str | None = None, culture: str | None = None,
+               task: str | None = None, scene: str | None = None, mode: str = "auto",
+               gripper: str | None = None, robot: str | None = None,
+               mesh_scale: float = 1.0, why_not: tuple[int, ...] = (),
+               what_if: bool = False, fmt: str = "json") -> dict[str, Any]:
+        if not isinstance(obj, str | Path):
+            raise ValueError("the plan service plans objects of its knowledge base by id: "
+                             "a mesh cannot be sent (use handover.Planner for a mesh)")
+        body: dict[str, Any] = {"object": str(obj), "mode": mode, "format": fmt}
+        for key, value in (("receiver", receiver), ("culture", culture), ("task", task),
+                           ("scene", scene), ("gripper", gripper), ("robot", robot)):
+            if value is not None:
+                body[key] = value
+        if mesh_scale != 1.0:
+            body["mesh-scale"] = mesh_scale
+        if why_not:
+            body["why-not"] = list(why_not)
+        if what_if:
+            body["what-if"] = True
+        return body
+
+
+def _query_args(query: dict[str, Any]) -> dict[str, Any]:
+    allowed = {"receiver", "culture", "task", "scene", "mode", "gripper", "robot",
+               "mesh_scale", "why_not", "what_if"}
+    unknown = sorted(set(query) - allowed)
+    if unknown:
+        raise TypeError(f"unexpected argument(s) {', '.join(unknown)} (the Planner's: "
+                        f"{', '.join(sorted(allowed))})")
+    return query
+
+
+def _error(status: int, payload: bytes) -> HandoverError:
+    """The error an answer of the service stands for (the Planner's where it has one)."""
+    from handover.engine.errors import KBError, KBIssue, UnknownIdError, UsageError
+
+    try:
+        error = json.loads(payload)["error"]
+        code, message = str(error["code"]), str(error["message"])
+    except (ValueError, KeyError, TypeError):
+        return ServiceError(status, "http_error", payload[:200].decode("utf-8", "replace"))
+    if code == "unknown_id":
+        return UnknownIdError(message)
+    if code in ("bad_request", "bad_json"):
+        return UsageError(message)
+    if code == "invalid_kb":
+        return KBError([KBIssue(i["file"], i["line"], i["col"], i["message"], i["severity"])
+                        for i in error.get("issues", [])])
+    return ServiceError(status, code, message)

@@ -1,0 +1,207 @@
+"""The service's worker processes, its deadlines and its KB, reloaded atomically.
+
+Requests run in a pool of worker processes (Pebble's ``ProcessPool``: each worker started
+with the served KB by :func:`~.worker.start_worker`, one request at a time per worker, a
+worker that dies replaced). Processes rather than threads: planning is numpy and Python
+that holds the GIL for most of a plan, so two threads would not plan twice as fast; each
+process has state of its own, so nothing mutable is shared between concurrent requests; and
+a request past its deadline can be stopped for real: its worker is ended and a fresh one
+started (a thread cannot be stopped), while every other request goes on. Workers are forked
+from a fork server that imported the engine once (:data:`~.worker.PRELOAD`), so a new worker
+is ready in a fraction of a second.
+
+:class:`Service` holds the KB being served and its pool. :meth:`Service.reload` loads the
+KB folder again (through the validated cache, :func:`~handover.engine.load.cache.load_kb_cached`);
+a KB that does not validate raises its KBError and changes nothing; a valid one gets a new
+pool, which takes the requests that come after, while the old pool finishes those it has and
+then stops. A request is answered by the KB it started with, never by a mix.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import multiprocessing
+import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import CancelledError
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from handover.engine.service.worker import PRELOAD, Reply, error_body, ping, start_worker
+
+if TYPE_CHECKING:
+    from pebble import ProcessPool
+
+    from handover.engine.store.kb import KB
+
+__all__ = ["ServedKB", "WorkerPool", "Service", "DeadlineExceeded", "Busy", "load_served"]
+
+
+class DeadlineExceeded(Exception):
+    """A request was not answered within its deadline (its worker was stopped)."""
+
+
+class Busy(Exception):
+    """More requests are waiting than the service takes at once."""
+
+
+@dataclass(frozen=True)
+class ServedKB:
+    """The KB a pool serves: the KB, its folder, content digest, counts, warnings (as
+    ``kb validate --json`` gives them) and when it was loaded (s since the epoch)."""
+
+    kb: KB
+    root: Path
+    digest: str
+    counts: dict[str, int]
+    warnings: list[dict]
+    loaded_at: float
+
+    def describe(self) -> dict[str, Any]:
+        return {"root": str(self.root), "digest": self.digest, "counts": self.counts,
+                "warnings": len(self.warnings), "loaded_at": round(self.loaded_at, 3)}
+
+
+def load_served(kb_dir: Path | str | None, cache_dir: Path | None) -> ServedKB:
+    """Load and check the KB folder (through the cache in ``cache_dir``, None: the full
+    load). Raises KBError (every problem, file:line:col) or UsageError (no such folder)."""
+    from handover.engine.load.cache import kb_digest, load_kb_cached
+    from handover.engine.store.kb import resolve_kb_dir
+    from handover.engine.tools.answer import issue_json
+
+    root = resolve_kb_dir(kb_dir)
+    digest = kb_digest(root)
+    kb = load_kb_cached(root, cache_dir)
+    return ServedKB(kb, root, digest, kb.counts(), [issue_json(i) for i in kb.warnings],
+                    time.time())
+
+
+class WorkerPool:
+    """``workers`` processes serving one KB. ``db_root`` : the grasp database folder (None:
+    generate candidates). ``memo_bytes`` : each worker's memo of answers."""
+
+    def __init__(self, served: ServedKB, workers: int, db_root: Path | None, memo_bytes: int):
+        from pebble import ProcessPool
+
+        if workers < 1:
+            raise ValueError(f"a pool needs at least one worker, got {workers}")
+        context = multiprocessing.get_context("forkserver")
+        context.set_forkserver_preload(list(PRELOAD))
+        self.served = served
+        self.workers = workers
+        self._pool: ProcessPool = ProcessPool(
+            max_workers=workers, initializer=start_worker,
+            initargs=(served.kb, None if db_root is None else str(db_root), memo_bytes),
+            context=context)
+
+    async def call(self, function: Callable[..., Reply], *args: Any,
+                   deadline: float) -> Reply:
+        """Run ``function(*args)`` in a worker; DeadlineExceeded after ``deadline`` s (the
+        worker running it is stopped and replaced; a request still waiting is dropped)."""
+        future = self._pool.schedule(function, args=args)
+        try:
+            return await asyncio.wait_for(asyncio.wrap_future(future), timeout=deadline)
+        except TimeoutError:
+            future.cancel()
+            raise DeadlineExceeded(deadline) from None
+        except CancelledError:
+            raise DeadlineExceeded(deadline) from None
+        except Exception as e:  # noqa: BLE001 - a worker that died while answering
+            return Reply(500, error_body("worker_died", f"the worker ended while answering "
+                                         f"({type(e).__name__}: {e}); it was replaced"))
+
+    def pids(self) -> list[int]:
+        """The worker processes' ids (those alive now)."""
+        manager = getattr(self._pool, "_pool_manager", None)
+        workers = getattr(getattr(manager, "worker_manager", None), "workers", {})
+        return sorted(int(pid) for pid in workers)
+
+    def close(self, wait: bool = False) -> None:
+        """Stop taking requests; the workers end when those they have are answered. With
+        ``wait``, return when they have."""
+        self._pool.close()
+        if wait:
+            self._pool.join()
+        else:  # join in the background: the old pool of a reload ends on its own
+            threading.Thread(target=self._pool.join, daemon=True).start()
+
+    def stop(self) -> None:
+        """Stop now: every worker ended, waiting requests dropped."""
+        self._pool.stop()
+        self._pool.join()
+
+
+@dataclass
+class Service:
+    """The KB served and its pool, the limits, and the reloads (one at a time).
+
+    kb_dir : the KB folder (None: ``$HANDOVER_KB`` or the built-in one). db_root : the grasp
+    database folder (None: none, and the KB loaded in full each time). deadline : the longest
+    a request may take (s); a request may ask for less. max_pending : requests taken at once
+    (running or waiting), beyond which the service answers 503.
+    """
+
+    kb_dir: Path | None
+    db_root: Path | None
+    workers: int = 2
+    deadline: float = 30.0
+    max_pending: int = 64
+    memo_bytes: int = 64 * 2**20
+    pool: WorkerPool | None = None
+    pending: int = 0
+    reloads: int = 0
+    _lock: asyncio.Lock = field(default_factory=asyncio.Lock)
+
+    def _cache_dir(self) -> Path | None:
+        from handover.engine.load.cache import kb_cache_dir
+
+        return None if self.db_root is None else kb_cache_dir(self.db_root)
+
+    async def start(self) -> None:
+        """Load the KB and start the pool; return when a worker answers."""
+        served = await asyncio.to_thread(load_served, self.kb_dir, self._cache_dir())
+        self.pool = WorkerPool(served, self.workers, self.db_root, self.memo_bytes)
+        await self.pool.call(ping, deadline=max(self.deadline, 120.0))
+
+    @property
+    def served(self) -> ServedKB:
+        if self.pool is None:
+            raise RuntimeError("the service is not started")
+        return self.pool.served
+
+    async def run(self, function: Callable[..., Reply], *args: Any,
+                  deadline: float | None = None) -> Reply:
+        """Run a task in the current pool within ``deadline`` (at most the service's);
+        Busy when ``max_pending`` requests are already in."""
+        if self.pool is None:
+            raise RuntimeError("the service is not started")
+        if self.pending >= self.max_pending:
+            raise Busy(self.max_pending)
+        limit = self.deadline if deadline is None else min(deadline, self.deadline)
+        self.pending += 1
+        try:
+            return await self.pool.call(function, *args, deadline=limit)
+        finally:
+            self.pending -= 1
+
+    async def reload(self) -> tuple[ServedKB, ServedKB]:
+        """Load the KB folder again and serve it: ``(old, new)``. Raises KBError (the old
+        KB goes on serving) or UsageError."""
+        async with self._lock:
+            old = self.served
+            served = await asyncio.to_thread(load_served, self.kb_dir, self._cache_dir())
+            if served.digest == old.digest:
+                return old, old
+            pool = WorkerPool(served, self.workers, self.db_root, self.memo_bytes)
+            await pool.call(ping, deadline=max(self.deadline, 120.0))
+            previous, self.pool = self.pool, pool
+            self.reloads += 1
+            assert previous is not None
+            previous.close()
+            return old, served
+
+    def stop(self) -> None:
+        if self.pool is not None:
+            self.pool.stop()

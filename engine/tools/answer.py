@@ -1,0 +1,237 @@
+"""What the ``handover`` command prints and the plan service answers, built once for both.
+
+A request is a :class:`PlanRequest` (the query of ``handover plan`` by its option names:
+``object``, ``task``, ``receiver``, ``culture``, ``scene``, ``mode``, ``gripper``, ``robot``,
+``mesh-scale``, ``why-not``, ``what-if``, ``format``); :func:`plan_request` plans it and
+:func:`render` gives its answer's bytes in a format: ``json`` (the result, what ``handover
+plan --json`` prints), ``moveit`` (its ROS 2 messages as JSON,
+:func:`handover.engine.report.moveit.moveit_messages`) or ``mcap`` (those messages as a ROS 2
+bag). ``handover kb validate --json`` and ``handover kb test --json`` print
+:func:`validate_text` and :func:`kb_tests_text`. The CLI and the service both call these, so
+their answers are the same bytes.
+
+>>> req = PlanRequest.from_mapping({"object": "mug", "receiver": "elder", "what-if": True})
+>>> req.query().receiver, req.what_if
+('elder', True)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from handover.engine.errors import UsageError
+from handover.engine.spec.query import DEFAULTS, MODES, Query
+
+if TYPE_CHECKING:
+    from handover.engine.errors import KBError, KBIssue
+    from handover.engine.planner import Plan
+    from handover.engine.store.kb import KB
+
+__all__ = ["PlanRequest", "FORMATS", "MEDIA_TYPES", "plan_request", "render", "issue_json",
+           "validate_data", "validate_text", "kb_tests", "kb_tests_text", "json_text"]
+
+FORMATS = ("json", "moveit", "mcap")
+"""The formats of a plan's answer (the CLI prints ``json`` and ``moveit``; ``--mcap FILE``
+writes ``mcap``)."""
+MEDIA_TYPES = {"json": "application/json", "moveit": "application/json",
+               "mcap": "application/x-mcap"}
+_STRINGS = ("object", "task", "receiver", "culture", "scene", "mode", "gripper", "robot",
+            "format")
+
+
+@dataclass(frozen=True)
+class PlanRequest:
+    """One ``handover plan`` query and how its answer is given.
+
+    object : an object id of the KB (or, from the CLI only, a mesh file). task, receiver,
+    culture, scene, gripper, robot : ids, None for the defaults. mode : ``auto`` or a
+    mode. mesh_scale : a mesh file's units to metres. why_not : candidate ids to explain.
+    what_if : list the verified changes of an infeasible plan. format : one of
+    :data:`FORMATS`.
+    """
+
+    object: str
+    task: str | None = None
+    receiver: str | None = None
+    culture: str | None = None
+    scene: str | None = None
+    mode: str = "auto"
+    gripper: str | None = None
+    robot: str | None = None
+    mesh_scale: float = 1.0
+    why_not: tuple[int, ...] = ()
+    what_if: bool = False
+    format: str = "json"
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.mesh_scale, int | float) or isinstance(self.mesh_scale, bool) \
+                or not (math.isfinite(self.mesh_scale) and self.mesh_scale > 0):
+            raise UsageError(f"--mesh-scale must be a positive number, got {self.mesh_scale}")
+        if (self.mode or "auto").lower() not in MODES:
+            raise UsageError(f"unknown mode '{self.mode}': choose one of {', '.join(MODES)}")
+        if self.format not in FORMATS:
+            raise UsageError(f"unknown format '{self.format}': choose {', '.join(FORMATS)}")
+
+    @classmethod
+    def from_mapping(cls, data: Any) -> PlanRequest:
+        """A request from a JSON object whose keys are ``handover plan``'s option names
+        (``mesh-scale`` or ``mesh_scale``, and so on; ``object`` required). Raises
+        UsageError naming the key that is unknown, missing or of the wrong type."""
+        if not isinstance(data, Mapping):
+            raise UsageError(f"the request must be a JSON object, got {type(data).__name__}")
+        known = {f.replace("_", "-") for f in cls.__dataclass_fields__}
+        values: dict[str, Any] = {}
+        for key, value in data.items():
+            name = str(key).replace("_", "-")
+            if name not in known:
+                raise UsageError(f"unknown key '{key}' (known: {', '.join(sorted(known))})")
+            values[name.replace("-", "_")] = value
+        if "object" not in values:
+            raise UsageError("the request has no 'object': the object id to plan for")
+        for name in _STRINGS:
+            value = values.get(name)
+            if value is not None and (not isinstance(value, str) or not value):
+                raise UsageError(f"'{name}' must be a non-empty string, got {value!r}")
+        if values.get("mode") is None:
+            values.pop("mode", None)
+        if values.get("format") is None:
+            values.pop("format", None)
+        why_not = values.get("why_not", ())
+        if isinstance(why_not, int) and not isinstance(why_not, bool):
+            why_not = [why_not]
+        if not isinstance(why_not, list | tuple) or not all(
+                isinstance(v, int) and not isinstance(v, bool) for v in why_not):
+            raise UsageError(f"'why-not' must be a candidate id or a list of them, got "
+                             f"{why_not!r}")
+        values["why_not"] = tuple(why_not)
+        if not isinstance(values.get("what_if", False), bool):
+            raise UsageError(f"'what-if' must be true or false, got {values['what_if']!r}")
+        scale = values.get("mesh_scale", 1.0)
+        if isinstance(scale, bool) or not isinstance(scale, int | float):
+            raise UsageError(f"'mesh-scale' must be a number, got {scale!r}")
+        values["mesh_scale"] = float(scale)
+        return cls(**values)
+
+    def query(self) -> Query:
+        """The planner's query (defaults filled in, the mode in lower case)."""
+        return Query(
+            object=self.object, task=self.task,
+            receiver=self.receiver or DEFAULTS["receiver"],
+            culture=self.culture or DEFAULTS["culture"],
+            scene=self.scene or DEFAULTS["scene"],
+            mode=(self.mode or "auto").lower(), gripper=self.gripper,
+            robot=self.robot or DEFAULTS["robot"], mesh_scale=self.mesh_scale,
+        )
+
+    def key(self) -> tuple:
+        """What decides the answer's bytes (for a memo of answers): the query as resolved,
+        why-not, what-if and the format."""
+        q = self.query()
+        return (q.object, q.task, q.receiver, q.culture, q.scene, q.mode, q.gripper, q.robot,
+                q.mesh_scale, self.why_not, self.what_if, self.format)
+
+
+def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
+    """Plan ``request`` with ``kb`` and the grasp database ``db`` (None: generate)."""
+    from handover.engine.planner import plan
+
+    return plan(kb, request.query(), why_not=request.why_not, db=db,
+                what_if=request.what_if)
+
+
+def render(planned: Plan, fmt: str = "json") -> bytes:
+    """The answer's bytes: ``json`` the result as ``handover plan --json`` prints it;
+    ``moveit`` its ROS 2 messages (``moveit_messages(result).to_dict()``, read from that JSON),
+    as JSON with every float as the message holds it (not rounded: the bag's values); ``mcap``
+    those messages as a ROS 2 MCAP bag."""
+    text = planned.result.to_json()
+    if fmt == "json":
+        return text.encode("utf-8")
+    from handover.engine.report.moveit import moveit_messages, write_mcap
+
+    data = json.loads(text)
+    if fmt == "moveit":
+        messages = moveit_messages(data).to_dict()
+        return (json.dumps(messages, indent=2, ensure_ascii=False) + "\n").encode("utf-8")
+    if fmt == "mcap":
+        import io
+
+        stream = io.BytesIO()
+        write_mcap(data, stream)
+        return stream.getvalue()
+    raise UsageError(f"unknown format '{fmt}': choose {', '.join(FORMATS)}")
+
+
+def json_text(data: Any) -> str:
+    """Deterministic JSON text of plain data: indent 2, key order as built, a newline."""
+    from handover.engine.report.result import dumps
+
+    return dumps(data)
+
+
+# ---------------------------------------------------------------- kb validate, kb test
+
+
+def issue_json(issue: KBIssue) -> dict[str, Any]:
+    """One KB problem as JSON: file, line, col, severity, message."""
+    return {"file": issue.file, "line": issue.line, "col": issue.col,
+            "severity": issue.severity, "message": issue.message}
+
+
+def validate_data(kb_dir: Path | str | None) -> tuple[dict[str, Any], KBError | None]:
+    """What ``handover kb validate --json`` prints for the KB folder ``kb_dir`` (every file,
+    URDFs parsed): ``{"ok": true, "root", "counts", "warnings"}``, or ``{"ok": false,
+    "errors", "warnings"}`` with the KBError. A folder that does not exist raises
+    UsageError."""
+    from handover.engine.errors import KBError
+    from handover.engine.load.loader import load_kb
+
+    try:
+        kb = load_kb(kb_dir)
+    except KBError as e:
+        return {"ok": False, "errors": [issue_json(i) for i in e.issues],
+                "warnings": [issue_json(i) for i in e.warnings]}, e
+    return {"ok": True, "root": str(kb.root), "counts": kb.counts(),
+            "warnings": [issue_json(i) for i in kb.warnings]}, None
+
+
+def validate_text(data: dict[str, Any]) -> str:
+    """:func:`validate_data`'s dict as ``kb validate --json`` prints it."""
+    return json.dumps(data, indent=2, sort_keys=False, ensure_ascii=False) + "\n"
+
+
+def kb_tests(kb: KB, select: str | None = None, coverage: bool = False,
+             paths: list[Path] | None = None) -> tuple[Any, dict[str, Any] | None]:
+    """Run the KB's test cases (or those of ``paths``) whose name contains ``select``:
+    the report (:class:`handover.engine.tools.kbtest.KBTestReport`) and, with ``coverage``,
+    the rule coverage. UsageError when no case is selected."""
+    from handover.engine.tools.kbtest import case_files, run_tests
+
+    report = run_tests(kb, case_files(kb, list(paths or [])), select=select)
+    if not report.cases:
+        where = "the given paths" if paths else f"{kb.root / 'tests'}"
+        raise UsageError(f"no test cases in {where}" + (f" matching '{select}'" if select
+                                                         else ""))
+    cov = None
+    if coverage:
+        from handover.engine.tools.coverage import rule_coverage
+
+        cov = rule_coverage(kb, report.cases)
+    return report, cov
+
+
+def kb_tests_text(report: Any, cov: dict[str, Any] | None = None) -> str:
+    """What ``handover kb test --json`` prints of :func:`kb_tests`: ``cases``, ``passed``,
+    ``failed``, and with coverage ``coverage``, ``never_applied``, ``unread_tags``."""
+    data: dict[str, Any] = {"cases": [c.to_dict() for c in report.cases],
+                            "passed": report.passed, "failed": report.failed}
+    if cov is not None:
+        data["coverage"] = cov["rules"]
+        data["never_applied"] = cov["never_applied"]
+        data["unread_tags"] = cov["unread_tags"]
+    return json_text(data)

@@ -1,0 +1,353 @@
+"""The plan service, started for real (``handover serve --port 0`` in a subprocess, on a
+copy of the built-in KB) and driven over HTTP on 127.0.0.1: the same queries as the CLI give
+the same bytes; bad requests are JSON errors with their status; 32 clients at once are all
+answered; a broken KB reload keeps the old KB; a request past its deadline is stopped and the
+service stays healthy; the token guards every route but health."""
+
+from __future__ import annotations
+
+import http.client
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from handover.engine.cli import app
+from handover.engine.store.kb import builtin_kb_dir
+
+TOKEN = "s3cret-token"
+CLI = ("import sys; from handover.engine.cli import main; "
+       "sys.argv = ['handover', *sys.argv[1:]]; main()")
+
+
+class Running:
+    """A service subprocess: its address, and HTTP requests to it (with the token)."""
+
+    def __init__(self, proc: subprocess.Popen, url: str, log: Path):
+        self.proc, self.url, self.log = proc, url, log
+        host_port = url.removeprefix("http://")
+        self.host, self.port = host_port.rsplit(":", 1)[0], int(host_port.rsplit(":", 1)[1])
+
+    def request(self, method: str, path: str, body: bytes | str | dict | None = None,
+                token: str | None = TOKEN, headers: dict | None = None
+                ) -> tuple[int, dict, bytes]:
+        conn = http.client.HTTPConnection(self.host, self.port, timeout=120)
+        if isinstance(body, dict):
+            body = json.dumps(body)
+        sent = dict(headers or {})
+        if token:
+            sent["Authorization"] = f"Bearer {token}"
+        conn.request(method, path, body=body, headers=sent)
+        r = conn.getresponse()
+        out = r.status, {k.lower(): v for k, v in r.getheaders()}, r.read()
+        conn.close()
+        return out
+
+    def plan(self, body, path: str = "/v1/plan") -> tuple[int, dict, bytes]:
+        return self.request("POST", path, body)
+
+    def health(self) -> dict:
+        status, _, body = self.request("GET", "/v1/health", token=None)
+        assert status == 200
+        return json.loads(body)
+
+
+def start(kb: Path, tmp: Path, *args: str) -> Running:
+    log = tmp / f"service-{time.monotonic_ns()}.log"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", CLI, "--kb", str(kb), "serve", "--port", "0", *args],
+        stdout=subprocess.PIPE, stderr=log.open("w"), text=True, env=dict(os.environ))
+    line: list[str] = []
+    reader = threading.Thread(target=lambda: line.append(proc.stdout.readline()), daemon=True)
+    reader.start()
+    reader.join(180)
+    if not line or not line[0].startswith("http://127.0.0.1:"):
+        proc.kill()
+        raise AssertionError(f"the service did not start: {line}\n{log.read_text()}")
+    return Running(proc, line[0].strip(), log)
+
+
+def stop(running: Running) -> None:
+    running.proc.send_signal(signal.SIGTERM)
+    try:
+        running.proc.wait(60)
+    except subprocess.TimeoutExpired:
+        running.proc.kill()
+        running.proc.wait(10)
+
+
+@pytest.fixture(scope="module")
+def kb_dir(tmp_path_factory) -> Path:
+    root = tmp_path_factory.mktemp("service") / "kb"
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    return root
+
+
+@pytest.fixture(scope="module")
+def service(kb_dir: Path, tmp_path_factory):
+    running = start(kb_dir, tmp_path_factory.mktemp("logs"), "--token", TOKEN,
+                    "--workers", "2", "--deadline", "120")
+    yield running
+    pids = running.health()["worker_pids"]
+    stop(running)
+    # uvicorn finishes the requests it has, then ends by the signal it was sent
+    assert running.proc.returncode in (0, -signal.SIGTERM), running.log.read_text()
+    assert "Traceback" not in running.log.read_text()
+    time.sleep(0.5)
+    assert not [p for p in pids if Path(f"/proc/{p}").exists()
+                and "zombie" not in Path(f"/proc/{p}/status").read_text().lower()], \
+        "worker processes outlived the service"
+
+
+def cli(kb_dir: Path, *args: str) -> tuple[int, str]:
+    got = CliRunner().invoke(app, ["--kb", str(kb_dir), *args])
+    return got.exit_code, got.stdout
+
+
+QUERIES = [  # (body, CLI arguments)
+    ({"object": "knife"}, ["plan", "knife"]),
+    ({"object": "mug", "receiver": "elder", "culture": "korean"},
+     ["plan", "mug", "--receiver", "elder", "--culture", "korean"]),
+    ({"object": "hammer", "task": "pull_nail", "mode": "h1g1"},
+     ["plan", "hammer", "--task", "pull_nail", "--mode", "h1g1"]),
+    ({"object": "knife", "receiver": "child"}, ["plan", "knife", "--receiver", "child"]),
+    ({"object": "screwdriver", "why-not": [0, 3]},
+     ["plan", "screwdriver", "--why-not", "0", "--why-not", "3"]),
+]
+
+
+@pytest.mark.parametrize(("body", "args"), QUERIES, ids=[q[1][1] + str(i) for i, q in
+                                                        enumerate(QUERIES)])
+def test_a_plan_is_the_cli_s_json_byte_for_byte(service, kb_dir, body, args) -> None:
+    code, printed = cli(kb_dir, *args, "--json")
+    status, headers, answer = service.plan(body)
+    assert status == 200  # whatever the outcome, a refusal included
+    assert answer.decode("utf-8") == printed
+    outcome = json.loads(printed)["outcome"]
+    assert headers["x-handover-outcome"] == outcome
+    assert code == (0 if outcome in ("handover", "place") else 4)
+    again = service.plan(body)[2]
+    assert again == answer  # the memo gives the same bytes
+
+
+def test_moveit_and_mcap_are_the_cli_s(service, kb_dir, tmp_path) -> None:
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    _, printed = cli(kb_dir, "plan", "book", "--format", "moveit", "--mcap",
+                     str(tmp_path / "cli.mcap"))
+    status, headers, answer = service.plan({"object": "book", "format": "moveit"})
+    assert status == 200 and headers["content-type"].startswith("application/json")
+    assert answer.decode("utf-8") == printed
+    status, headers, bag = service.plan({"object": "book", "format": "mcap"})
+    assert status == 200 and headers["content-type"] == "application/x-mcap"
+    assert bag == (tmp_path / "cli.mcap").read_bytes()
+    (tmp_path / "svc.mcap").write_bytes(bag)
+    moveit = json.loads(printed)
+    with open(tmp_path / "svc.mcap", "rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        poses = [m.grasp_pose.pose for _, ch, _, m in reader.iter_decoded_messages()
+                 if ch.topic == "/handover/grasps"]
+    assert len(poses) == len(moveit["grasps"]) == 2  # the book: H2G2, two grasps
+    for got, want in zip(poses, moveit["grasps"], strict=True):
+        p = want["grasp_pose"]["pose"]
+        assert [got.position.x, got.position.y, got.position.z] == \
+            [p["position"][k] for k in "xyz"]
+        assert [got.orientation.x, got.orientation.y, got.orientation.z,
+                got.orientation.w] == [p["orientation"][k] for k in "xyzw"]
+
+
+def _error(status: int, body: bytes) -> dict:
+    assert b"Traceback" not in body
+    data = json.loads(body)
+    assert set(data) == {"error"} and data["error"]["message"], data
+    return data["error"]
+
+
+@pytest.mark.parametrize(("body", "status", "code"), [
+    (b"{not json", 400, "bad_json"),
+    (b"", 400, "bad_request"),
+    (b"[1, 2]", 400, "bad_request"),
+    ({"receiver": "elder"}, 400, "bad_request"),  # no object
+    ({"object": "knife", "colour": "red"}, 400, "bad_request"),
+    ({"object": "knife", "mode": 3}, 400, "bad_request"),
+    ({"object": "knife", "mode": "h3g3"}, 400, "bad_request"),
+    ({"object": "knife", "why-not": "three"}, 400, "bad_request"),
+    ({"object": "knife", "format": "xml"}, 400, "bad_request"),
+    ({"object": "knife", "mesh-scale": -1}, 400, "bad_request"),
+    ({"object": "/etc/passwd.stl"}, 400, "bad_request"),
+    ({"object": "spork"}, 404, "unknown_id"),
+    ({"object": "knife", "culture": "martian"}, 404, "unknown_id"),
+    ({"object": "knife", "task": "juggle"}, 404, "unknown_id"),
+    (b"{" + b" " * 70_000 + b"}", 413, "too_large"),
+])
+def test_bad_requests_are_json_errors(service, body, status, code) -> None:
+    got, _, answer = service.plan(body)
+    assert got == status
+    assert _error(got, answer)["code"] == code
+
+
+def test_unknown_routes_methods_and_deadlines_are_json_errors(service) -> None:
+    for method, path, status, code in [("GET", "/v1/plans", 404, "not_found"),
+                                       ("GET", "/v1/plan", 405, "method_not_allowed"),
+                                       ("POST", "/v1/plan?deadline=soon", 400, "bad_request")]:
+        got, _, body = service.request(method, path, {"object": "knife"})
+        assert got == status and _error(got, body)["code"] == code
+
+
+def test_the_token_guards_every_route_but_health(service) -> None:
+    for token in (None, "wrong"):
+        status, _, body = service.request("POST", "/v1/plan", {"object": "knife"}, token=token)
+        assert status == 401 and _error(status, body)["code"] == "unauthorized"
+    assert service.request("GET", "/v1/health", token=None)[0] == 200
+
+
+def test_another_host_needs_a_token(kb_dir) -> None:
+    from handover.engine.cli.app import main
+
+    assert main(["--kb", str(kb_dir), "serve", "--host", "0.0.0.0", "--port", "0"]) == 2
+
+
+def test_verify_and_validate_are_the_cli_s(service, kb_dir) -> None:
+    code, printed = cli(kb_dir, "kb", "test", "-k", "knife", "--json")
+    status, _, answer = service.request("POST", "/v1/verify", {"k": "knife"})
+    assert status == 200 and answer.decode() == printed and json.loads(printed)["passed"] >= 1
+    code, printed = cli(kb_dir, "kb", "validate", "--json")
+    status, _, answer = service.request("GET", "/v1/kb/validate")
+    assert (status, code) == (200, 0) and answer.decode() == printed
+
+
+def _rss_kib(pids: list[int]) -> int:
+    total = 0
+    for pid in pids:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                total += int(line.split()[1])
+    return total
+
+
+def test_32_clients_at_once_are_all_answered(service) -> None:
+    valid = [{"object": "knife"}, {"object": "screwdriver"},
+             {"object": "knife", "receiver": "child"}]  # a refusal: no mode is planned
+    invalid = [(b"{oops", 400), ({"object": "spork"}, 404),
+               ({"object": "knife", "culture": "martian"}, 404),
+               ({"object": "knife", "colour": 1}, 400)]
+    for body in valid:  # each worker plans these once; then they come from its memo
+        assert service.plan(body)[0] == 200
+    pids = [service.proc.pid, *service.health()["worker_pids"]]
+    before = _rss_kib(pids)
+
+    def client(k: int) -> Counter:
+        seen: Counter = Counter()
+        conn = http.client.HTTPConnection(service.host, service.port, timeout=120)
+        for i in range(20):
+            if (k + i) % 2:
+                body, want = valid[(k + i) % len(valid)], 200
+            else:
+                body, want = invalid[(k + i) % len(invalid)]
+            conn.request("POST", "/v1/plan?deadline=60", body=body if isinstance(body, bytes)
+                         else json.dumps(body), headers={"Authorization": f"Bearer {TOKEN}"})
+            r = conn.getresponse()
+            payload = r.read()
+            assert r.status == want, (body, r.status, payload[:300])
+            if want != 200:
+                _error(r.status, payload)
+            else:
+                assert json.loads(payload)["object"] == body["object"]
+            seen[r.status] += 1
+        conn.close()
+        return seen
+
+    with ThreadPoolExecutor(32) as pool:
+        counts = sum(pool.map(client, range(32)), Counter())
+    assert sum(counts.values()) == 32 * 20
+    assert set(counts) <= {200, 400, 404}
+    assert service.health()["pending"] == 0
+    grown = _rss_kib([p for p in pids if Path(f"/proc/{p}").exists()]) - before
+    assert grown < 150 * 1024, f"the service grew by {grown / 1024:.0f} MiB over 640 requests"
+
+
+def test_a_request_past_its_deadline_is_stopped_and_the_service_goes_on(service) -> None:
+    slow = {"object": "book", "receiver": "child", "what-if": True}  # minutes of what-if
+    status, _, body = service.plan(slow, path="/v1/plan?deadline=0.5")
+    assert status == 504
+    error = _error(status, body)
+    assert error["code"] == "deadline_exceeded" and error["deadline"] == 0.5
+    assert service.health()["ok"]
+    status, _, body = service.plan({"object": "knife"})
+    assert status == 200 and json.loads(body)["outcome"] == "handover"
+
+
+def test_a_broken_reload_keeps_the_old_kb(service, kb_dir) -> None:
+    before = service.health()["kb"]["digest"]
+    knife = kb_dir / "objects" / "knife.yaml"
+    text = knife.read_text()
+    extra = kb_dir / "objects" / "knife2.yaml"
+    try:
+        knife.write_text(text.replace("mass:", "mass: -3\nmasss:", 1))
+        status, _, body = service.request("POST", "/v1/kb/reload")
+        assert status == 422
+        error = _error(status, body)
+        assert error["code"] == "invalid_kb"
+        assert {i["file"] for i in error["issues"]} == {"objects/knife.yaml"}
+        assert all(i["line"] > 0 for i in error["issues"])
+        assert service.health()["kb"]["digest"] == before
+        assert service.plan({"object": "knife"})[0] == 200  # the old KB serves
+        knife.write_text(text)
+        extra.write_text(text.replace("id: knife", "id: knife2", 1))
+        assert service.plan({"object": "knife2"})[0] == 404
+        status, _, body = service.request("POST", "/v1/kb/reload")
+        assert status == 200 and json.loads(body)["changed"] is True
+        assert service.health()["kb"]["digest"] != before
+        status, _, body = service.plan({"object": "knife2"})
+        assert status == 200 and json.loads(body)["object"] == "knife2"
+    finally:
+        knife.write_text(text)
+        extra.unlink(missing_ok=True)
+
+
+def test_the_client_is_the_planner(service, kb_dir) -> None:
+    from handover import Client, Planner
+    from handover.engine.errors import UnknownIdError, UsageError
+
+    client = Client(service.url, token=TOKEN)
+    local = Planner(kb_dir)
+    for planner in (client, local):
+        plan = planner.plan("mug", receiver="elder", culture="korean")
+        assert plan.feasible and plan.mode and plan.robot_grasps[0].pose.shape == (4, 4)
+        with pytest.raises(UnknownIdError):
+            planner.plan("spork")
+        with pytest.raises(UsageError):
+            planner.plan("knife", mode="h3g3")
+    assert client.plan("mug", receiver="elder", culture="korean").to_json() == \
+        local.plan("mug", receiver="elder", culture="korean").to_json()
+    with pytest.raises(UsageError, match="no planning context"):
+        client.plan("knife").record(kb_dir / "x.rrd")
+    assert client.health()["kb"]["counts"]["objects"] >= 10
+
+
+def test_the_documented_requests_are_answered(service, docs, tmp_path, monkeypatch) -> None:
+    import re
+
+    for line in docs.example("service-curl").text.splitlines():
+        m = re.search(r"(-X POST )?'?http://127\.0\.0\.1:8750(\S+?)'?( -d '(.*?)')?( -o .*)?$",
+                      line)
+        assert m, line
+        method = "POST" if m.group(1) else "GET"
+        status, _, body = service.request(method, m.group(2), m.group(4))
+        assert status == 200, (line, body[:300])
+    code = docs.example("service-python").text.replace("http://127.0.0.1:8750", service.url)
+    code = code.replace(f'Client("{service.url}")', f'Client("{service.url}", token="{TOKEN}")')
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "docs/service.md", "exec"), {})
+    assert (tmp_path / "book.mcap").stat().st_size > 0
