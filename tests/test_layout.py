@@ -107,7 +107,7 @@ def too_long(packages: dict[str, Path]) -> list[str]:
 
 
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("handover.engine", "handover.engine.errors", "handover.engine.files"),
+    ("handover.engine", "handover.engine.errors"),
     ("handover.engine.spec",),
     ("handover.engine.store",),
     ("handover.engine.assets",),
@@ -120,18 +120,19 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 )
 """The engine's layers, lowest first: a module may import its own layer and those below it.
 
-0 the package, the errors and exit codes, whole-file writes; 1 ``spec``: the KB's data model
+0 the package, the errors and exit codes; 1 ``spec``: the KB's data model
 and the rule kinds' fields; 2 ``store``: YAML with positions, validation, the KB store,
-cultures; 3 ``assets``: specs to geometry (meshes, grippers, robots), the grasp database;
+cultures, whole-file writes; 3 ``assets``: specs to geometry (meshes, grippers, robots), the
+grasp database;
 4 ``load``: ``load_kb`` and the checks across documents (a robot's URDF needs the assets);
 5 ``plan``: one query, from its context to the chosen attempt; 6 ``report``: the result
 record, the trace, the rerun recording; 7 ``planner``: the facade; 8 ``tools``: batch,
 compare, KB tests; 9 the ``handover`` command and the plan service. ``handover.geometry`` lies
 below them all and imports none of them."""
 
-MAX_TOP_LEVEL = 13
-"""Entries at the engine's top level (``__init__.py`` counted): the ten layers of LAYERS
-(``service`` beside ``cli``), the errors, the file writes and the package itself."""
+MAX_TOP_LEVEL = 12
+"""Entries at the engine's top level (``__init__.py`` counted): the layers of LAYERS
+(``service`` beside ``cli``), the errors and the package itself."""
 
 
 def layer_of(module: str, layers: tuple[tuple[str, ...], ...] = LAYERS) -> int | None:

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from handover.engine.files import write_atomic
+from handover.engine.store.files import write_atomic
 from handover.geometry.candidates import CandidateSet
 
 if TYPE_CHECKING:

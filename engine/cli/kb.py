@@ -283,8 +283,8 @@ def schema(
     Each KB file starts with ``# yaml-language-server: $schema=../schema/<kind>.json``;
     regenerate those files with ``handover kb schema -o kb/schema``.
     """
-    from handover.engine.files import write_atomic, write_error
     from handover.engine.spec.schema import DOCUMENT_KINDS
+    from handover.engine.store.files import write_atomic, write_error
     from handover.engine.store.validate import document_schema
 
     def text(k: str | None) -> str:

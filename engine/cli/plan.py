@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from handover.engine.cli.app import app, state
-from handover.engine.files import write_atomic, write_error
+from handover.engine.store.files import write_atomic, write_error
 
 MODE_HELP = "auto (default: H1G1 first, then two hands as rules require) or h1g1|h2g2|h2g1."
 

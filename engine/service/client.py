@@ -143,7 +143,7 @@ class Client:
 
     def mcap(self, obj: str, path: str | Path, **query: Any) -> Path:
         """Write the plan's ROS 2 messages to ``path`` as an MCAP bag (``--mcap``)."""
-        from handover.engine.files import write_atomic
+        from handover.engine.store.files import write_atomic
 
         write_atomic(path, self._call("POST", "/v1/plan",
                                       self._query(obj, **_query_args(query), fmt="mcap")))

@@ -607,7 +607,7 @@ def write_rows(path: Path | str, rows: list[dict]) -> None:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    from handover.engine.files import write_atomic, write_error
+    from handover.engine.store.files import write_atomic, write_error
 
     rows = sorted(rows, key=row_key)
     table = pa.Table.from_pylist([{c: r.get(c) for c in COLUMNS} for r in rows], schema=_schema())

@@ -78,7 +78,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.errors import UsageError
-from handover.engine.files import atomic_path, write_error
 from handover.engine.plan.features import receiver_hand_boxes
 from handover.engine.report.rerun.bodies import (
     ROBOT_BODY_COLOUR,
@@ -108,6 +107,7 @@ from handover.engine.report.rerun.stages import (
     stages_to_record,
 )
 from handover.engine.report.rerun.text import log_entries, stage_documents
+from handover.engine.store.files import atomic_path, write_error
 
 if TYPE_CHECKING:
     from handover.engine.plan.attempt import Attempt
