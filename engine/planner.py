@@ -20,7 +20,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from handover.engine.plan.attempt import Attempt
+from handover.engine.plan.attempt import Attempt, AttemptNotes
+from handover.engine.plan.records import HumanGrasp, RobotGrasp
 from handover.engine.spec.query import DEFAULTS, Query
 
 if TYPE_CHECKING:
@@ -149,7 +150,8 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
         modes = list(PLANNERS) if asked.lower() == "auto" else [asked.upper()]
         why = "; ".join(refusal_text(ctx, c) for c in refusing)
         tried = [Attempt(m, False, f"{m}: not tried: rule {first.id} refuses to hand it "
-                         f"over ({first.source})", extra={"not_tried": True}) for m in modes]
+                         f"over ({first.source})", notes=AttemptNotes(not_tried=True))
+                 for m in modes]
         attempt = Attempt(modes[0], False, why, graph=cg)
         every = all(c.rule.fallback == "place" for c in refusing)
         fallback = list(refusing) if every else []
@@ -182,32 +184,6 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
 
 
 @dataclass(frozen=True)
-class RobotGrasp:
-    """One of the robot's grasps. pose : (4, 4) gripper in the object frame ``[n o a p]``;
-    pose_world : (4, 4) at the handover; width : m between the fingers; contacts : (2, 3) m,
-    object frame; parts : the parts the two contacts touch.
-
-    arm : the arm that holds it (``left``/``right``), None for a robot without arms (and for
-    a placement's grasp: placements do not check the arms). joints : {stage: {joint name:
-    rad (m for prismatic)}} for the stages it is held at (``pickup``, ``midair``,
-    ``handover``), such that the URDF's forward kinematics put the grasp frame at the grasp's
-    pose there (see :class:`Robot`). fingers_swapped : the stages where the arm holds it
-    turned half a turn about ``a`` (the fingers are alike)."""
-
-    hand: str
-    pose: np.ndarray
-    pose_world: np.ndarray
-    width: float
-    contacts: np.ndarray
-    parts: tuple[str, ...]
-    score: float | None
-    stage: str = "handover"
-    arm: str | None = None
-    joints: dict[str, dict[str, float]] = field(default_factory=dict)
-    fingers_swapped: tuple[str, ...] = ()
-
-
-@dataclass(frozen=True)
 class RobotArm:
     """One arm of the plan's robot (the JSON ``robot.arms[side]``).
 
@@ -235,17 +211,6 @@ class Robot:
     urdf: str
     base_pose: np.ndarray
     arms: dict[str, RobotArm]
-
-
-@dataclass(frozen=True)
-class HumanGrasp:
-    """The receiver's predicted grasp (the seed's C). position : (3,) m, object frame;
-    position_world : (3,) m at the handover; part : the part under it."""
-
-    hand: str
-    position: np.ndarray
-    position_world: np.ndarray
-    part: str
 
 
 class Plan:
@@ -288,15 +253,11 @@ class Plan:
 
     @property
     def robot_grasps(self) -> list[RobotGrasp]:
-        return [RobotGrasp(hand=g["hand"], pose=np.asarray(g["pose"], dtype=float),
-                           pose_world=np.asarray(g["pose_world"], dtype=float),
-                           width=float(g["width"]), contacts=np.asarray(g["contacts"]),
-                           parts=tuple(g["parts"]), score=g["score"],
-                           stage=g.get("stage", "handover"), arm=g.get("arm"),
-                           joints={stage: {name: float(v) for name, v in q.items()}
-                                   for stage, q in g.get("joints", {}).items()},
-                           fingers_swapped=tuple(g.get("fingers_swapped", ())))
-                for g in self.result.robot_grasps]
+        """The robot's grasps (:class:`~handover.engine.plan.records.RobotGrasp`: pose (4, 4)
+        object frame, pose_world, width, contacts, parts, score, stage, and with arms
+        ``arm``, ``joints`` per stage and ``fingers_swapped``), the records the JSON
+        ``robot_grasps`` is written from."""
+        return list(self.result.robot_grasps)
 
     @property
     def robot(self) -> Robot | None:
@@ -314,10 +275,9 @@ class Plan:
 
     @property
     def human_grasps(self) -> list[HumanGrasp]:
-        return [HumanGrasp(hand=h["hand"], position=np.asarray(h["position"], dtype=float),
-                           position_world=np.asarray(h["position_world"], dtype=float),
-                           part=h["part"])
-                for h in self.result.human_grasps]
+        """The receiver's predicted grasps (:class:`~handover.engine.plan.records.HumanGrasp`:
+        hand, position (3,) object frame, position_world, part, model)."""
+        return list(self.result.human_grasps)
 
     @property
     def placement(self) -> dict | None:

@@ -341,7 +341,6 @@ def error_rows(unit: Unit, error: BaseException | str) -> list[dict]:
 def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: GraspDB | None) -> dict:
     """Plan one query; its row. Any failure becomes the row's ``error``."""
     from handover.engine.planner import plan
-    from handover.engine.report.result import to_jsonable
     from handover.engine.spec.query import Query
 
     query = Query(object=obj.query_object, task=q.task, receiver=q.receiver, culture=q.culture,
@@ -357,7 +356,7 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
             messages = sorted({str(w.message) for w in caught})
             return _row(q, content_hash, error=_error_text(e), warnings=json.dumps(messages))
     messages = sorted({str(w.message) for w in caught} | set(result.warnings))
-    grasps = to_jsonable(result.robot_grasps)
+    grasps = [g.to_dict() for g in result.robot_grasps]
     score = grasps[0].get("score") if grasps else None
     return _row(
         q, content_hash, mode=result.mode if result.feasible else None,
