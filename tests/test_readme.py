@@ -7,6 +7,8 @@ import re
 from pathlib import Path
 
 import handover
+import handover.engine.assets.lru
+import handover.engine.plan.records
 import handover.engine.planner
 import handover.engine.spec.applies
 
@@ -31,7 +33,8 @@ def test_the_readme_from_python_section_runs():
 
 
 def test_the_facade_docstrings_run():
-    for module in (handover, handover.engine.planner, handover.engine.spec.applies):
+    for module in (handover, handover.engine.planner, handover.engine.spec.applies,
+                   handover.engine.plan.records, handover.engine.assets.lru):
         finder = doctest.DocTestFinder()
         for test in finder.find(module):
             if test.examples:
