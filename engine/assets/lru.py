@@ -70,5 +70,9 @@ class LRU(Generic[K, V]):
         """The keys, least recently used first."""
         return iter(list(self._items))
 
+    def values(self) -> list[V]:
+        """The values, least recently used first (none counts as used)."""
+        return list(self._items.values())
+
     def __repr__(self) -> str:
         return f"LRU(size={self.size}, {len(self)} kept)"

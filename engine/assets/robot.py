@@ -228,6 +228,12 @@ class RobotArms:
         self._maps[key] = found
         return found
 
+    @property
+    def kept_maps(self) -> tuple[ReachMap, ...]:
+        """The reachability maps these arms keep (read or built so far: per arm the whole map
+        and its core)."""
+        return tuple(self._maps.values())
+
     def _core(self, whole: ReachMap) -> ReachMap:
         """``whole`` eroded by :data:`CORE`, read from ``reach_dir`` when saved there before
         (named after the whole map's key), else eroded and saved."""
@@ -592,8 +598,9 @@ def plan_arms(kb_root: Path | str | None, spec: RobotSpec,
 
 ARMS_KEPT = 2
 """How many robots' arms a cache of arms keeps (:data:`PLAN_ARMS`, a Planner's
-``arms_cache``): each holds its arms' reachability maps, about 27 MB per arm for the default
-map (the whole map and its core), and a plan uses one robot."""
+``arms_cache``): each holds its arms' reachability maps, about 17 MB per arm with the default
+map (the whole map and its core, one byte per bit; ``benchmarks/planner_caches.py``), and a
+plan uses one robot."""
 PLAN_ARMS: LRU[tuple, RobotArms] = LRU(ARMS_KEPT)
 """The arms of plans made without a Planner (the CLI's one plan, a batch worker's plans),
 by (KB folder, robot document, URDF digest), least recently used dropped first."""

@@ -33,7 +33,7 @@ if TYPE_CHECKING:
 __all__ = ["build_result", "Shown", "grasp_record", "human_record", "robot_record",
            "robot_grasps", "human_grasps", "regrasp_block", "trace_block", "candidates_block",
            "alternatives_block", "reason_text", "receiver_block", "gripper_block",
-           "warnings_block", "rule_warnings"]
+           "scene_block", "bodies_block", "warnings_block", "rule_warnings"]
 
 
 def body_record(body: Body) -> list[dict]:
@@ -265,12 +265,9 @@ def build_result(
                       | ({"placed": True} if shown.placed else {}) if feasible else None),
         alternatives=alternatives_block(shown),
         rules=_rule_list(attempt.graph) if attempt.graph is not None else [],
-        scene={"id": s.scene.id, "boxes": [
-            {"id": name, "extents": ext, "pose": pose} for name, ext, pose in ctx.scene_box_list
-        ]},
+        scene=scene_block(ctx),
         handover_point=_handover_point(ctx, attempt, shown.k) if outcome != "place" else None,
-        bodies={"receiver": body_record(ctx.world.receiver_body),
-                "robot": body_record(ctx.world.robot_body)},
+        bodies=bodies_block(ctx),
         outcome=outcome,
         refused=[{"rule": c.id, "source": c.source, "why": c.rule.why.strip(),
                   "fallback": c.rule.fallback} for c in refused],
@@ -444,6 +441,18 @@ def gripper_block(spec: GripperSpec, g) -> dict:
             "finger_width": g.finger_width, "finger_thickness": g.finger_thickness,
             "palm": list(g.palm), "friction": g.friction, "clearance": g.clearance,
             **_gripper_meshes(spec)}
+
+
+def scene_block(ctx: PlanContext) -> dict:
+    """The result's ``scene``: its id and boxes (the table top, obstacles; world)."""
+    return {"id": ctx.situation.scene.id, "boxes": [
+        {"id": name, "extents": ext, "pose": pose} for name, ext, pose in ctx.scene_box_list]}
+
+
+def bodies_block(ctx: PlanContext) -> dict:
+    """The result's ``bodies``: the receiver's and the robot's (:func:`body_record`)."""
+    return {"receiver": body_record(ctx.world.receiver_body),
+            "robot": body_record(ctx.world.robot_body)}
 
 
 def warnings_block(ctx: PlanContext, attempt: Attempt, placement: PlacementPlan | None,

@@ -41,7 +41,7 @@ def test_an_lru_keeps_its_size_and_drops_the_least_recently_used():
     assert kept.fetch("b", make("b")) == "B"  # made again after it was dropped
     assert made == ["a", "b", "c", "b"]
     kept.put("d", "D")
-    assert list(kept) == ["b", "d"]
+    assert list(kept) == ["b", "d"] and kept.values() == ["B", "D"]
     kept.clear()
     assert len(kept) == 0
 
@@ -75,6 +75,7 @@ def test_a_planner_keeps_its_robot_s_arms_and_their_maps_across_plans(planner):
     arms = first.context.arms
     side = arms.sides[0]
     assert arms.reach_map(side) is arms.reach_map(side)  # the arms keep their maps
+    assert any(m is arms.reach_map(side) for m in arms.kept_maps)
 
 
 def test_two_planners_share_no_arms_and_plan_alike(planner):
