@@ -33,6 +33,7 @@ from handover.engine.plan.evaluate import Decision
 from handover.engine.plan.phase import Hands, Phase
 from handover.engine.plan.presentation import presentation_rotations
 from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites
+from handover.engine.plan.records import RobotGrasp
 from handover.engine.report.rerun.writer import write_recording
 from handover.engine.report.result import PlanResult
 from handover.engine.spec.schema import parse_rule
@@ -123,9 +124,9 @@ def synthetic_plan(n: int, seed: int = 0) -> tuple[PlanResult, PlanContext, Atte
                   poses=poses, location=np.zeros(K, dtype=np.int64), located=np.ones(K, bool),
                   measured={}, hits=((),) * K)
     attempt = Attempt("H1G1", True, None, None, decision, Phase("H1G1", hands=hands))
-    grasp = {"hand": "right", "id": 0, "pose": cands.poses()[0], "width": 0.03,
-             "contacts": contacts[0], "parts": ["handle", "handle"], "score": 1.0,
-             "quality": float(cands.quality[0])}  # fmt: skip
+    grasp = RobotGrasp(hand="right", pose=cands.poses()[0], pose_world=cands.poses()[0],
+                       width=0.03, contacts=contacts[0], parts=("handle", "handle"), score=1.0,
+                       id=0, quality=float(cands.quality[0]))  # fmt: skip
     trace = [{"grasp": 0, "hand": "right", "rule": r.id, "kind": r.kind, "hard": r.hard,
               "status": "pass" if r.hard else "scored", "measured": 0.0, "unit": "",
               "threshold": "-", "score": 1.0, "weight": None, "why": r.why,

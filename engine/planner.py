@@ -10,22 +10,29 @@ facade a robot program uses.
 (4, 4)
 >>> plan.human_grasps[0].part                # where the receiver takes it
 'handle'
+>>> from handover import Query
+>>> planner.plan(Query("knife", receiver="elder")).mode   # a query as a value
+'H1G1'
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from dataclasses import fields as dataclass_fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from handover.engine.plan.attempt import Attempt
-from handover.engine.spec.query import DEFAULTS, Query
+from handover.engine.plan.attempt import Attempt, AttemptNotes
+from handover.engine.plan.records import HumanGrasp, RobotGrasp
+from handover.engine.spec.query import Query
 
 if TYPE_CHECKING:
     import trimesh
 
+    from handover.engine.assets.lru import LRU
+    from handover.engine.assets.robot import RobotArms
     from handover.engine.load.loader import KB
     from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
     from handover.engine.plan.context import PlanContext
@@ -33,11 +40,13 @@ if TYPE_CHECKING:
     from handover.engine.report.result import PlanResult
 
 __all__ = ["plan", "decide", "Decided", "refusing_rules", "fallback_rules", "Planner", "Plan",
-           "RobotGrasp", "HumanGrasp", "Robot", "RobotArm"]
+           "Query", "QUERY_FIELDS", "query_of", "RobotGrasp", "HumanGrasp", "Robot",
+           "RobotArm"]
 
 
 def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
-         mesh: trimesh.Trimesh | None = None, what_if: bool = False) -> Plan:
+         mesh: trimesh.Trimesh | None = None, what_if: bool = False,
+         arms_cache: LRU | None = None) -> Plan:
     """Plan a handover, choosing the mode (``auto``) or using the forced one; or, when the
     rules say so, set the object down or refuse (see :func:`decide`).
 
@@ -45,12 +54,14 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
     mesh : an object given as a mesh (object frame, metres) instead of ``query.object``.
     what_if : when no handover is feasible, list the verified changes that would make one
     feasible (``result.what_if``, :mod:`handover.engine.plan.whatif`).
+    arms_cache : where the robot's arms are kept between plans (a :class:`Planner`'s); None:
+    this process's (:data:`handover.engine.assets.robot.PLAN_ARMS`).
     Returns the :class:`Plan` (any outcome) with its context and chosen attempt.
     """
     from handover.engine.plan.prepare import prepare
     from handover.engine.report.assemble import build_result
 
-    ctx = prepare(kb, query, db, mesh=mesh)
+    ctx = prepare(kb, query, db, mesh=mesh, arms_cache=arms_cache)
     d = decide(kb, ctx, query.mode)
     result = build_result(ctx, d.attempt, d.tried, d.mode_reason, why_not, outcome=d.outcome,
                           placement=d.placement, refused=d.refused, fallback=d.fallback)
@@ -149,7 +160,8 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
         modes = list(PLANNERS) if asked.lower() == "auto" else [asked.upper()]
         why = "; ".join(refusal_text(ctx, c) for c in refusing)
         tried = [Attempt(m, False, f"{m}: not tried: rule {first.id} refuses to hand it "
-                         f"over ({first.source})", extra={"not_tried": True}) for m in modes]
+                         f"over ({first.source})", notes=AttemptNotes(not_tried=True))
+                 for m in modes]
         attempt = Attempt(modes[0], False, why, graph=cg)
         every = all(c.rule.fallback == "place" for c in refusing)
         fallback = list(refusing) if every else []
@@ -182,32 +194,6 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
 
 
 @dataclass(frozen=True)
-class RobotGrasp:
-    """One of the robot's grasps. pose : (4, 4) gripper in the object frame ``[n o a p]``;
-    pose_world : (4, 4) at the handover; width : m between the fingers; contacts : (2, 3) m,
-    object frame; parts : the parts the two contacts touch.
-
-    arm : the arm that holds it (``left``/``right``), None for a robot without arms (and for
-    a placement's grasp: placements do not check the arms). joints : {stage: {joint name:
-    rad (m for prismatic)}} for the stages it is held at (``pickup``, ``midair``,
-    ``handover``), such that the URDF's forward kinematics put the grasp frame at the grasp's
-    pose there (see :class:`Robot`). fingers_swapped : the stages where the arm holds it
-    turned half a turn about ``a`` (the fingers are alike)."""
-
-    hand: str
-    pose: np.ndarray
-    pose_world: np.ndarray
-    width: float
-    contacts: np.ndarray
-    parts: tuple[str, ...]
-    score: float | None
-    stage: str = "handover"
-    arm: str | None = None
-    joints: dict[str, dict[str, float]] = field(default_factory=dict)
-    fingers_swapped: tuple[str, ...] = ()
-
-
-@dataclass(frozen=True)
 class RobotArm:
     """One arm of the plan's robot (the JSON ``robot.arms[side]``).
 
@@ -235,17 +221,6 @@ class Robot:
     urdf: str
     base_pose: np.ndarray
     arms: dict[str, RobotArm]
-
-
-@dataclass(frozen=True)
-class HumanGrasp:
-    """The receiver's predicted grasp (the paper's C). position : (3,) m, object frame;
-    position_world : (3,) m at the handover; part : the part under it."""
-
-    hand: str
-    position: np.ndarray
-    position_world: np.ndarray
-    part: str
 
 
 class Plan:
@@ -288,15 +263,11 @@ class Plan:
 
     @property
     def robot_grasps(self) -> list[RobotGrasp]:
-        return [RobotGrasp(hand=g["hand"], pose=np.asarray(g["pose"], dtype=float),
-                           pose_world=np.asarray(g["pose_world"], dtype=float),
-                           width=float(g["width"]), contacts=np.asarray(g["contacts"]),
-                           parts=tuple(g["parts"]), score=g["score"],
-                           stage=g.get("stage", "handover"), arm=g.get("arm"),
-                           joints={stage: {name: float(v) for name, v in q.items()}
-                                   for stage, q in g.get("joints", {}).items()},
-                           fingers_swapped=tuple(g.get("fingers_swapped", ())))
-                for g in self.result.robot_grasps]
+        """The robot's grasps (:class:`~handover.engine.plan.records.RobotGrasp`: pose (4, 4)
+        object frame, pose_world, width, contacts, parts, score, stage, and with arms
+        ``arm``, ``joints`` per stage and ``fingers_swapped``), the records the JSON
+        ``robot_grasps`` is written from."""
+        return list(self.result.robot_grasps)
 
     @property
     def robot(self) -> Robot | None:
@@ -314,10 +285,9 @@ class Plan:
 
     @property
     def human_grasps(self) -> list[HumanGrasp]:
-        return [HumanGrasp(hand=h["hand"], position=np.asarray(h["position"], dtype=float),
-                           position_world=np.asarray(h["position_world"], dtype=float),
-                           part=h["part"])
-                for h in self.result.human_grasps]
+        """The receiver's predicted grasps (:class:`~handover.engine.plan.records.HumanGrasp`:
+        hand, position (3,) object frame, position_world, part, model)."""
+        return list(self.result.human_grasps)
 
     @property
     def placement(self) -> dict | None:
@@ -366,48 +336,87 @@ class Plan:
 
 
 class Planner:
-    """Plans handovers from one knowledge base, loaded and checked once.
+    """Plans handovers from one knowledge base, loaded and checked once, and keeps what its
+    plans share.
 
     kb : a KB folder (None: the built-in one) or a loaded KB. db : the grasp database folder
     (None: ``$HANDOVER_DB`` or the user cache), or False to generate candidates every time.
     Invalid KB files raise :class:`handover.engine.errors.KBError` naming file:line.
+
+    A planner owns its caches: ``kb``, ``db`` (the grasp database: candidates per mesh and
+    gripper) and ``arms_cache``, the robots' arms with their reachability maps, loaded on
+    first use (an :class:`~handover.engine.assets.lru.LRU` of
+    :data:`~handover.engine.assets.robot.ARMS_KEPT` robots). Plans made without a planner
+    (the CLI's) use this process's instead.
+
+    >>> from handover import Planner, Query
+    >>> planner = Planner()
+    >>> elder = Query("mug", receiver="elder", culture="korean")
+    >>> planner.plan(elder).mode
+    'H2G1'
+    >>> planner.plan(elder).to_json() == planner.plan("mug", receiver="elder",
+    ...                                               culture="korean").to_json()
+    True
+    >>> planner.plan(elder, receiver="adult").mode      # a keyword changes the query's field
+    'H1G1'
     """
 
     def __init__(self, kb: str | Path | KB | None = None, db: str | Path | bool | None = None):
         from handover.engine.assets.graspdb import open_db
+        from handover.engine.assets.lru import LRU
+        from handover.engine.assets.robot import ARMS_KEPT
         from handover.engine.load.loader import KB, load_kb
 
         self.kb = kb if isinstance(kb, KB) else load_kb(kb, urdf=False)
         self.db = open_db(None if db is True else db, disabled=db is False)
+        self.arms_cache: LRU[tuple, RobotArms] = LRU(ARMS_KEPT)
 
-    def plan(
-        self,
-        obj: str | Path | trimesh.Trimesh,
-        *,
-        receiver: str | None = None,
-        culture: str | None = None,
-        task: str | None = None,
-        scene: str | None = None,
-        mode: str = "auto",
-        gripper: str | None = None,
-        robot: str | None = None,
-        mesh_scale: float = 1.0,
-        why_not: tuple[int, ...] = (),
-        what_if: bool = False,
-    ) -> Plan:
-        """Plan handing ``obj`` (an object id of the KB, a mesh file, or a trimesh mesh in
-        metres) to ``receiver`` of ``culture``; None takes the defaults (adult, common, the
-        object's default task, the table scene). what_if: an infeasible plan lists the
-        verified changes that would make it feasible (``to_dict()["what_if"]``)."""
-        mesh = None
-        name = obj
-        if not isinstance(obj, (str, Path)):
-            mesh, name = obj, "mesh"
-        query = Query(
-            object=str(name), task=task,
-            receiver=receiver or DEFAULTS["receiver"], culture=culture or DEFAULTS["culture"],
-            scene=scene or DEFAULTS["scene"], mode=mode, gripper=gripper,
-            robot=robot or DEFAULTS["robot"], mesh_scale=mesh_scale,
-        )
-        return plan(self.kb, query, why_not=tuple(why_not), db=self.db, mesh=mesh,
-                    what_if=what_if)
+    def plan(self, query: Query | str | Path | trimesh.Trimesh | None = None, /, *,
+             why_not: tuple[int, ...] = (), what_if: bool = False, **fields: Any) -> Plan:
+        """Plan a handover of ``query``: a :class:`Query`, or the object (an object id of the
+        KB, a mesh file, or a ``trimesh.Trimesh`` in metres) with the query's other fields as
+        keywords (:data:`QUERY_FIELDS`: ``receiver``, ``culture``, ``task``, ``scene``,
+        ``mode``, ``gripper``, ``robot``, ``mesh_scale``); a field absent or None takes the
+        default (adult, common, the object's default task, the table scene, ``auto``). With a
+        Query, the keywords given change its fields. why_not : candidate ids to explain.
+        what_if : an infeasible plan lists the verified changes that would make it feasible
+        (``to_dict()["what_if"]``). Raises ValueError for a keyword that is no query field."""
+        asked, mesh = query_of(query, **fields)
+        return plan(self.kb, asked, why_not=tuple(why_not), db=self.db, mesh=mesh,
+                    what_if=what_if, arms_cache=self.arms_cache)
+
+
+QUERY_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclass_fields(Query))
+"""The keywords :meth:`Planner.plan` takes for a query: the fields of :class:`Query`."""
+
+
+def query_of(query: Query | str | Path | trimesh.Trimesh | None = None,
+             **fields: Any) -> tuple[Query, trimesh.Trimesh | None]:
+    """The :class:`Query` that :meth:`Planner.plan` plans, and the mesh it was given (or
+    None): ``query`` a Query (the ``fields`` given change it), an object id or a mesh file
+    (or neither, and ``object`` among the ``fields``), or a ``trimesh.Trimesh`` in metres
+    (planned as the object ``mesh``). Fields given as None take their defaults. Raises
+    ValueError naming what is wrong (an unknown field, no object, two objects, an object of
+    another type)."""
+    unknown = sorted(set(fields) - set(QUERY_FIELDS))
+    if unknown:
+        raise ValueError(f"unknown query field{'s' if len(unknown) > 1 else ''} "
+                         f"{', '.join(unknown)}: a query has {', '.join(QUERY_FIELDS)}")
+    given = {name: value for name, value in fields.items() if value is not None}
+    if isinstance(query, Query):
+        return replace(query, **given), None
+    if query is not None and "object" in given:
+        raise ValueError(f"two objects asked for: {query!r} and object={given['object']!r}")
+    if query is None:
+        if "object" not in given:
+            raise ValueError("no object to plan: give a Query, an object id, a mesh file or a "
+                             "trimesh.Trimesh")
+        query = given.pop("object")
+    if isinstance(query, (str, Path)):
+        return Query(object=str(query), **given), None
+    import trimesh
+
+    if isinstance(query, trimesh.Trimesh):
+        return Query(object="mesh", **given), query
+    raise ValueError(f"cannot plan a {type(query).__name__}: give a Query, an object id, a "
+                     "mesh file or a trimesh.Trimesh")

@@ -22,6 +22,8 @@ import pytest
 import yaml
 
 import handover
+import handover.engine.assets.lru
+import handover.engine.plan.records
 import handover.engine.planner
 import handover.engine.spec.applies
 from handover.engine.cli.app import main
@@ -307,7 +309,8 @@ def _anchors(page: Path) -> set[str]:
 
 
 def test_the_facade_docstrings_run():
-    for module in (handover, handover.engine.planner, handover.engine.spec.applies):
+    for module in (handover, handover.engine.planner, handover.engine.spec.applies,
+                   handover.engine.plan.records, handover.engine.assets.lru):
         finder = doctest.DocTestFinder()
         for test in finder.find(module):
             if test.examples:

@@ -16,11 +16,14 @@ frame @ FK(q) (tip link) @ ``tcp`` = the grasp frame ``[n o a p]`` (m). Joint va
 radians (metres for prismatic joints).
 
 - The URDF is parsed once per content hash and path in a process
-  (:func:`handover.engine.assets.robot_load.robot_model`).
+  (:func:`handover.engine.assets.robot_load.robot_model`, a small bounded cache).
 - Each arm's reachability map (:class:`~handover.geometry.reach.ReachMap`) is built on first
   use and saved in ``reach_dir`` (:func:`reach_dir`: ``<grasp database>/reach``), named by the
   URDF's hash, the chain, the tcp and the map's parameters, so a changed URDF or tcp gets a new
-  map; in-process maps are kept too. Without a folder, maps live in the process only.
+  map. A :class:`RobotArms` keeps the maps it read or built (without a folder, only there):
+  whoever keeps the arms keeps their maps, a :class:`handover.Planner` (its ``arms_cache``)
+  or, for plans made without one, this process (:func:`plan_arms`, at most
+  :data:`ARMS_KEPT` robots).
 - :meth:`RobotArms.reachable` screens poses with the map; :meth:`RobotArms.solve` is exact
   damped-least-squares IK with seeded restarts (same input, same answer; a target's answer
   does not depend on the other targets of the batch).
@@ -46,6 +49,7 @@ from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
+from handover.engine.assets.lru import LRU
 from handover.engine.assets.robot_load import Arm, assemble, frame_pose, kb_relative
 from handover.engine.errors import KBError, UsageError
 from handover.engine.spec.robotspec import SIDES, RobotSpec
@@ -59,7 +63,8 @@ if TYPE_CHECKING:
     from handover.engine.assets.graspdb import GraspDB
     from handover.engine.store.kb import KB
 
-__all__ = ["RobotArms", "Solution", "plan_arms", "reach_dir", "robot_arms"]
+__all__ = ["RobotArms", "Solution", "plan_arms", "reach_dir", "robot_arms", "ARMS_KEPT",
+           "PLAN_ARMS"]
 
 REACH_FOLDER = "reach"
 """The folder of reachability maps inside the grasp database's folder."""
@@ -67,8 +72,6 @@ REACH_FOLDER = "reach"
 IK_RESTARTS = 10
 """Random restarts per target after its first start (the field notes: one start misses 19-28 % of
 reachable poses; 5 restarts 3 %, 20 restarts 0.3 %)."""
-
-_MAPS: dict[tuple, ReachMap] = {}
 
 START_LIBRARY = 4096
 
@@ -127,6 +130,7 @@ class RobotArms:
     body: Body
     reach_dir: Path | None = None
     map_params: dict = field(default_factory=dict)
+    _maps: dict = field(default_factory=dict, repr=False)
     _library: dict = field(default_factory=dict, repr=False)
     _rest: dict = field(default_factory=dict, repr=False)
     _distal: dict = field(default_factory=dict, repr=False)
@@ -207,26 +211,28 @@ class RobotArms:
     # ------------------------------------------------------------------ reachability and IK
 
     def reach_map(self, side: str, core: bool = False) -> ReachMap:
-        """The arm's reachability map: from this process, else from ``reach_dir``, else built
-        (and saved there). core : the map with its rim eroded (:data:`CORE`)."""
+        """The arm's reachability map: kept by these arms once read or built, else from
+        ``reach_dir``, else built (and saved there). core : the map with its rim eroded
+        (:data:`CORE`)."""
         arm = self.arm(side)
+        key = (side, core)
+        if key in self._maps:
+            return self._maps[key]
         if core:  # eroded in memory from the whole map: no second sampling, no second file
-            key = (self.model.content_hash, arm.chain.base_link, arm.chain.tip_link,
-                   arm.tcp.round(12).tobytes(), tuple(sorted(self.map_params.items())), CORE)
-            if key not in _MAPS:
-                _MAPS[key] = self._core(self.reach_map(side))
-            return _MAPS[key]
-        # A map depends on the URDF, the chain, the tcp and the build only: one per process
-        # whatever folder it is cached in.
-        key = (self.model.content_hash, arm.chain.base_link, arm.chain.tip_link,
-               arm.tcp.round(12).tobytes(), tuple(sorted(self.map_params.items())))
-        if key not in _MAPS:
-            if self.reach_dir is None:
-                _MAPS[key] = ReachMap.build(arm.kin, **self.map_params)
-            else:
-                _MAPS[key] = ReachMap.cached(arm.kin, self.reach_dir, self.model.content_hash,
-                                             **self.map_params)  # fmt: skip
-        return _MAPS[key]
+            found = self._core(self.reach_map(side))
+        elif self.reach_dir is None:
+            found = ReachMap.build(arm.kin, **self.map_params)
+        else:
+            found = ReachMap.cached(arm.kin, self.reach_dir, self.model.content_hash,
+                                    **self.map_params)  # fmt: skip
+        self._maps[key] = found
+        return found
+
+    @property
+    def kept_maps(self) -> tuple[ReachMap, ...]:
+        """The reachability maps these arms keep (read or built so far: per arm the whole map
+        and its core)."""
+        return tuple(self._maps.values())
 
     def _core(self, whole: ReachMap) -> ReachMap:
         """``whole`` eroded by :data:`CORE`, read from ``reach_dir`` when saved there before
@@ -555,12 +561,15 @@ def robot_arms(
     return RobotArms.load(kb, spec, reach_dir=reach_dir(db), map_params=map_params)
 
 
-def plan_arms(kb_root: Path | str | None, spec: RobotSpec) -> RobotArms | None:
+def plan_arms(kb_root: Path | str | None, spec: RobotSpec,
+              kept: LRU[tuple, RobotArms] | None = None) -> RobotArms | None:
     """The arms a plan uses: ``spec``'s (a robot document of the KB folder ``kb_root``), None
     without arms or without a folder. Maps are cached in ``reach/`` of the default grasp
     database folder (``$HANDOVER_DB`` or the user's cache), whatever database the plan reads
     its candidates from: a map depends on the URDF, the chain and the tcp only and takes
-    seconds to build, so every database shares it. Loaded once per process and robot."""
+    seconds to build, so every database shares it. Loaded once per robot (its folder, its
+    document and its URDF's content) and kept in ``kept`` (a :class:`handover.Planner`'s
+    ``arms_cache``), or without one in this process's :data:`PLAN_ARMS`."""
     from handover.engine.assets.graspdb import open_db
     from handover.engine.store.kb import KB
 
@@ -573,8 +582,7 @@ def plan_arms(kb_root: Path | str | None, spec: RobotSpec) -> RobotArms | None:
         digest = hashlib.sha256(kb.relative_path(spec, spec.urdf).read_bytes()).hexdigest()
     except OSError:
         digest = ""  # RobotArms.load says what is wrong
-    key = (str(kb_root), spec.model_dump_json(), digest)
-    if key not in _PLAN_ARMS:
+    def load() -> RobotArms:
         from handover.engine.store.yamlpos import parse_yaml
 
         # The robot file's node positions, so that an error names the line at fault (the
@@ -582,8 +590,17 @@ def plan_arms(kb_root: Path | str | None, spec: RobotSpec) -> RobotArms | None:
         parsed = parse_yaml(kb.root / spec.source.file, spec.source.file)
         if isinstance(parsed, tuple):
             kb.marks[spec.source.file] = parsed[1]
-        _PLAN_ARMS[key] = RobotArms.load(kb, spec, reach_dir=reach_dir(open_db()))
-    return _PLAN_ARMS[key]
+        return RobotArms.load(kb, spec, reach_dir=reach_dir(open_db()))
+
+    return (PLAN_ARMS if kept is None else kept).fetch(
+        (str(kb_root), spec.model_dump_json(), digest), load)
 
 
-_PLAN_ARMS: dict[tuple, RobotArms] = {}
+ARMS_KEPT = 2
+"""How many robots' arms a cache of arms keeps (:data:`PLAN_ARMS`, a Planner's
+``arms_cache``): each holds its arms' reachability maps, about 17 MB per arm with the default
+map (the whole map and its core, one byte per bit; ``benchmarks/planner_caches.py``), and a
+plan uses one robot."""
+PLAN_ARMS: LRU[tuple, RobotArms] = LRU(ARMS_KEPT)
+"""The arms of plans made without a Planner (the CLI's one plan, a batch worker's plans),
+by (KB folder, robot document, URDF digest), least recently used dropped first."""

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.assets.lru import LRU
 from handover.engine.errors import KBIssue
 from handover.engine.spec.robotspec import SIDES, FramePose, RobotSpec
 from handover.geometry.bodies import robot_body
@@ -34,16 +35,21 @@ __all__ = [
     "check_robot",
     "frame_pose",
     "kb_relative",
+    "MODELS_KEPT",
     "robot_model",
     "urdf_body",
     "yaml_body",
 ]
 
-_MODELS: dict[tuple[str, str], RobotModel] = {}
+MODELS_KEPT = 4
+"""How many parsed URDFs this process keeps (:func:`robot_model`): a plan uses one robot,
+``kb validate`` reads each once."""
+_MODELS: LRU[tuple[str, str], RobotModel] = LRU(MODELS_KEPT)
 
 
 def robot_model(path: str | Path) -> RobotModel:
-    """The URDF at ``path``, parsed once per (content hash, path) in this process.
+    """The URDF at ``path``, parsed once per (content hash, path) in this process (the
+    :data:`MODELS_KEPT` used last are kept: a model is a pure function of the file's bytes).
 
     Raises :class:`RobotModelError` (with the URDF's file:line) as
     :func:`~handover.geometry.urdf.load_urdf` does."""
@@ -52,10 +58,7 @@ def robot_model(path: str | Path) -> RobotModel:
         digest = hashlib.sha256(path.read_bytes()).hexdigest()
     except OSError:
         raise RobotModelError("URDF file not found or unreadable", path) from None
-    key = (digest, str(path.resolve()))
-    if key not in _MODELS:
-        _MODELS[key] = load_urdf(path)
-    return _MODELS[key]
+    return _MODELS.fetch((digest, str(path.resolve())), lambda: load_urdf(path))
 
 
 def frame_pose(pose: FramePose) -> np.ndarray:

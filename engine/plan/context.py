@@ -21,6 +21,7 @@ from handover.engine.spec.applies import Facts
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
+    from handover.engine.assets.lru import LRU
     from handover.engine.assets.robot import RobotArms
     from handover.engine.plan.phase import Hands
     from handover.engine.plan.world import Locations
@@ -118,6 +119,8 @@ class PlanContext:
     part_tags : tags of each part index of ``part_mesh``.
     warnings : what the preparation found worth telling (units of a mesh file).
     kb_root : the KB folder (files the KB names, e.g. a robot's URDF, are relative to it).
+    arms_cache : where the robot's arms are kept between plans (a Planner's; None: this
+    process's, :data:`handover.engine.assets.robot.PLAN_ARMS`).
     """
 
     situation: Situation
@@ -134,6 +137,7 @@ class PlanContext:
     facts: ObjectFacts
     collider: Any = None
     kb_root: Any = None
+    arms_cache: LRU | None = None
     warnings: list[str] = field(default_factory=list)
     memo: Memo = field(default_factory=Memo)
 
@@ -196,7 +200,7 @@ class PlanContext:
         if self.memo.arms is _UNSET:
             from handover.engine.assets.robot import plan_arms
 
-            self.memo.arms = plan_arms(self.kb_root, self.situation.robot)
+            self.memo.arms = plan_arms(self.kb_root, self.situation.robot, self.arms_cache)
         return self.memo.arms
 
 

@@ -47,6 +47,7 @@ import numpy as np
 from handover.engine.plan import judge
 from handover.engine.plan.attempt import Attempt, Chosen
 from handover.engine.plan.phase import Hands, Phase
+from handover.engine.plan.records import PlacementSite
 from handover.geometry.body_mesh import mesh_hits
 from handover.geometry.rests import (
     MIN_TIP_DEG,
@@ -86,7 +87,10 @@ class PlacementPlan:
     context : the placement's context (the plan's, with the placed orientations as its
     rotations); attempt : its graph, decision table, phase and chosen grasp (``mode``
     ``place``). pose : (4, 4) object -> world, placed. grasp : candidate index; k : the
-    orientation (index into ``context.rotations``). record : the JSON ``placement``.
+    orientation (index into ``context.rotations``). hand : the robot hand setting it down.
+    site : where the receiver takes it (:class:`~handover.engine.plan.records.PlacementSite`),
+    None where no part is theirs to take. record : the JSON ``placement`` (without its
+    ``robot_grasp`` and ``rules``, which the result adds).
     """
 
     feasible: bool
@@ -97,7 +101,7 @@ class PlacementPlan:
     grasp: int = -1
     k: int = -1
     hand: str = ""
-    site: dict | None = None
+    site: PlacementSite | None = None
     record: dict = field(default_factory=dict)
 
 
@@ -299,12 +303,13 @@ def _oriented(ctx: PlanContext, judged: list[CompiledRule], rotations: np.ndarra
 
 
 def _chosen(cg: ConstraintGraph, judged: list[CompiledRule], because: list[CompiledRule],
-            rctx: PlanContext, phase: Phase, decision, row: int, site: dict | None,
-            tip_deg: float, com: np.ndarray, considered: dict) -> PlacementPlan:
+            rctx: PlanContext, phase: Phase, decision, row: int,
+            site: tuple[np.ndarray, str] | None, tip_deg: float, com: np.ndarray,
+            considered: dict) -> PlacementPlan:
     """The placement of row ``row`` of ``decision`` (over ``rctx``'s orientations, in
     ``phase``, whose ``arm`` holds it when the robot has arms): its attempt with the trace of
-    its grasp, its pose and record. ``site``: the receiver's site on it (object frame),
-    completed here with its world position."""
+    its grasp, its pose and record. ``site``: the receiver's site on it ((3,) m, object
+    frame) and the part under it, or None."""
     from handover.engine.plan.evaluate import trace_row
     from handover.engine.plan.modes.common import hand_at
 
@@ -319,9 +324,10 @@ def _chosen(cg: ConstraintGraph, judged: list[CompiledRule], because: list[Compi
     trace = [{"grasp": i, "hand": hand, "stage": "place", **e} for e in trace]
     attempt = Attempt("place", True, None, replace(cg, order=judged), decision, phase,
                       (Chosen(hand, i, k, phase, stage="place"),), float(decision.score[row]),
-                      extra={"trace": trace})
-    if site is not None:
-        site = site | {"position_world": pose[:3, :3] @ site["position"] + pose[:3, 3]}
+                      trace=tuple(trace))
+    taken = None if site is None else PlacementSite(
+        hand=rctx.situation.receiver.dominant_hand, position=site[0],
+        position_world=pose[:3, :3] @ site[0] + pose[:3, 3], part=site[1])
     values = {name: float(v[k]) for name, v in phase.hands.measured.items() if name != "clear"}
     why = (f"set down on the table (its rest tips over at {tip_deg:.0f} deg), the receiver's "
            f"grasp site at {values['receiver_reach']:.2f} of their arm's reach from the "
@@ -330,9 +336,9 @@ def _chosen(cg: ConstraintGraph, judged: list[CompiledRule], because: list[Compi
            "of the robot's grasp")
     record = {"object_pose": pose, "position": pose[:3, :3] @ com + pose[:3, 3],
               "orientation": k, "tip_deg": tip_deg,
-              "receiver_site": None if site is None else site["position_world"],
+              "receiver_site": None if taken is None else taken.position_world,
               "measured": values, "why": why, "considered": considered}
-    return PlacementPlan(True, None, rctx, attempt, pose, i, k, hand, site, record)
+    return PlacementPlan(True, None, rctx, attempt, pose, i, k, hand, taken, record)
 
 
 def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> PlacementPlan:
@@ -421,10 +427,8 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
                 continue
             phase = phase.but(arm=check.side)
         m = sel[decision.pk[row]]
-        site = None
-        if sites.valid[m]:
-            site = {"hand": s.receiver.dominant_hand, "position": sites.site[m],
-                    "part": ctx.part_mesh.part_names[int(sites.part[m])], "model": []}
+        site = (sites.site[m], ctx.part_mesh.part_names[int(sites.part[m])]) \
+            if sites.valid[m] else None
         return _chosen(cg, judged, because, rctx, phase, decision, row, site,
                        float(tips[rest_of[m]]), com, considered)
     reason = last_reason or "no orientation could be placed"

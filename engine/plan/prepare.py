@@ -14,6 +14,7 @@ from handover.engine.spec.query import Query
 if TYPE_CHECKING:
     import trimesh
 
+    from handover.engine.assets.lru import LRU
     from handover.engine.load.loader import KB
     from handover.engine.spec.schema import ObjectSpec
 
@@ -40,13 +41,16 @@ def mesh_file_spec(path: Path, scale: float = 1.0) -> ObjectSpec:
     )
 
 
-def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None) -> PlanContext:
+def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
+            arms_cache: LRU | None = None) -> PlanContext:
     """Resolve the query, build the object's mesh and candidates, and the plan context.
 
     db : a ``handover.engine.assets.graspdb.GraspDB`` to read candidates from (and store them in),
         or None to generate them.
     mesh : the object as a mesh (object frame, metres; one untagged part ``body``) instead of
         the KB object or mesh file ``query.object`` names.
+    arms_cache : where the robot's arms are kept between plans (a Planner's); None: this
+        process's (:func:`handover.engine.assets.robot.plan_arms`).
     """
     from handover.engine.assets import objects as assets
     from handover.engine.assets.graspdb import cached_candidates
@@ -91,5 +95,6 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None) 
                         rules)
     ctx.collider = collider
     ctx.kb_root = kb.root
+    ctx.arms_cache = arms_cache
     ctx.warnings.extend(hints)
     return ctx

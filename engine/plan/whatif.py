@@ -94,7 +94,7 @@ def what_if(kb: KB, query: Query, ctx: PlanContext, attempt: Attempt, tried: lis
         if change is not None:
             changes.append(change)
     changes += _other_modes(kb, query, ctx)
-    changes += _other_world(kb, query, db, mesh)
+    changes += _other_world(kb, query, db, mesh, ctx.arms_cache)
     changes.sort(key=lambda c: (c.safety, c.size, KIND_ORDER[c.kind], c.detail))
     return [c.as_dict() for c in changes]
 
@@ -206,8 +206,9 @@ def _other_modes(kb: KB, query: Query, ctx: PlanContext) -> list[Change]:
     return out
 
 
-def _other_world(kb: KB, query: Query, db, mesh) -> list[Change]:
-    """Another gripper, scene or receiver of the KB with which the plan is feasible."""
+def _other_world(kb: KB, query: Query, db, mesh, arms_cache) -> list[Change]:
+    """Another gripper, scene or receiver of the KB with which the plan is feasible (each
+    prepared with the plan's ``db``, ``mesh`` and ``arms_cache``)."""
     from handover.engine.plan.prepare import prepare
     from handover.engine.spec.query import DEFAULTS
 
@@ -222,7 +223,7 @@ def _other_world(kb: KB, query: Query, db, mesh) -> list[Change]:
     out = []
     for kind, name, changed in options:
         try:
-            ctx = prepare(kb, changed, db, mesh=mesh)
+            ctx = prepare(kb, changed, db, mesh=mesh, arms_cache=arms_cache)
         except Exception:  # noqa: BLE001 - a change that cannot even be prepared is no answer
             continue
         attempt = _feasible(kb, ctx, changed.mode)

@@ -1,9 +1,12 @@
-"""Assemble the result of a plan: the chosen attempt's grasps in the object and the world,
-the receiver's predicted grasps, the trace, the candidates' fate, and ``--why-not`` answers.
+"""Assemble the result of a plan, block by block: the chosen attempt's grasps in the object
+and the world (typed records, :mod:`handover.engine.plan.records`), the receiver's predicted
+grasps, H2G2's regrasp, the trace, the candidates' fate, where the object is offered, the
+warnings, and ``--why-not`` answers. :func:`build_result` calls one function per block.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -12,7 +15,8 @@ from handover.engine.errors import UsageError
 from handover.engine.plan.blocking import blocking_sets
 from handover.engine.plan.evaluate import trace_row
 from handover.engine.plan.features import handover_targets
-from handover.engine.report.result import PlanResult
+from handover.engine.plan.records import HandBox, HumanGrasp, RobotGrasp
+from handover.engine.report.result import PlanResult, Regrasp
 
 if TYPE_CHECKING:
     from handover.engine.plan.attempt import Attempt
@@ -21,10 +25,15 @@ if TYPE_CHECKING:
     from handover.engine.plan.phase import Hands
     from handover.engine.plan.place import PlacementPlan
     from handover.engine.plan.receiver_sites import ReceiverSites
+    from handover.engine.plan.records import ArmJoints
+    from handover.engine.plan.situation import Situation
     from handover.engine.spec.schema import GripperSpec
     from handover.geometry.bodies import Body
 
-__all__ = ["build_result", "grasp_record", "human_record", "robot_record", "rule_warnings"]
+__all__ = ["build_result", "Shown", "grasp_record", "human_record", "robot_record",
+           "robot_grasps", "human_grasps", "regrasp_block", "trace_block", "candidates_block",
+           "alternatives_block", "reason_text", "receiver_block", "gripper_block",
+           "scene_block", "bodies_block", "warnings_block", "rule_warnings"]
 
 
 def body_record(body: Body) -> list[dict]:
@@ -57,12 +66,12 @@ def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
         else None
     first = ("the receiver's grasp site at the best location (soft location rules) "
              "where every hard location rule passes and nothing is hit: ")
-    moved = attempt.extra.get("relocated")
-    if moved and k in moved["presentations"]:  # the arms could not hold it there
+    moved = attempt.notes.relocation
+    if moved is not None and k in moved.presentations:  # the arms could not hold it there
         first = (f"the receiver's grasp site at the next best location (soft location rules) "
                  f"where every hard location rule passes and nothing is hit, after "
-                 f"{moved['locations_tried']} better one(s) where {attempt.mode} found no plan "
-                 f"({moved['why']}): ")
+                 f"{moved.locations_tried} better one(s) where {attempt.mode} found no plan "
+                 f"({moved.why}): ")
     return {
         "position": point,
         "presentation": k,
@@ -92,43 +101,37 @@ def _gripper_meshes(spec: GripperSpec) -> dict:
 
 
 def grasp_record(ctx: PlanContext, hand: str, i: int, pose_k: np.ndarray,
-                 score: float | None) -> dict:
-    """A robot grasp as the JSON result describes it (object frame, and world with the object
-    at ``pose_k`` (4, 4), its handover pose)."""
+                 score: float | None, *, stage: str = "handover", staged: bool = False,
+                 arm_joints: ArmJoints | None = None) -> RobotGrasp:
+    """Candidate ``i`` as a robot grasp of the result: object frame, and world with the
+    object at ``pose_k`` (4, 4) (its handover pose; its initial pose for a grasp that only
+    picks it up), held at ``stage`` by ``arm_joints`` (see
+    :class:`~handover.engine.plan.records.RobotGrasp`)."""
     c = ctx.candidates
-    pose = ctx.gripper_poses()[i]
-    return {
-        "hand": hand,
-        "id": i,
-        "pose": pose,
-        "pose_world": pose_k @ pose,
-        "width": float(c.width[i]),
-        "contacts": c.contacts[i],
-        "parts": [c.part_names[p] for p in c.parts[i]],
-        "score": score,
-        "quality": float(c.quality[i]),
-        "roll_deg": float(np.degrees(c.roll[i])),
-    }
+    pose = ctx.gripper_poses()[i].copy()
+    return RobotGrasp(
+        hand=hand, pose=pose, pose_world=pose_k @ pose, width=float(c.width[i]),
+        contacts=np.array(c.contacts[i], dtype=float),
+        parts=tuple(c.part_names[p] for p in c.parts[i]), score=score, stage=stage,
+        arm_joints=arm_joints, id=i, quality=float(c.quality[i]),
+        roll_deg=float(np.degrees(c.roll[i])), staged=staged)
 
 
 def human_record(ctx: PlanContext, k: int, hand: str, hands: Hands,
-                 sites: ReceiverSites) -> dict | None:
+                 sites: ReceiverSites) -> HumanGrasp | None:
     """A receiver's predicted grasp (the paper's C) in presentation ``k``: one hand's ``sites`` of
-    ``hands``."""
+    ``hands``, with its hand model there; None where that hand has no site."""
     if not sites.valid[k]:
         return None
     site = sites.site[k]
     from handover.engine.plan.features import hand_model
 
     pose = hands.poses[k]
-    return {
-        "hand": hand,
-        "position": site,
-        "position_world": pose[:3, :3] @ site + pose[:3, 3],
-        "part": ctx.part_mesh.part_names[int(sites.part[k])],
-        "model": [{"name": name, "extents": ext, "pose": pose}
-                  for name, ext, pose in hand_model(ctx, hands.region, sites, k, pose)],
-    }
+    return HumanGrasp(
+        hand=hand, position=site, position_world=pose[:3, :3] @ site + pose[:3, 3],
+        part=ctx.part_mesh.part_names[int(sites.part[k])],
+        model=tuple(HandBox(name, ext, box)
+                    for name, ext, box in hand_model(ctx, hands.region, sites, k, pose)))
 
 
 def _presentation(ctx: PlanContext, k: int) -> dict:
@@ -201,6 +204,30 @@ def _lost_on_score(d, row: int, chosen, k_all: int) -> str:
             f"{d.soft_scores[best, s]:.3f}")
 
 
+@dataclass(frozen=True)
+class Shown:
+    """What the result shows: the handover ``attempt`` (or, for an object set down, the
+    placement's) with its context ``ctx``, the presentation ``k`` it shows (the chosen
+    grasps', else where the rows got furthest) and whether it is a placement (``placed``)."""
+
+    attempt: Attempt
+    ctx: PlanContext
+    k: int
+    placed: bool
+
+    @classmethod
+    def of(cls, ctx: PlanContext, attempt: Attempt, outcome: str,
+           placement: PlacementPlan | None) -> Shown:
+        placed = outcome == "place" and placement is not None and placement.feasible
+        shown, sctx = (placement.attempt, placement.context) if placed else (attempt, ctx)
+        if shown.chosen:
+            k = shown.chosen[-1].presentation
+        else:  # where the rows got furthest: what the recording shows and handover_point says
+            k = (shown.decision.furthest_presentation(sctx.k) if shown.decision is not None
+                 else 0)
+        return cls(shown, sctx, k, placed)
+
+
 def build_result(
     ctx: PlanContext, attempt: Attempt, tried: list[Attempt], mode_reason: str,
     why_not: tuple[int, ...] = (), *, outcome: str | None = None,
@@ -211,152 +238,237 @@ def build_result(
     decided instead (``outcome``: ``place`` with its ``placement``, ``refuse`` by the rules
     ``refused``; ``fallback``: the rules whose ``fallback: place`` led to the placement)."""
     outcome = outcome or ("handover" if attempt.feasible else "infeasible")
-    placed = outcome == "place" and placement is not None and placement.feasible
+    shown = Shown.of(ctx, attempt, outcome, placement)
+    feasible = outcome in ("handover", "place")
     s = ctx.situation
-    shown, sctx = (placement.attempt, placement.context) if placed else (attempt, ctx)
-    if shown.chosen:
-        k = shown.chosen[-1].presentation
-    else:  # where the rows got furthest: what the recording shows and handover_point says
-        k = (shown.decision.furthest_presentation(sctx.k) if shown.decision is not None
-             else 0)
-    robot_grasps = [grasp_record(sctx, c.hand, c.grasp, c.phase.hands.poses[c.presentation],
-                                 shown.score)
-                    for c in shown.chosen]
-    if shown.feasible:  # the arm and its joint values, where a mode decided the arm
-        from handover.engine.plan.arms.solve import arm_record
+    grasps = robot_grasps(shown)
+    trace = trace_block(ctx, attempt, shown, outcome, refused)
+    result = PlanResult(
+        object=s.obj.id,
+        query=s.query.as_dict() | {"task": s.task_id, "gripper": s.gripper.id},
+        mode=attempt.mode if outcome == "handover" else None,
+        feasible=feasible,
+        reason=reason_text(attempt, outcome, shown.placed, refused, fallback),
+        object_pose=shown.attempt.phase.hands.poses[shown.k] if feasible else None,
+        receiver=receiver_block(s),
+        robot_grasps=grasps,
+        human_grasps=human_grasps(ctx, attempt, shown, placement),
+        gripper=gripper_block(s.gripper, ctx.gripper),
+        candidates=candidates_block(ctx, attempt, shown),
+        trace=trace,
+        regrasp=regrasp_block(attempt, grasps),
+        initial_pose=ctx.initial,
+        modes_tried=[{"mode": a.mode, "feasible": a.feasible, "reason": a.reason}
+                     for a in tried],
+        mode_reason=mode_reason,
+        presentation=(_presentation(shown.ctx, shown.k)
+                      | ({"placed": True} if shown.placed else {}) if feasible else None),
+        alternatives=alternatives_block(shown),
+        rules=_rule_list(attempt.graph) if attempt.graph is not None else [],
+        scene=scene_block(ctx),
+        handover_point=_handover_point(ctx, attempt, shown.k) if outcome != "place" else None,
+        bodies=bodies_block(ctx),
+        outcome=outcome,
+        refused=[{"rule": c.id, "source": c.source, "why": c.rule.why.strip(),
+                  "fallback": c.rule.fallback} for c in refused],
+        robot=robot_record(ctx),
+        warnings=warnings_block(ctx, attempt, placement if shown.placed else None, fallback,
+                                feasible),
+    )
+    if shown.placed:
+        result.placement = placement.record | {"robot_grasp": grasps[0].to_dict(),
+                                               "rules": trace}
+    if attempt.graph is not None and attempt.decision is not None:
+        result.why_not = [_why_not(attempt, ctx, gid) for gid in why_not]
+    return result
 
-        for rec, c in zip(robot_grasps, shown.chosen, strict=True):
-            rec.update(arm_record(sctx, c.phase, c.grasp, c.presentation))
-    robot_grasps += list(shown.extra.get("support_grasps", []))
-    human: list[dict] = []
-    trace: list[dict] = []
-    regrasp = None
-    if placed:
-        for g in robot_grasps:
-            g["stage"] = "place"
-        if placement.site is not None:
-            human.append(placement.site)
-        trace = shown.extra["trace"]
-    elif attempt.feasible:
-        if attempt.mode == "H2G2":
-            first, second = robot_grasps
-            first["stage"], second["stage"] = "pick", "handover"
-            first["pose_world"] = ctx.initial @ first["pose"]
-            midair = attempt.extra["midair"]
-            regrasp = {"first": first | {"pose_midair": midair @ first["pose"]},
-                       "midair_pose": midair, "second": second}
-        hands = attempt.phase.hands
-        names = [s.receiver.dominant_hand] if len(hands.sites) == 1 else ["right", "left"]
-        for sites_h, hand_name in zip(hands.sites, names, strict=True):
-            rec = human_record(ctx, k, hand_name, hands, sites_h)
-            if rec is not None:
-                human.append(rec)
-        trace = attempt.extra["trace"]
-    elif outcome == "refuse":
-        trace = [{"grasp": None, "hand": None, "stage": "refuse", **e}
-                 for e in _refusal_entries(ctx, attempt.graph, refused)]
-    d = shown.decision
-    candidates = {
+
+def robot_grasps(shown: Shown) -> list[RobotGrasp]:
+    """The result's ``robot_grasps``: the shown attempt's chosen grasps, each with the arm
+    that holds it and its joints where a mode decided the arm (feasible attempts), then the
+    supporting gripper's. H2G2's first grasp is in the world at the initial pose; the grasps
+    of a plan held in stages (H2G2, a placement) name theirs."""
+    a, sctx = shown.attempt, shown.ctx
+    from handover.engine.plan.arms.solve import arm_joints
+
+    staged = any(c.stage != "handover" for c in a.chosen)
+    out = [grasp_record(sctx, c.hand, c.grasp,
+                        sctx.initial if c.stage == "pick" else c.phase.hands.poses[c.presentation],
+                        a.score, stage=c.stage, staged=staged,
+                        arm_joints=arm_joints(sctx, c.phase, c.grasp, c.presentation)
+                        if a.feasible else None)
+           for c in a.chosen]
+    if a.notes.support is not None:
+        out.append(a.notes.support.grasp)
+    return out
+
+
+def human_grasps(ctx: PlanContext, attempt: Attempt, shown: Shown,
+                 placement: PlacementPlan | None) -> list[HumanGrasp]:
+    """The result's ``human_grasps``: where the receiver takes a placed object, or each of
+    their hands on a handed one (the dominant hand alone, or right then left); none
+    otherwise."""
+    if shown.placed:
+        return [placement.site] if placement.site is not None else []
+    if not attempt.feasible:
+        return []
+    hands = attempt.phase.hands
+    names = [ctx.situation.receiver.dominant_hand] if len(hands.sites) == 1 \
+        else ["right", "left"]
+    found = (human_record(ctx, shown.k, name, hands, sites)
+             for sites, name in zip(hands.sites, names, strict=True))
+    return [h for h in found if h is not None]
+
+
+def regrasp_block(attempt: Attempt, grasps: list[RobotGrasp]) -> Regrasp | None:
+    """H2G2's regrasp (its two grasps and the midair pose), None for another mode or an
+    infeasible attempt."""
+    if not attempt.feasible or attempt.notes.midair is None:
+        return None
+    first, second = grasps
+    return Regrasp(first, attempt.notes.midair.pose, second)
+
+
+def trace_block(ctx: PlanContext, attempt: Attempt, shown: Shown, outcome: str,
+                refused: list[CompiledRule]) -> list[dict]:
+    """The result's ``trace``: every rule of every chosen grasp (of the placement, for an
+    object set down), the refusing rules for a refusal, else nothing."""
+    if shown.placed:
+        return list(shown.attempt.trace)
+    if attempt.feasible:
+        return list(attempt.trace)
+    if outcome == "refuse":
+        return [{"grasp": None, "hand": None, "stage": "refuse", **e}
+                for e in _refusal_entries(ctx, attempt.graph, refused)]
+    return []
+
+
+def candidates_block(ctx: PlanContext, attempt: Attempt, shown: Shown) -> dict:
+    """The result's ``candidates``: rows generated and kept, what each rule rejected and
+    what the collision rules hit, then the shown mode's own counts
+    (:func:`_mode_counts`), the smallest blocking rule sets of an infeasible attempt and,
+    for an object set down, how far the handover got."""
+    d, sctx = shown.attempt.decision, shown.ctx
+    out = {
         "generated": int(d.n_rows) if d is not None else 0,
         "grasps": ctx.n,
         "presentations": sctx.k,
         "kept": int(d.kept.sum()) if d is not None else 0,
         "rejected_by": d.rejected_by() if d is not None else {},
-        "collisions": (d.collision_hits(handover_targets(sctx, shown.phase.hands).names)
-                       if d is not None and shown.phase is not None else {}),
+        "collisions": (d.collision_hits(handover_targets(sctx, shown.attempt.phase.hands).names)
+                       if d is not None and shown.attempt.phase is not None else {}),
         "generation": ctx.generation,
     }
-    for key in ("first_rejected_by", "first_feasible", "pairs_checked", "pairs_colliding",
-                "pairs_not_liftable", "receiver_hands", "receiver_hands_why",
-                "balance_offset_m", "pickup_hands"):
-        if key in shown.extra:
-            candidates[key] = shown.extra[key]
-    if d is not None and not shown.feasible:
-        candidates["blocking_sets"] = [
-            {"rules": list(ids), "candidates": n} for ids, n in blocking_sets(d)
-        ]
-    if placed and attempt.decision is not None:  # what the handover got to, for the record
-        candidates["handover"] = {"generated": int(attempt.decision.n_rows),
-                                  "kept": int(attempt.decision.kept.sum()),
-                                  "rejected_by": attempt.decision.rejected_by()}
-    alternatives = []
-    if d is not None:  # the next best distinct grasps, each in its best presentation
-        chosen_ids = {c.grasp for c in shown.chosen}
-        for r in d.ranking():
-            if len(alternatives) == 5:
-                break
-            if int(d.gi[r]) in chosen_ids:
-                continue
-            chosen_ids.add(int(d.gi[r]))
-            alternatives.append({"grasp": int(d.gi[r]), "presentation": int(d.pk[r]),
-                                 "score": float(d.score[r])})
-    g = ctx.gripper
-    query = s.query.as_dict() | {"task": s.task_id, "gripper": s.gripper.id}
-    feasible = outcome in ("handover", "place")
+    out.update(_mode_counts(shown.attempt))
+    if d is not None and not shown.attempt.feasible:
+        out["blocking_sets"] = [{"rules": list(ids), "candidates": n}
+                                for ids, n in blocking_sets(d)]
+    if shown.placed and attempt.decision is not None:  # what the handover got to
+        out["handover"] = {"generated": int(attempt.decision.n_rows),
+                           "kept": int(attempt.decision.kept.sum()),
+                           "rejected_by": attempt.decision.rejected_by()}
+    return out
+
+
+def _mode_counts(attempt: Attempt) -> dict:
+    """What a two-gripper mode counted, as ``candidates`` keys: H2G2's first grasps
+    (``first_rejected_by``, ``first_feasible``), the pairs judged (``pairs_checked``,
+    ``pairs_colliding``; H2G1 ``pairs_not_liftable``), H2G1's receiver hands
+    (``receiver_hands``, ``receiver_hands_why``) and chosen pair (``balance_offset_m``,
+    ``pickup_hands``)."""
+    notes, out = attempt.notes, {}
+    if notes.first is not None:
+        out |= {"first_rejected_by": notes.first.rejected_by,
+                "first_feasible": notes.first.feasible}
+    if notes.pairs is not None:
+        out |= {"pairs_checked": notes.pairs.checked, "pairs_colliding": notes.pairs.colliding}
+        if notes.pairs.not_liftable is not None:
+            out["pairs_not_liftable"] = notes.pairs.not_liftable
+    if notes.receiver_hands is not None:
+        out |= {"receiver_hands": notes.receiver_hands.count,
+                "receiver_hands_why": notes.receiver_hands.why}
+    if notes.two_handed is not None:
+        out |= {"balance_offset_m": notes.two_handed.balance_offset_m,
+                "pickup_hands": list(notes.two_handed.pickup_hands)}
+    return out
+
+
+def alternatives_block(shown: Shown, count: int = 5) -> list[dict]:
+    """The next best ``count`` distinct grasps of the shown decision table, each in its best
+    presentation: ``[{"grasp", "presentation", "score"}]``."""
+    d = shown.attempt.decision
+    out: list[dict] = []
+    if d is None:
+        return out
+    chosen_ids = {c.grasp for c in shown.attempt.chosen}
+    for r in d.ranking():
+        if len(out) == count:
+            break
+        if int(d.gi[r]) in chosen_ids:
+            continue
+        chosen_ids.add(int(d.gi[r]))
+        out.append({"grasp": int(d.gi[r]), "presentation": int(d.pk[r]),
+                    "score": float(d.score[r])})
+    return out
+
+
+def reason_text(attempt: Attempt, outcome: str, placed: bool, refused: list[CompiledRule],
+                fallback: list[CompiledRule]) -> str | None:
+    """The result's ``reason``: None for a handover; for an object set down, why it was not
+    handed over (and the rules that name ``fallback: place``); else the attempt's."""
     if outcome == "handover":
-        reason = None
-    elif placed:
-        reason = f"not handed over: {attempt.reason}" if refused else (
+        return None
+    if placed:
+        return f"not handed over: {attempt.reason}" if refused else (
             f"not handed over: {attempt.reason}; "
             f"{', '.join(c.id for c in fallback)} names fallback: place")
-    else:
-        reason = attempt.reason
-    result = PlanResult(
-        object=s.obj.id,
-        query=query,
-        mode=attempt.mode if outcome == "handover" else None,
-        feasible=feasible,
-        reason=reason,
-        object_pose=shown.phase.hands.poses[k] if feasible else None,
-        receiver={"position": s.receiver_position, "facing": s.receiver_facing,
-                  "stature": s.receiver.height, "posture": s.receiver.posture,
-                  "role": s.receiver.role, "dominant_hand": s.receiver.dominant_hand,
-                  "age": s.receiver.years},
-        robot_grasps=robot_grasps,
-        human_grasps=human,
-        gripper={"id": s.gripper.id, "max_width": g.max_opening, "min_width": g.min_opening,
-                 "finger_depth": g.finger_length / 2.0, "finger_length": g.finger_length,
-                 "finger_width": g.finger_width, "finger_thickness": g.finger_thickness,
-                 "palm": list(g.palm), "friction": g.friction, "clearance": g.clearance,
-                 **_gripper_meshes(s.gripper)},
-        candidates=candidates,
-        trace=trace,
-        regrasp=regrasp,
-        initial_pose=ctx.initial,
-        modes_tried=[{"mode": a.mode, "feasible": a.feasible, "reason": a.reason}
-                     for a in tried],
-        mode_reason=mode_reason,
-        presentation=(_presentation(sctx, k) | ({"placed": True} if placed else {})
-                      if feasible else None),
-        alternatives=alternatives,
-        rules=_rule_list(attempt.graph) if attempt.graph is not None else [],
-        scene={"id": s.scene.id, "boxes": [
-            {"id": name, "extents": ext, "pose": pose} for name, ext, pose in ctx.scene_box_list
-        ]},
-        handover_point=_handover_point(ctx, attempt, k) if outcome != "place" else None,
-        bodies={"receiver": body_record(ctx.world.receiver_body),
-                "robot": body_record(ctx.world.robot_body)},
-        outcome=outcome,
-        refused=[{"rule": c.id, "source": c.source, "why": c.rule.why.strip(),
-                  "fallback": c.rule.fallback} for c in refused],
-        robot=robot_record(ctx),
-    )
-    if placed:
-        result.placement = placement.record | {"robot_grasp": robot_grasps[0], "rules": trace}
-    if attempt.graph is not None and attempt.decision is not None:
-        result.why_not = [_why_not(attempt, ctx, gid) for gid in why_not]
-    result.warnings.extend(ctx.warnings + list(attempt.extra.get("warnings", [])))
+    return attempt.reason
+
+
+def receiver_block(s: Situation) -> dict:
+    """The result's ``receiver``: where they stand and face (world), and who they are."""
+    return {"position": s.receiver_position, "facing": s.receiver_facing,
+            "stature": s.receiver.height, "posture": s.receiver.posture,
+            "role": s.receiver.role, "dominant_hand": s.receiver.dominant_hand,
+            "age": s.receiver.years}
+
+
+def gripper_block(spec: GripperSpec, g) -> dict:
+    """The result's ``gripper``: the model used (``g``, a
+    :class:`~handover.geometry.gripper.Gripper` built from ``spec``), m."""
+    return {"id": spec.id, "max_width": g.max_opening, "min_width": g.min_opening,
+            "finger_depth": g.finger_length / 2.0, "finger_length": g.finger_length,
+            "finger_width": g.finger_width, "finger_thickness": g.finger_thickness,
+            "palm": list(g.palm), "friction": g.friction, "clearance": g.clearance,
+            **_gripper_meshes(spec)}
+
+
+def scene_block(ctx: PlanContext) -> dict:
+    """The result's ``scene``: its id and boxes (the table top, obstacles; world)."""
+    return {"id": ctx.situation.scene.id, "boxes": [
+        {"id": name, "extents": ext, "pose": pose} for name, ext, pose in ctx.scene_box_list]}
+
+
+def bodies_block(ctx: PlanContext) -> dict:
+    """The result's ``bodies``: the receiver's and the robot's (:func:`body_record`)."""
+    return {"receiver": body_record(ctx.world.receiver_body),
+            "robot": body_record(ctx.world.robot_body)}
+
+
+def warnings_block(ctx: PlanContext, attempt: Attempt, placement: PlacementPlan | None,
+                   fallback: list[CompiledRule], feasible: bool) -> list[str]:
+    """The result's ``warnings``: the preparation's, the attempt's (etiquette relaxed),
+    every safety rule overridden, and for a feasible outcome the active rules' ``warn``
+    texts (:func:`rule_warnings`; of the placement too, for an object set down)."""
+    out = ctx.warnings + list(attempt.notes.warnings)
     for c in attempt.graph.order if attempt.graph is not None else []:
         if c.overridden_safety:
-            result.warnings.append(
-                f"safety rule {', '.join(c.overridden_safety)} overridden by {c.id} "
-                f"({c.source}): {c.rule.override_safety}"
-            )
+            out.append(f"safety rule {', '.join(c.overridden_safety)} overridden by {c.id} "
+                       f"({c.source}): {c.rule.override_safety}")
     if feasible:
-        graphs = [attempt.graph] + ([placement.attempt.graph] if placed else [])
-        result.warnings.extend(rule_warnings([cg for cg in graphs if cg is not None],
-                                             list(fallback)))
-    return result
+        graphs = [attempt.graph] + ([placement.attempt.graph] if placement is not None else [])
+        out.extend(rule_warnings([cg for cg in graphs if cg is not None], list(fallback)))
+    return out
 
 
 def rule_warnings(graphs: list[ConstraintGraph], extra: list[CompiledRule] = ()) -> list[str]:

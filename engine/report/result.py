@@ -1,56 +1,58 @@
 """The plan result: the contract other tools read (docs/json.md).
 
-A :class:`PlanResult` is plain data (dicts, lists, floats) so that JSON, the text trace and
-the rerun recording all render the same thing. ``to_json`` rounds floats to micrometres and
-microradians and sorts nothing that has an order of its own, so the same query gives
-byte-identical JSON.
+A :class:`PlanResult` holds the result's blocks: the grasps as typed records
+(:class:`~handover.engine.plan.records.RobotGrasp`, :class:`~handover.engine.plan.records
+.HumanGrasp`, :class:`Regrasp`), the rest as plain data (dicts, lists, floats), so that JSON,
+the text trace and the rerun recording all render the same thing. ``to_json`` rounds floats
+to micrometres and microradians and sorts nothing that has an order of its own, so the same
+query gives byte-identical JSON.
 """
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import MISSING, dataclass, field, fields
 from typing import Any
 
 import numpy as np
 
-__all__ = ["PlanResult", "to_jsonable", "dumps", "OUTCOMES"]
+from handover.engine.plan.records import DECIMALS, HumanGrasp, RobotGrasp, dumps, to_jsonable
 
-DECIMALS = 6
+__all__ = ["PlanResult", "Regrasp", "to_jsonable", "dumps", "OUTCOMES", "DECIMALS"]
+
 OUTCOMES = ("handover", "place", "refuse", "infeasible")
 """What a plan can come to; ``feasible`` is true for the first two."""
 
 
-def to_jsonable(value: Any) -> Any:
-    """Numpy arrays and scalars to lists and floats, rounded to ``DECIMALS``; NaN/inf to None."""
-    if isinstance(value, dict):
-        return {str(k): to_jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [to_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return to_jsonable(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        f = float(value)
-        if not math.isfinite(f):
-            return None
-        r = round(f, DECIMALS)
-        return 0.0 if r == 0 else r  # no "-0.0"
-    return value
+@dataclass(frozen=True)
+class Regrasp:
+    """H2G2's midair regrasp: the ``first`` grasp (``stage`` ``pick``; its ``pose_world`` at
+    the initial pose), the object's ``midair_pose`` (4, 4) world where the second gripper
+    takes it, and the ``second`` grasp (``stage`` ``handover``)."""
 
+    first: RobotGrasp
+    midair_pose: np.ndarray
+    second: RobotGrasp
 
-def dumps(data: Any) -> str:
-    """Deterministic JSON text (indent 2, key order as built, trailing newline)."""
-    return json.dumps(to_jsonable(data), indent=2, ensure_ascii=False) + "\n"
+    @property
+    def first_pose_midair(self) -> np.ndarray:
+        """(4, 4) world: the first gripper at the midair pose."""
+        return self.midair_pose @ self.first.pose
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"first": grasp + "pose_midair", "midair_pose", "second": grasp}``."""
+        return to_jsonable({"first": self.first.to_dict() | {
+            "pose_midair": to_jsonable(self.first_pose_midair)},
+            "midair_pose": self.midair_pose, "second": self.second.to_dict()})
 
 
 @dataclass
 class PlanResult:
     """A plan, feasible or not. Field meanings: docs/json.md; extras documented here.
+
+    robot_grasps : :class:`~handover.engine.plan.records.RobotGrasp` records (the chosen
+    grasps, then a supporting gripper's). human_grasps : the receiver's
+    (:class:`~handover.engine.plan.records.HumanGrasp`). regrasp : H2G2's
+    (:class:`Regrasp`), else None.
 
     modes_tried : [{"mode", "feasible", "reason"}] in the order tried.
     mode_reason : why this mode was chosen (or forced).
@@ -90,12 +92,12 @@ class PlanResult:
     reason: str | None
     object_pose: Any
     receiver: dict
-    robot_grasps: list[dict]
-    human_grasps: list[dict]
+    robot_grasps: list[RobotGrasp]
+    human_grasps: list[HumanGrasp]
     gripper: dict
     candidates: dict
     trace: list[dict]
-    regrasp: dict | None = None
+    regrasp: Regrasp | None = None
     initial_pose: Any = None
     modes_tried: list[dict] = field(default_factory=list)
     mode_reason: str = ""
@@ -132,11 +134,11 @@ class PlanResult:
             "reason": self.reason,
             "object_pose": self.object_pose,
             "receiver": self.receiver,
-            "robot_grasps": self.robot_grasps,
-            "human_grasps": self.human_grasps,
+            "robot_grasps": [g.to_dict() for g in self.robot_grasps],
+            "human_grasps": [h.to_dict() for h in self.human_grasps],
         }
         if self.regrasp is not None:
-            out["regrasp"] = self.regrasp
+            out["regrasp"] = self.regrasp.to_dict()
         if self.placement is not None:
             out["placement"] = self.placement
         if self.refused:

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from handover.engine.assets.lru import LRU
 from handover.engine.errors import UsageError
 from handover.geometry.mesh import MESH_SUFFIXES
 
@@ -40,6 +41,7 @@ __all__ = [
     "COLUMNS",
     "BatchQuery",
     "BatchReport",
+    "KBS_KEPT",
     "ObjectRef",
     "Unit",
     "error_rows",
@@ -300,19 +302,19 @@ def expand(
 
 # ---------------------------------------------------------------- the work of one object
 
-_KB_CACHE: dict[str, tuple[str, KB]] = {}
+KBS_KEPT = 2
+"""How many knowledge bases a batch worker keeps (:func:`_worker_kb`): a batch plans with
+one; a Ray worker that lives on between batches may see another, or the same one changed."""
+_KBS: LRU[tuple[str, str], KB] = LRU(KBS_KEPT)
+"""This process's knowledge bases by (folder, digest of its files)."""
 
 
 def _worker_kb(kb_dir: str) -> KB:
     """The KB of ``kb_dir``, loaded once per process and again when its files change (a
     Ray worker lives on between batches)."""
-    digest = kb_digest(kb_dir)
-    cached = _KB_CACHE.get(kb_dir)
-    if cached is None or cached[0] != digest:
-        from handover.engine.load.loader import load_kb
+    from handover.engine.load.loader import load_kb
 
-        cached = _KB_CACHE[kb_dir] = (digest, load_kb(kb_dir, urdf=False))
-    return cached[1]
+    return _KBS.fetch((kb_dir, kb_digest(kb_dir)), lambda: load_kb(kb_dir, urdf=False))
 
 
 def _error_text(e: BaseException) -> str:
@@ -341,7 +343,6 @@ def error_rows(unit: Unit, error: BaseException | str) -> list[dict]:
 def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: GraspDB | None) -> dict:
     """Plan one query; its row. Any failure becomes the row's ``error``."""
     from handover.engine.planner import plan
-    from handover.engine.report.result import to_jsonable
     from handover.engine.spec.query import Query
 
     query = Query(object=obj.query_object, task=q.task, receiver=q.receiver, culture=q.culture,
@@ -357,7 +358,7 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
             messages = sorted({str(w.message) for w in caught})
             return _row(q, content_hash, error=_error_text(e), warnings=json.dumps(messages))
     messages = sorted({str(w.message) for w in caught} | set(result.warnings))
-    grasps = to_jsonable(result.robot_grasps)
+    grasps = [g.to_dict() for g in result.robot_grasps]
     score = grasps[0].get("score") if grasps else None
     return _row(
         q, content_hash, mode=result.mode if result.feasible else None,
@@ -716,7 +717,7 @@ def run_batch(
     workers = max(1, int(workers or os.cpu_count() or 1))
     kb_dir = str(kb.root)
     db = None if db_root is None else str(db_root)
-    _KB_CACHE[kb_dir] = (kb_digest(kb_dir), kb)
+    _KBS.put((kb_dir, kb_digest(kb_dir)), kb)
     state = {"last": time.perf_counter()}
     start = time.perf_counter()
 

@@ -159,7 +159,7 @@ def test_each_auto_attempt_is_the_forced_mode_and_feasible_means_every_hard_rule
         forced = attempt_mode(kb, prepare(kb, query, planner.db), attempt.mode)
         _same_attempt(attempt, forced)
     if chosen.feasible:
-        fails = [e["rule"] for e in chosen.extra["trace"]
+        fails = [e["rule"] for e in chosen.trace
                  if e["hard"] and e["status"] == "fail"]
         assert fails == []
         assert chosen.chosen

@@ -23,6 +23,7 @@ from handover.engine.plan.context import PlanContext
 from handover.engine.plan.evaluate import Decision
 from handover.engine.plan.phase import Hands, Phase
 from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites
+from handover.engine.plan.records import ArmJoints, HumanGrasp, RobotGrasp
 from handover.engine.report.rerun.bodies import ARM_COLOURS
 from handover.engine.report.rerun.reader import read_recording
 from handover.engine.report.rerun.stages import (
@@ -37,7 +38,7 @@ from handover.engine.report.rerun.stages import (
     stage_classes,
 )
 from handover.engine.report.rerun.writer import write_recording
-from handover.engine.report.result import PlanResult
+from handover.engine.report.result import PlanResult, Regrasp
 from handover.engine.spec.kinds import KINDS
 from handover.engine.spec.schema import RULE_KINDS, parse_rule
 from handover.geometry.candidates import SOURCE_FACET, CandidateSet
@@ -146,13 +147,14 @@ def _context(cands: CandidateSet) -> PlanContext:
     return ctx, hands
 
 
-def _grasp(cands: CandidateSet, i: int, hand: str, score: float, stage: str | None = None):
-    g = {"hand": hand, "id": i, "pose": cands.poses()[i], "width": float(cands.width[i]),
-         "contacts": cands.contacts[i], "parts": [cands.part_names[p] for p in cands.parts[i]],
-         "score": score, "quality": float(cands.quality[i])}  # fmt: skip
-    if stage:
-        g["stage"] = stage
-    return g
+def _grasp(cands: CandidateSet, i: int, hand: str, score: float,
+           stage: str | None = None) -> RobotGrasp:
+    pose = cands.poses()[i]
+    return RobotGrasp(hand=hand, pose=pose, pose_world=pose, width=float(cands.width[i]),
+                      contacts=cands.contacts[i],
+                      parts=tuple(cands.part_names[p] for p in cands.parts[i]), score=score,
+                      stage=stage or "handover", id=i, quality=float(cands.quality[i]),
+                      staged=stage is not None)  # fmt: skip
 
 
 def _trace(grasp: int, hand: str, stage: str | None = None) -> list[dict]:
@@ -195,7 +197,7 @@ def synthetic_plan(feasible: bool = True, h2g2: bool = False):
         trace = _trace(5, "left", "pick") + _trace(0, "right", "handover")
         midair = hands.poses[0].copy()
         midair[0, 3] -= 0.2
-        regrasp = {"first": first, "midair_pose": midair, "second": second}
+        regrasp = Regrasp(first, midair, second)
     result = PlanResult(
         object="bar",
         query={"object": "bar", "task": None, "receiver": "adult", "culture": "common",
@@ -207,8 +209,8 @@ def synthetic_plan(feasible: bool = True, h2g2: bool = False):
         receiver={"position": [1.0, 0.0, 0.0], "facing": [-1.0, 0.0, 0.0],
                   "hand_height": 1.0, "role": "adult", "dominant_hand": "right"},
         robot_grasps=grasps,
-        human_grasps=[{"hand": "right", "position": [-0.06, 0, 0],
-                       "position_world": [0.44, 0.0, 1.0], "part": "handle"}] if feasible else [],
+        human_grasps=[HumanGrasp("right", np.array([-0.06, 0, 0]), np.array([0.44, 0.0, 1.0]),
+                                 "handle")] if feasible else [],
         gripper={}, candidates={"generated": N * K, "kept": int(decision.kept.sum()),
                                 "rejected_by": decision.rejected_by(),
                                 "blocking_sets": [] if feasible else
@@ -407,7 +409,7 @@ def test_h2g2_plan_adds_pick_midair_and_handover(tmp_path):
     assert grippers == {5: 3, 6: 6}  # first hand alone, then both hands
     moves = by_stage(cols["world/regrasp"], "Transform3D:translation")
     assert np.allclose(moves[5][0], ctx.initial[:3, 3])
-    assert np.allclose(moves[6][0], result.regrasp["midair_pose"][:3, 3])
+    assert np.allclose(moves[6][0], result.regrasp.midair_pose[:3, 3])
     # The handover grasp (0) is the chosen candidate; the pick grasp's trace lands on stage 5.
     colours = by_stage(cols[ENTITY_CENTRES], "Points3D:colors")
     assert colours[4][0] == rgb(OUTCOME_COLOURS["chosen"])
@@ -456,8 +458,8 @@ def test_an_arm_with_boxes_is_drawn_at_each_stage_s_joints(tmp_path):
     turn at the handover: its capsule, its box and its chain where the test puts them."""
     result, ctx, attempt = synthetic_plan()
     result.robot = {"id": "one_arm", "arms": {"right": {}}}
-    result.robot_grasps[0].update(arm="right", joints={"pickup": {"j1": 0.0},
-                                                       "handover": {"j1": np.pi / 2}})
+    result.robot_grasps[0] = replace(result.robot_grasps[0], arm_joints=ArmJoints(
+        "right", {"pickup": {"j1": 0.0}, "handover": {"j1": np.pi / 2}}))
     ctx.memo.arms = OneJointArm()
     path = tmp_path / "arm.rrd"
     write_recording(result, ctx, path, attempt)
@@ -597,7 +599,7 @@ def test_real_plan_recording_agrees_with_its_result(kb, tmp_path, obj, mode, sce
     trace_text = "\n".join(t["text"] for t in summary["trace"])
     if result.feasible:
         assert 4 in stages
-        chosen = {g["id"] for g in result.robot_grasps if g.get("stage") != "pick"}
+        chosen = {g.id for g in result.robot_grasps if g.stage != "pick"}
         final = by_stage(cols[ENTITY_CENTRES], "Points3D:class_ids")[4]
         assert {i for i, c in enumerate(final) if c == CLASS_CHOSEN} == chosen
         for entry in result.trace:
@@ -705,13 +707,13 @@ def test_real_h2g2_plan_records_pick_midair_and_handover(kb, tmp_path):
     assert grippers == {5: 3, 6: 6}
     moves = by_stage(cols["world/regrasp"], "Transform3D:translation")
     assert np.allclose(moves[5][0], np.asarray(result.initial_pose)[:3, 3], atol=1e-6)
-    assert np.allclose(moves[6][0], np.asarray(result.regrasp["midair_pose"])[:3, 3], atol=1e-6)
-    first, second = result.regrasp["first"], result.regrasp["second"]
+    assert np.allclose(moves[6][0], result.regrasp.midair_pose[:3, 3], atol=1e-6)
+    first, second = result.regrasp.first, result.regrasp.second
     pick_lines = "\n".join(t["text"] for t in summary["trace"] if t["stage"] == 5)
-    assert f"grasp {first['id']} ({first['hand']} hand) [pick]" in pick_lines
+    assert f"grasp {first.id} ({first.hand} hand) [pick]" in pick_lines
     # The candidates are drawn at the handover: the second hand's grasp is the chosen one.
     final = by_stage(cols[ENTITY_CENTRES], "Points3D:class_ids")[4]
-    assert final[second["id"]] == CLASS_CHOSEN
+    assert final[second.id] == CLASS_CHOSEN
     # The arms: at pick-up and the handover (stage 4), then each stage's own: the first arm
     # at pick-up (5), both midair (6), the second at the handover (7), each in its colour.
     arms = "world/robot/arms"
@@ -803,7 +805,7 @@ def test_the_arm_that_waits_is_drawn_at_its_rest(kb, tmp_path):
     # The screwdriver is handed over by the right arm; the left waits at its rest, drawn at
     # both stages under .../rest, its chain ending where the URDF puts its flange there.
     result, ctx, path = _real(kb, tmp_path, "screwdriver", "h1g1", "table")
-    assert [g["arm"] for g in result.robot_grasps] == ["right"]
+    assert [g.arm for g in result.robot_grasps] == ["right"]
     robot = result.robot
     urdf = yourdfpy.URDF.load(str(builtin_kb_dir() / robot["urdf"]))
     urdf.update_cfg(robot["arms"]["left"]["rest"])

@@ -12,7 +12,6 @@ import pytest
 import yourdfpy
 from numpy.testing import assert_allclose
 
-from handover.engine.assets import robot as engine_robot
 from handover.engine.assets.graspdb import GraspDB, MemoryDB
 from handover.engine.assets.objects import gripper_from_spec
 from handover.engine.assets.robot import RobotArms, reach_dir, robot_arms
@@ -141,19 +140,20 @@ def test_reach_maps_are_cached_once_per_arm_and_reused(builtin_kb, tmp_path, mon
     assert folder == tmp_path / "db" / "reach"
     assert reach_dir(MemoryDB()) is None and reach_dir(None) is None
     params = {"samples": 100_000}
-    monkeypatch.setattr(engine_robot, "_MAPS", {})
     arms = RobotArms.load(builtin_kb, "idro", reach_dir=folder, map_params=params)
     pose = transform_from(DOWN, [0.4, 0.0, 0.9])[None]
     first = {side: arms.reachable(side, pose) for side in arms.sides}
     files = sorted(folder.glob("*.npz"))
     assert len(files) == 2
     stamps = [f.stat().st_mtime_ns for f in files]
+    # The arms keep the maps they read or built: asked again, the same map.
+    assert all(arms.reach_map(side) is arms.reach_map(side) for side in arms.sides)
 
     def no_build(*args, **kwargs):
         raise AssertionError("the map was built again instead of read from the cache")
 
-    monkeypatch.setattr(engine_robot, "_MAPS", {})  # a new process
     monkeypatch.setattr(ReachMap, "build", no_build)
+    # Arms loaded anew (as in a new process) keep no map yet: they read the folder's.
     again = RobotArms.load(builtin_kb, "idro", reach_dir=folder, map_params=params)
     assert {side: again.reachable(side, pose) for side in again.sides} == first
     assert [f.stat().st_mtime_ns for f in sorted(folder.glob("*.npz"))] == stamps

@@ -327,7 +327,7 @@ def check_invariance(tmp_path: Path, vertices, faces, transform) -> None:
 
         def chosen_key(result) -> np.ndarray:
             g = result.robot_grasps[0]
-            return np.hstack([canonical(np.asarray(g["pose_world"])[None])[0], g["score"]])
+            return np.hstack([canonical(np.asarray(g.pose_world)[None])[0], g.score])
 
         key_a, key_b = chosen_key(result_a), chosen_key(result_b)
         assert np.linalg.norm(key_a - key_b) < 1e-7, "B chose another grasp than A"

@@ -50,6 +50,7 @@ from handover.engine.plan.arms.stages import (
     screened_stages,
     stage_poses,
 )
+from handover.engine.plan.records import ArmJoints
 
 if TYPE_CHECKING:
     from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
@@ -65,7 +66,7 @@ __all__ = [
     "confirm_row",
     "choose_row",
     "world_order",
-    "arm_record",
+    "arm_joints",
     "reach_words",
     "reach_reason",
 ]
@@ -297,20 +298,18 @@ def choose_row(ctx: PlanContext, phase: Phase, decision, ranking: np.ndarray,
                 return int(row), check, failures
     return None, None, failures
 
-def arm_record(ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
-    """``{"arm", "joints": {stage: {joint: rad}}, "swapped": [stages]}`` of a chosen grasp
-    whose phase names its arm; ``{}`` without one."""
+def arm_joints(ctx: PlanContext, phase: Phase, grasp: int,
+               presentation: int) -> ArmJoints | None:
+    """The arm holding a chosen grasp (candidate ``grasp`` in ``presentation``) and its
+    joints at each stage, for a phase that names its arm; None without one."""
     side = getattr(phase, "arm", None)
     if side is None or ctx.arms is None:
-        return {}
+        return None
     check = confirm(ctx, phase, side, np.array([grasp]), np.array([presentation]))[0]
-    out = {"arm": side,
-           "joints": {stage: ctx.arms.joints_dict(side, check.q[t])
-                      for t, stage in enumerate(check.stages)}}
-    flipped = [s for s, f in zip(check.stages, check.swapped, strict=True) if f]
-    if flipped:
-        out["fingers_swapped"] = flipped
-    return out
+    joints = {stage: ctx.arms.joints_dict(side, check.q[t])
+              for t, stage in enumerate(check.stages)}
+    flipped = tuple(s for s, f in zip(check.stages, check.swapped, strict=True) if f)
+    return ArmJoints(side, joints, flipped)
 
 def reach_words(ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> str:
     """Why no arm's map holds one row: for each arm, the first stage it cannot reach and the
@@ -340,7 +339,7 @@ def reach_reason(ctx: PlanContext, attempt) -> str | None:
     if decision is None or attempt.graph is None or ctx.arms is None:
         return None
     reach = next((c.id for c in decision.hard if c.rule.kind == "reach"), None)
-    tally = link_tally(attempt.extra.get("arm_failures", []))
+    tally = link_tally(list(attempt.notes.arm_failures or ()))
     if tally and reach is not None and reach in reason:
         hits = ", ".join(f"{t} in {n} {'check' if n == 1 else 'checks'}"
                          for t, n in list(tally.items())[:4])
@@ -352,8 +351,9 @@ def reach_reason(ctx: PlanContext, attempt) -> str | None:
 def _map_reason(ctx: PlanContext, attempt, reach: str | None) -> str | None:
     """:func:`reach_reason` for the rows the maps rejected."""
     decision, reason = attempt.decision, attempt.reason or ""
-    if attempt.extra.get("first_feasible") == 0 and reach in attempt.extra.get(
-            "first_rejected_by", {}):  # H2G2: no first grasp can be picked up
+    firsts = attempt.notes.first
+    if firsts is not None and firsts.feasible == 0 and reach in firsts.rejected_by:
+        # H2G2: no first grasp can be picked up
         first = attempt.phase.but(pickup=True, receiver_present=False)
         grasps = np.arange(ctx.n)
         _, mapped = screen(ctx, first, grasps, np.zeros(ctx.n, dtype=np.int64))

@@ -62,7 +62,7 @@ def evaluate(rule: ReachRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
 
 def detail(rule: ReachRule, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
     from handover.engine.plan.arms.links import links_words
-    from handover.engine.plan.arms.solve import arm_record, confirm, reach_words
+    from handover.engine.plan.arms.solve import arm_joints, confirm, reach_words
 
     if ctx.arms is None or not _stages(rule, phase):
         return {}
@@ -70,7 +70,8 @@ def detail(rule: ReachRule, ctx: PlanContext, phase: Phase, grasp: int, presenta
     if side is None:
         words = reach_words(ctx, phase, grasp, presentation)
         return {"cannot": words} if words else {}
-    out = arm_record(ctx, phase, grasp, presentation)
+    held = arm_joints(ctx, phase, grasp, presentation)
+    out = {} if held is None else held.to_dict()
     check = confirm(ctx, phase, side, np.array([grasp]), np.array([presentation]))[0]
     failure = check.failure()
     if failure:

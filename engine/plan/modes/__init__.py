@@ -12,8 +12,8 @@ failed is never reported as feasible.
 Etiquette that bends (:func:`choose`): a soft mode rule's ``bends_to`` alternatives are tried
 after its own mode (one hand giving while the other gripper supports its wrist:
 :mod:`~handover.engine.plan.modes.support`), then one hand; the chosen attempt then carries what
-was relaxed (``extra["relaxed"]``, ``extra["warnings"]``, the marked trace entries) and the
-supporting gripper (``extra["support_grasps"]``, a ``stage: support`` trace entry).
+was relaxed (``notes.relaxation``, ``notes.warnings``, the marked trace entries) and the
+supporting gripper (``notes.support``, a ``stage: support`` trace entry).
 """
 
 from __future__ import annotations
@@ -23,12 +23,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.attempt import Attempt, Chosen
+from handover.engine.plan.attempt import Attempt, AttemptNotes, Chosen, Relaxation, Support
 from handover.engine.plan.compiler import compile
 from handover.engine.plan.evaluate import trace_row
 from handover.engine.plan.modes import h1g1, h2g1, h2g2  # noqa: F401  (register the planners)
 from handover.engine.plan.modes.common import HANDS_NEEDED, PLANNERS, hand_at
 from handover.engine.plan.modes.h2g2 import FIRST_NOTE, first_rules
+from handover.engine.plan.records import GraspSupport, RobotGrasp
 
 if TYPE_CHECKING:
     from handover.engine.load.loader import KB
@@ -59,7 +60,7 @@ def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
 
 def attempt_mode(kb: KB, ctx: PlanContext, mode: str, quick: bool = False) -> Attempt:
     """Run one mode's planner and check its answer: a feasible attempt keeps its chosen
-    grasps only if each passes every hard rule in its trace (``extra["trace"]``). ``quick``:
+    grasps only if each passes every hard rule in its trace (``Attempt.trace``). ``quick``:
     an infeasible attempt's reason is not explained (only feasibility is asked)."""
     robot = ctx.situation.robot
     if len(robot.hands) < HANDS_NEEDED[mode]:
@@ -83,7 +84,7 @@ def _checked(ctx: PlanContext, attempt: Attempt) -> Attempt:
         names = ", ".join(f"{e['rule']} ({e['hand']} hand, grasp {e['grasp']})" for e in failed)
         return attempt.rejected(f"{attempt.mode}: the chosen grasps fail hard rules in their "
                                 f"own trace: {names}")
-    return replace(attempt, extra=attempt.extra | {"trace": trace})
+    return replace(attempt, trace=tuple(trace))
 
 
 def progress(attempt: Attempt) -> tuple[float, int]:
@@ -96,7 +97,7 @@ def progress(attempt: Attempt) -> tuple[float, int]:
     if d is None or d.n_rows == 0:
         return float("inf"), 0
     if d.kept.any():
-        paired = attempt.extra.get("pairs_checked", 0) > 0
+        paired = attempt.notes.pairs is not None and attempt.notes.pairs.checked > 0
         return (0.0 if paired else 1.0), int(d.kept.sum())
     counts = d.exact().fails.sum(axis=1)
     fewest = int(counts.min())
@@ -112,7 +113,7 @@ def closest_attempt(tried: list[Attempt]) -> Attempt:
 
     def key(a: Attempt) -> tuple:
         fewest, rows = progress(a)
-        return bool(a.extra.get("not_tried")), fewest, -rows, rank.get(a.mode, len(rank))
+        return a.notes.not_tried, fewest, -rows, rank.get(a.mode, len(rank))
 
     return min(tried, key=key)
 
@@ -201,7 +202,7 @@ def choose(kb: KB, ctx: PlanContext, asked: str,
     otherwise the mode a soft rule prefers first, then the alternatives that rule
     ``bends_to`` (e.g. one hand giving, the other supporting its wrist), then H1G1, H2G2,
     H2G1. When a preference gives way, the attempt says which rule was relaxed, why and what
-    was used instead (``extra["relaxed"]``, its warning and its trace entries). A soft mode
+    was used instead (``notes.relaxation``, its warning and its trace entries). A soft mode
     rule marked ``safety`` never bends: it is required. ``quick``: see :func:`attempt_mode`."""
     asked = asked.lower()
     if asked != "auto":
@@ -215,7 +216,7 @@ def choose(kb: KB, ctx: PlanContext, asked: str,
     tried: list[Attempt] = []
     if required is not None:
         tried += [Attempt(m, False, f"{m}: not tried, {_said(required)}",
-                          extra={"not_tried": True})
+                          notes=AttemptNotes(not_tried=True))
                   for m in PLANNERS if m != required.rule.mode]
     plain: dict[str, Attempt] = {}
     rank = {m: n for n, m in enumerate(PLANNERS)}
@@ -229,8 +230,7 @@ def choose(kb: KB, ctx: PlanContext, asked: str,
         attempt = plain[mode]
         if supported:
             attempt = _with_support(ctx, attempt, bend, preferred)
-            attempt = replace(attempt, extra=attempt.extra | {
-                "alternative": preferred.rule.bends_to.index(bend)})
+            attempt = attempt.noted(alternative=preferred.rule.bends_to.index(bend))
         else:
             reported.add(mode)
         if required is not None and not attempt.feasible:
@@ -286,14 +286,12 @@ def _with_support(ctx: PlanContext, base: Attempt, bend: Bend, rule: CompiledRul
     checked = _checked(ctx, chosen)
     if not checked.feasible:
         return replace(checked, reason=f"{label}: {checked.reason}")
-    record = {
-        "hand": other, "id": None, "stage": "support", "pose": support.pose,
-        "pose_world": pose_k @ support.pose, "width": support.width, "contacts": [],
-        "parts": [], "score": None, "quality": None, "roll_deg": None,
-        "supports": {"hand": hand, "grasp": i, "at": bend.support, "point": support.wrist,
-                     "point_world": pose_k[:3, :3] @ support.wrist + pose_k[:3, 3],
-                     "clear_of": [n for n, ok in support.checked.items() if ok]},
-    }
+    record = RobotGrasp(
+        hand=other, pose=support.pose, pose_world=pose_k @ support.pose, width=support.width,
+        contacts=np.zeros((0, 3)), parts=(), score=None, stage="support", staged=True,
+        supports=GraspSupport(hand=hand, grasp=i, at=bend.support, point=support.wrist,
+                              point_world=pose_k[:3, :3] @ support.wrist + pose_k[:3, 3],
+                              clear_of=tuple(n for n, ok in support.checked.items() if ok)))
     entry = {
         "grasp": None, "hand": other, "stage": "support", "rule": rule.id, "kind": "mode",
         "hard": False, "status": "pass", "measured": None, "unit": "",
@@ -301,11 +299,10 @@ def _with_support(ctx: PlanContext, base: Attempt, bend: Bend, rule: CompiledRul
         "weight": rule.rule.weight, "within": True, "why": bend.why, "source": rule.source,
         "culture": rule.culture, "overrides": [], "safety": False,
         "note": (f"the {other} gripper supports the {hand} gripper's {bend.support}, clear of "
-                 + ", ".join(n for n, ok in support.checked.items() if ok)),
+                 + ", ".join(record.supports.clear_of)),
     }
-    return replace(checked, extra=checked.extra | {
-        "support_grasps": [record], "trace": checked.extra["trace"] + [entry],
-        "support_poses_tried": support.tried})
+    return replace(checked, trace=(*checked.trace, entry)).noted(
+        support=Support(record, support.tried))
 
 
 def _relaxed(attempt: Attempt, rule: CompiledRule, bend: Bend | None,
@@ -316,27 +313,27 @@ def _relaxed(attempt: Attempt, rule: CompiledRule, bend: Bend | None,
     wanted = rule.rule.mode
     because = next((a.reason for a in tried if a.mode == wanted and not a.feasible),
                    None) or f"{wanted} is infeasible"
-    failed_alts = [a.reason for a in tried[:-1] if a.extra.get("alternative") is not None]
+    failed_alts = [a.reason for a in tried[:-1] if a.notes.alternative is not None]
     used = bend.describe() if bend is not None else attempt.mode
-    relaxed = {"rule": rule.id, "source": rule.source, "culture": rule.culture,
-               "asked": wanted, "because": because, "used": used,
-               "accepted_because": None if bend is None else bend.why,
-               "alternative": None if bend is None else rule.rule.bends_to.index(bend),
-               "alternatives_failed": failed_alts}
+    relaxation = Relaxation(
+        rule=rule.id, source=rule.source, culture=rule.culture, asked=wanted, because=because,
+        used=used, accepted_because=None if bend is None else bend.why,
+        alternative=None if bend is None else rule.rule.bends_to.index(bend),
+        alternatives_failed=tuple(failed_alts))
     why = (f"rule {rule.id} ({rule.source}) prefers {wanted}, infeasible here ({because}); "
            f"relaxed to {used}" + (f", as {rule.culture} etiquette accepts: {bend.why}"
                                    if bend is not None else ""))
     if failed_alts:
         why += "; " + "; ".join(failed_alts)
-    trace = [dict(e, relaxed={"asked": wanted, "because": because, "used": used})
-             if e.get("rule") == rule.id and e.get("stage", "handover") == "handover" else e
-             for e in attempt.extra.get("trace", [])]
-    extra = attempt.extra | {"relaxed": relaxed, "trace": trace}
+    trace = tuple(dict(e, relaxed={"asked": wanted, "because": because, "used": used})
+                  if e.get("rule") == rule.id and e.get("stage", "handover") == "handover"
+                  else e for e in attempt.trace)
+    warnings = attempt.notes.warnings
     if wanted != "H1G1":
-        extra["warnings"] = list(attempt.extra.get("warnings", [])) + [
+        warnings += (
             f"etiquette relaxed: {rule.id} ({rule.source}) asks for {wanted}, which is "
             f"infeasible here ({because}); given {used} instead"
             + (f" ({rule.culture}'s accepted alternative)" if bend is not None else "")
             + (f" (the accepted alternative{'s' if len(failed_alts) > 1 else ''} did not "
-               "fit, see modes_tried)" if failed_alts else "")]
-    return replace(attempt, extra=extra), why
+               "fit, see modes_tried)" if failed_alts else ""),)
+    return replace(attempt, trace=trace).noted(relaxation=relaxation, warnings=warnings), why

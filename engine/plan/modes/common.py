@@ -9,8 +9,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.plan.attempt import Attempt, Relocation
+
 if TYPE_CHECKING:
-    from handover.engine.plan.attempt import Attempt
     from handover.engine.plan.phase import Hands
 
 __all__ = ["CATALOGUE", "PLANNERS", "HANDS_NEEDED", "RELOCATIONS", "RETRY_CHECKS",
@@ -66,14 +67,14 @@ def hand_at(pose: np.ndarray, centre: np.ndarray, hands=("left", "right")) -> st
 def relocated(attempt: Attempt, hands_at: Callable[[tuple[int, ...]], Hands],
               plan_at: Callable[[Hands], Attempt], times: int | None = None) -> Attempt:
     """``attempt`` (planned at the locations the location rules prefer), or, when it failed
-    because the arms hold none of its best grasps (``extra["arm_failures"]``), the first
+    because the arms hold none of its best grasps (``notes.arm_failures``), the first
     plan feasible with the presentations that had grasps offered at their next best
     locations (``hands_at(avoid)``: the receiver's hands with the candidate locations
     ``avoid`` tried last, every hard location rule still holding; ``plan_at(hands)``: the
-    mode planned there), at most ``times`` (:data:`RELOCATIONS`) times. A relocated plan says so in
-    ``extra["relocated"]`` (the presentations moved, the locations tried, why each failed);
-    a failure adds what the next locations lacked to its reason."""
-    if attempt.feasible or "arm_failures" not in attempt.extra:
+    mode planned there), at most ``times`` (:data:`RELOCATIONS`) times. A relocated plan says
+    so in ``notes.relocation`` (:class:`~handover.engine.plan.attempt.Relocation`); a failure
+    adds what the next locations lacked to its reason."""
+    if attempt.feasible or attempt.notes.arm_failures is None:
         return attempt
     first = attempt.phase.hands
     avoid: set[int] = set()
@@ -94,14 +95,14 @@ def relocated(attempt: Attempt, hands_at: Callable[[tuple[int, ...]], Hands],
         tried = plan_at(moved)
         if tried.feasible:
             k = [int(v) for v in np.flatnonzero(moved.location != first.location)]
-            return replace(tried, extra=tried.extra | {"relocated": {
-                "presentations": k, "locations_tried": len(avoid),
-                "why": "; ".join(dict.fromkeys(missed))}})
+            return tried.noted(relocation=Relocation(
+                presentations=tuple(k), locations_tried=len(avoid),
+                why="; ".join(dict.fromkeys(missed))))
     if tried is attempt:  # no other location was tried
         return attempt
     elsewhere = "; ".join(dict.fromkeys([*missed[1:], _short(tried.reason)]))
     return replace(attempt, reason=f"{attempt.reason}; nor at the next best locations "
-                   f"({elsewhere})", extra=attempt.extra | {"relocations_tried": len(avoid)})
+                   f"({elsewhere})").noted(relocations_tried=len(avoid))
 
 
 def _short(reason: str | None) -> str:

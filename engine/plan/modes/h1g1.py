@@ -7,7 +7,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from handover.engine.plan.arms.solve import CONFIRM_LIMIT, choose_row, reach_rule
-from handover.engine.plan.attempt import Attempt, Chosen
+from handover.engine.plan.attempt import Attempt, AttemptNotes, Chosen
 from handover.engine.plan.compiler import compile
 from handover.engine.plan.evaluate import evaluate
 from handover.engine.plan.explain import infeasible_reason
@@ -41,7 +41,7 @@ def plan_h1g1(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
                            f"{min(len(ranking), CONFIRM_LIMIT)} candidates "
                            f"({reach_rule(cg, ctx).id}): "
                            + said, cg, decision, phase,
-                           extra={"arm_failures": failures})
+                           notes=AttemptNotes(arm_failures=tuple(failures)))
         best, held = found, phase.but(arm=check.side)
     i, k = int(decision.gi[best]), int(decision.pk[best])
     hand = held.arm or hand_at(phase.hands.poses[k], ctx.candidates.centre[i],

@@ -26,13 +26,21 @@ sides puts about half its weight on each gripper, not all of it on both.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from handover.engine.plan.arms.pairs import choose_pair_h2g1, side_reaches
 from handover.engine.plan.arms.solve import reach_rule
-from handover.engine.plan.attempt import Attempt, Chosen
+from handover.engine.plan.attempt import (
+    Attempt,
+    AttemptNotes,
+    Chosen,
+    Pairs,
+    ReceiverHands,
+    TwoHanded,
+)
 from handover.engine.plan.compiler import ConstraintGraph, compile
 from handover.engine.plan.evaluate import evaluate
 from handover.engine.plan.explain import infeasible_reason
@@ -113,34 +121,34 @@ def plan_h2g1(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     move to their next best locations (:func:`~handover.engine.plan.modes.common.relocated`)."""
     cg = compile(kb, ctx, "H2G1")
     count, count_why = receiver_hand_count(cg)
-    extra = {"receiver_hands": count, "receiver_hands_why": count_why}
-    return relocated(_plan(ctx, cg, hands_for(cg, ctx, count), extra, quick=quick),
+    receiver = ReceiverHands(count, count_why)
+    return relocated(_plan(ctx, cg, hands_for(cg, ctx, count), receiver, quick=quick),
                      lambda avoid: hands_for(cg, ctx, count, avoid=avoid),
-                     lambda hands: _plan(ctx, cg, hands, extra, RETRY_CHECKS, quick),
+                     lambda hands: _plan(ctx, cg, hands, receiver, RETRY_CHECKS, quick),
                      H2G1_RELOCATIONS)
 
 
-def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict,
+def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: ReceiverHands,
           checks: int | None = None, quick: bool = False) -> Attempt:
-    """H2G1 with the receiver's ``hands`` where they are (see :func:`plan_h2g1`); at most
-    ``checks`` exact (arm, grasp) checks of the pairs (default
-    :data:`~handover.engine.plan.arms.solve.CONFIRM_LIMIT`)."""
+    """H2G1 with the receiver's ``hands`` where they are (see :func:`plan_h2g1`), taking it
+    with ``receiver`` hands; at most ``checks`` exact (arm, grasp) checks of the pairs
+    (default :data:`~handover.engine.plan.arms.solve.CONFIRM_LIMIT`)."""
     from handover.geometry.collision import grippers_collide
 
     # Rows are judged at the presentation; pick-up is a property of the pair (below).
     phase = Phase("H2G1", hands=hands, pickup=False, receiver_present=True,
                   giver_forbid=cg.giver_forbid)
     decision = evaluate(cg, ctx, phase)
-    extra = dict(extra)
+    notes = AttemptNotes(receiver_hands=receiver)
     facts = ctx.facts
     if facts.mass / 2.0 > facts.payload:
         return Attempt("H2G1", False,
                        f"H2G1: half the mass ({facts.mass / 2:g} kg) exceeds one hand's payload "
-                       f"({facts.payload:g} kg)", cg, decision, phase, extra=extra)
+                       f"({facts.payload:g} kg)", cg, decision, phase, notes=notes)
     ranking = decision.ranking()
     if len(ranking) == 0:
         return Attempt("H2G1", False, infeasible_reason(decision, "H2G1", quick), cg, decision,
-                       phase, extra=extra)
+                       phase, notes=notes)
 
     up = np.array([0.0, 0.0, 1.0])
     lateral = np.cross(up, ctx.situation.toward)  # the robot's left
@@ -200,10 +208,8 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict,
         a, b = divmod(flat, score.shape[1])
         if np.isfinite(score[a, b]) and (best is None or score[a, b] > best[0] + 1e-12):
             best = (float(score[a, b]), int(gl[a]), int(gr[b]), int(k), float(off[a, b]))
-    extra.update(pairs_checked=checked, pairs_colliding=colliding,
-                 pairs_not_liftable=unpickable)
-    if overloaded:
-        extra["pairs_overloaded"] = overloaded
+    notes = replace(notes, pairs=Pairs(checked=checked, colliding=colliding,
+                                       not_liftable=unpickable, overloaded=overloaded))
     if best is None:
         lift = "both hands" if both_pick else "either hand"
         heavy = (f", {overloaded} where a gripper's share of the weight exceeds its payload "
@@ -212,7 +218,7 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict,
                        f"H2G1: no pair of grasps at the far left and far right ({checked} pairs "
                        f"checked, {colliding} with colliding grippers{heavy}, {unpickable} "
                        f"that {lift} cannot take from the table)", cg, decision, phase,
-                       extra=extra)
+                       notes=notes)
     arm = {"left": None, "right": None}
     if arms:  # the best pair the left and right arms hold exactly
         found.sort(key=lambda p: -p[0])  # stable: presentations in order on a tie
@@ -225,21 +231,21 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, extra: dict,
             said = "; ".join(failures[:3]) or "no arm's map holds the grasps of any pair"
             return Attempt("H2G1", False, f"H2G1: the arms hold none of the best pairs of "
                            f"grasps ({rule}): " + said, cg, decision, phase,
-                           extra=extra | {"arm_failures": failures})
+                           notes=replace(notes, arm_failures=tuple(failures)))
         arm = {"left": "left", "right": "right"}
     score, i_left, i_right, k, off = best
-    picks = ~collision_scene(ctx, np.array([i_left, i_right]))
-    extra["balance_offset_m"] = off
-    extra["pickup_hands"] = [h for h, ok in zip(("left", "right"), picks, strict=True) if ok]
-    if not both_pick:  # one hand lifts it; the other joins at the presentation
-        extra["pickup_hands"] = extra["pickup_hands"][:1]
-    if arms:
-        extra["pickup_hands"] = lifts
-    lifts = extra["pickup_hands"]
+    if arms:  # the hands whose arms lift it (choose_pair_h2g1)
+        lifts = tuple(lifts)
+    else:  # the grippers free of the table; one lifts it unless both must
+        picks = ~collision_scene(ctx, np.array([i_left, i_right]))
+        lifts = tuple(h for h, ok in zip(("left", "right"), picks, strict=True) if ok)
+        if not both_pick:  # the other joins at the presentation
+            lifts = lifts[:1]
+    notes = replace(notes, two_handed=TwoHanded(off, lifts))
     chosen = (
         Chosen("left", i_left, k, phase.but(pickup="left" in lifts, other_grasp=i_right,
                                             arm=arm["left"])),
         Chosen("right", i_right, k, phase.but(pickup="right" in lifts, other_grasp=i_left,
                                               arm=arm["right"])),
     )
-    return Attempt("H2G1", True, None, cg, decision, phase, chosen, score, extra=extra)
+    return Attempt("H2G1", True, None, cg, decision, phase, chosen, score, notes=notes)

@@ -15,6 +15,7 @@ itself, grasps it there with its second hand, and hands it over with the second 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -22,7 +23,7 @@ import numpy as np
 from handover.engine.plan.arms.pairs import choose_pair_h2g2
 from handover.engine.plan.arms.solve import reach_rule
 from handover.engine.plan.arms.stages import MIDAIR_BACKOFF
-from handover.engine.plan.attempt import Attempt, Chosen
+from handover.engine.plan.attempt import Attempt, AttemptNotes, Chosen, FirstGrasps, Midair, Pairs
 from handover.engine.plan.compiler import CompiledRule, compile
 from handover.engine.plan.evaluate import evaluate, evaluate_rule
 from handover.engine.plan.explain import infeasible_reason
@@ -123,7 +124,7 @@ def plan_h2g2(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     grasps at the locations the location rules prefer, the presentations that had grasps
     move to their next best locations (every hard location rule still holding) and H2G2 is
     planned again, up to :data:`~handover.engine.plan.modes.common.RELOCATIONS` times
-    (:func:`~handover.engine.plan.modes.common.relocated`); ``extra["relocated"]`` says which
+    (:func:`~handover.engine.plan.modes.common.relocated`); ``notes.relocation`` says which
     presentations moved."""
     cg = compile(kb, ctx, "H2G2")
     return relocated(_plan(ctx, cg, hands_for(cg, ctx), quick),
@@ -142,16 +143,16 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
     first = second.but(pickup=True, receiver_present=False)
     decision = evaluate(cg, ctx, second)
     firsts, first_removed = _feasible_firsts(ctx, first_rules(cg.hard), first)
-    extra = {"first_rejected_by": first_removed, "first_feasible": int(len(firsts))}
+    notes = AttemptNotes(first=FirstGrasps(int(len(firsts)), first_removed))
     ranking = decision.ranking()
     if len(ranking) == 0:
         why = infeasible_reason(decision, "H2G2", quick) + " (second hand)"
-        return Attempt("H2G2", False, why, cg, decision, second, extra=extra)
+        return Attempt("H2G2", False, why, cg, decision, second, notes=notes)
     if len(firsts) == 0:
         why = ", ".join(f"{k} ({v})" for k, v in first_removed.items()) or "no candidates"
         return Attempt("H2G2", False,
                        f"H2G2: no grasp can pick the object at its initial pose: {why}",
-                       cg, decision, second, extra=extra)
+                       cg, decision, second, notes=notes)
     poses = ctx.gripper_poses()
     widths = ctx.candidates.width
     pool = ranking[:SECOND_POOL]
@@ -162,11 +163,9 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
     free &= firsts[:, None] != seconds[None, :]
     clear, midair_hits = _clear_in_midair(ctx, second.hands, firsts, seconds,
                                           decision.pk[pool])
-    extra["pairs_checked"] = int(hit.size)
-    extra["pairs_colliding"] = int(hit.sum())
-    extra["pairs_hitting_in_midair"] = int((free & ~clear).sum())
-    if midair_hits:
-        extra["midair_hits"] = midair_hits
+    notes = replace(notes, pairs=Pairs(checked=int(hit.size), colliding=int(hit.sum()),
+                                       hitting_in_midair=int((free & ~clear).sum()),
+                                       midair_hits=midair_hits))
     free &= clear
     col = np.flatnonzero(free.any(axis=0))
     other = next((c for c in cg.hard if c.rule.kind == "collision"
@@ -176,12 +175,13 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
         return Attempt("H2G2", False,
                        f"H2G2: at the midair pose the object or a gripper hits {named} for "
                        f"every pair of the best {len(pool)} second grasps", cg, decision,
-                       second, extra=extra)
+                       second, notes=notes)
     if len(col) == 0:
         rule = other.id if other is not None else "gripper-gripper collision"
         return Attempt("H2G2", False,
                        f"H2G2: every first grasp collides with the best {len(pool)} second "
-                       f"grasps at the midair pose ({rule})", cg, decision, second, extra=extra)
+                       f"grasps at the midair pose ({rule})", cg, decision, second,
+                       notes=notes)
     arm1 = arm2 = None
     if reach_rule(cg, ctx) is not None:  # arms that hold both grasps exactly
         found, failures = choose_pair_h2g2(ctx, first, second, firsts, seconds,
@@ -191,7 +191,7 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
             said = "; ".join(failures[:3]) or "no arm's map holds a feasible pair"
             return Attempt("H2G2", False, f"H2G2: no pair of arms holds a feasible pair of "
                            f"grasps ({rule}): " + said, cg, decision, second,
-                           extra=extra | {"arm_failures": failures})
+                           notes=replace(notes, arm_failures=tuple(failures)))
         m, f, arm1, arm2 = found
     else:
         m = int(col[0])
@@ -200,9 +200,8 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
     i2, k = int(decision.gi[row]), int(decision.pk[row])
     first_hand = arm1 or hand_at(ctx.initial, ctx.candidates.centre[f])
     second_hand = arm2 or ("left" if first_hand == "right" else "right")
-    extra.update(first=f, first_hand=first_hand, midair=midair_pose(ctx, second.hands.poses[k]),
-                 rows_skipped=m)
+    notes = replace(notes, midair=Midair(midair_pose(ctx, second.hands.poses[k]), m))
     chosen = (Chosen(first_hand, f, k, first.but(other_grasp=i2, arm=arm1), stage="pick"),
               Chosen(second_hand, i2, k, second.but(other_grasp=f, arm=arm2)))
     return Attempt("H2G2", True, None, cg, decision, second, chosen,
-                   float(decision.score[row]), extra=extra)
+                   float(decision.score[row]), notes=notes)

@@ -10,10 +10,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.plan.arms.stages import STAGE_WORDS
+from handover.engine.plan.records import ArmJoints
 from handover.engine.report.rerun.stages import ENTITY_ARMS
 
 if TYPE_CHECKING:
     from handover.engine.assets.robot import RobotArms
+    from handover.engine.plan.records import RobotGrasp
 
 __all__ = ["ARM_COLOURS", "ROBOT_BODY_COLOUR", "arm_primitives", "log_arms", "log_body",
            "boxes_arrays", "quaternions"]
@@ -81,24 +83,24 @@ def boxes_arrays(boxes: list) -> tuple[list[str], np.ndarray, np.ndarray, np.nda
     return names, poses[:, :3, 3], ext / 2.0, quaternions(poses[:, :3, :3])
 
 
-def arm_primitives(arms: RobotArms, grasps: list[dict],
+def arm_primitives(arms: RobotArms, held: list[ArmJoints],
                    stage: str) -> tuple[list[dict], list[tuple], list[dict]]:
-    """The arms holding ``grasps`` (result records with ``arm`` and ``joints``) at ``stage``
+    """The arms of ``held`` (each an arm and its joints per stage) at ``stage``
     (``pickup``, ``midair``, ``handover``, ``place``), posed by forward kinematics of their
     joint values:
     the links' collision shapes as body primitives (capsules ``{name, shape, p0, p1,
     radius}``, boxes ``{name, shape, extents, pose}``, world, m; named by link), their colours
     (:data:`ARM_COLOURS`, by arm), and one chain per arm ``{"side", "points" (P, 3)}``: the
     link origins from the link carrying the first joint (the mount) to the tip link, world,
-    m, coinciding ones once. Each arm once (the first grasp it holds at ``stage``)."""
+    m, coinciding ones once. Each arm once (the first of ``held`` with joints at ``stage``)."""
     from handover.geometry.armcollision import posed_boxes, posed_capsules
 
     prims: list[dict] = []
     colours: list[tuple] = []
     chains: list[dict] = []
-    for g in grasps:
-        side, joints = g.get("arm"), (g.get("joints") or {}).get(stage)
-        if side is None or joints is None or side in {c["side"] for c in chains}:
+    for h in held:
+        side, joints = h.arm, h.joints.get(stage)
+        if joints is None or side in {c["side"] for c in chains}:
             continue
         arm = arms.arm(side)
         q = np.array([float(joints[name]) for name in arm.chain.joint_names])
@@ -125,7 +127,7 @@ def arm_primitives(arms: RobotArms, grasps: list[dict],
     return prims, colours, chains
 
 
-def log_arms(rec, arms: RobotArms, grasps: list[dict], stage: str,
+def log_arms(rec, arms: RobotArms, grasps: list[RobotGrasp], stage: str,
              mode: str | None = None) -> None:
     """The arms at ``stage`` (:func:`arm_primitives`) at the current time, as
     ``world/robot/arms/{stage}/capsules``, ``.../boxes`` (the links' collision shapes) and
@@ -134,7 +136,8 @@ def log_arms(rec, arms: RobotArms, grasps: list[dict], stage: str,
     .other_arm_idle`) under ``.../rest/``."""
     import rerun as rr
 
-    prims, colours, chains = arm_primitives(arms, grasps, stage)
+    prims, colours, chains = arm_primitives(
+        arms, [g.arm_joints for g in grasps if g.arm_joints is not None], stage)
     if not chains:
         return
     entity = f"{ENTITY_ARMS}/{stage}"
@@ -152,7 +155,7 @@ def log_arms(rec, arms: RobotArms, grasps: list[dict], stage: str,
     for side in getattr(arms, "sides", ()):
         arm = arms.arm(side)
         if side not in working and getattr(arm, "rest", None) is not None:
-            resting.append({"arm": side, "joints": {stage: arm.chain.as_dict(arm.rest)}})
+            resting.append(ArmJoints(side, {stage: arm.chain.as_dict(arm.rest)}))
     if not resting:
         return
     prims, colours, chains = arm_primitives(arms, resting, stage)

@@ -22,6 +22,7 @@ from handover.engine.report.rerun.stages import (
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.evaluate import Decision
+    from handover.engine.plan.records import RobotGrasp
     from handover.engine.report.result import PlanResult
 
 __all__ = ["LEVELS", "stage_documents", "log_entries"]
@@ -81,19 +82,18 @@ def _removed_table(removed: dict[str, int], decision: Decision, shown: np.ndarra
     return "\n".join(lines)
 
 
-def _grasps_table(grasps: list[dict]) -> str:
+def _grasps_table(grasps: list[RobotGrasp]) -> str:
     """Markdown rows of the chosen grasps; with arms, the arm holding each and the stages its
     joint values are given for (drawn under ``world/robot/arms``)."""
-    arms = any(g.get("arm") for g in grasps)
+    arms = any(g.arm for g in grasps)
     columns = ["hand", "grasp", "parts", "width m", "quality", "score"] + \
         (["arm (stages)"] if arms else [])
     lines = ["| " + " | ".join(columns) + " |", "|---" * len(columns) + "|"]
     for g in grasps:
-        row = (f"| {g.get('hand')} | {g.get('id')} | {'/'.join(g.get('parts') or [])} | "
-               f"{_fmt(g.get('width'))} | {_fmt(g.get('quality'))} | {_fmt(g.get('score'))} |")
+        row = (f"| {g.hand} | {g.id} | {'/'.join(g.parts)} | "
+               f"{_fmt(g.width)} | {_fmt(g.quality)} | {_fmt(g.score)} |")
         if arms:
-            row += (f" {g['arm']} ({', '.join(g.get('joints') or {})}) |" if g.get("arm")
-                    else " - |")
+            row += f" {g.arm} ({', '.join(g.joints)}) |" if g.arm else " - |"
         lines.append(row)
     return "\n".join(lines)
 
@@ -205,8 +205,8 @@ def stage_documents(
                            f"\nMode **{result.mode}**: {result.mode_reason}\n\n")
         text += _grasps_table(result.robot_grasps) + "\n\n"
         for h in result.human_grasps:
-            pos = ", ".join(f"{v:.3f}" for v in np.asarray(h["position_world"], dtype=float))
-            text += f"Receiver's {h['hand']} hand on **{h['part']}** at ({pos}).\n\n"
+            pos = ", ".join(f"{v:.3f}" for v in np.asarray(h.position_world, dtype=float))
+            text += f"Receiver's {h.hand} hand on **{h.part}** at ({pos}).\n\n"
         axes = (result.presentation or {}).get("axes_world") or {}
         if axes:
             text += ("Placed with " if placed else "Presented with ") + "; ".join(
@@ -217,19 +217,18 @@ def stage_documents(
         text += "The rule trace of each chosen grasp is in the text log (`trace/log`)."
         docs[4] = text
     if 5 in stages:
-        reg = result.regrasp or {}
-        first, second = reg.get("first") or {}, reg.get("second") or {}
+        first, second = result.regrasp.first, result.regrasp.second
         docs[5] = (
-            title(5) + f"\nThe {first.get('hand')} hand picks grasp {first.get('id')} "
-            f"({'/'.join(first.get('parts') or [])}) at the initial pose."
+            title(5) + f"\nThe {first.hand} hand picks grasp {first.id} "
+            f"({'/'.join(first.parts)}) at the initial pose."
         )
         docs[6] = (
-            title(6) + f"\nThe {second.get('hand')} hand takes grasp {second.get('id')} "
-            f"({'/'.join(second.get('parts') or [])}) while the {first.get('hand')} "
+            title(6) + f"\nThe {second.hand} hand takes grasp {second.id} "
+            f"({'/'.join(second.parts)}) while the {first.hand} "
             "hand still holds the object; the grippers do not collide."
         )
         docs[7] = (
-            title(7) + f"\nThe {second.get('hand')} hand presents the object "
+            title(7) + f"\nThe {second.hand} hand presents the object "
             "(shown under `world/handover`)."
         )
     if not result.feasible:

@@ -112,6 +112,7 @@ from handover.engine.store.files import atomic_path, write_error
 if TYPE_CHECKING:
     from handover.engine.plan.attempt import Attempt
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.records import RobotGrasp
     from handover.engine.report.result import PlanResult
 
 __all__ = ["write_recording", "blueprint", "camera"]
@@ -160,11 +161,11 @@ def _log_locations(rec, phase, k: int) -> None:
     rec.log(ENTITY_LOCATIONS, rr.Points3D(locs.points, colors=colours, radii=radii))
 
 
-def _gripper_boxes(ctx: PlanContext, grasps: list[dict]) -> tuple[np.ndarray, ...]:
-    """The gripper boxes of ``grasps`` (result records, object-frame ``pose``, ``width``):
-    centres (3g, 3), half sizes (3g, 3), quaternions (3g, 4), in the object frame."""
-    poses = np.array([np.asarray(g["pose"], dtype=float) for g in grasps])
-    widths = np.array([float(g["width"]) for g in grasps])
+def _gripper_boxes(ctx: PlanContext, grasps: list[RobotGrasp]) -> tuple[np.ndarray, ...]:
+    """The gripper boxes of ``grasps`` (object-frame ``pose``, ``width``): centres (3g, 3),
+    half sizes (3g, 3), quaternions (3g, 4), in the object frame."""
+    poses = np.array([np.asarray(g.pose, dtype=float) for g in grasps])
+    widths = np.array([float(g.width) for g in grasps])
     posed = ctx.gripper.posed_boxes(poses, widths)
     n_parts = len(posed.names)
     centres = posed.centres.reshape(-1, 3)
@@ -274,10 +275,9 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
     if decision is not None and decision.n_rows and int(decision.gi.max()) >= n:
         decision = None  # a table over something else than these candidates
     k = shown_presentation(result, decision, ctx.k)
-    handover_grasps = [g for g in result.robot_grasps if g.get("stage") != "pick"]
-    pick_grasps = [g for g in result.robot_grasps if g.get("stage") not in ("handover", "support")]
-    chosen_ids = [int(g["id"]) for g in handover_grasps if g.get("id") is not None] \
-        if result.feasible else []
+    handover_grasps = [g for g in result.robot_grasps if g.stage != "pick"]
+    pick_grasps = [g for g in result.robot_grasps if g.picks_up]
+    chosen_ids = [g.id for g in handover_grasps if g.id is not None] if result.feasible else []
     classes = stage_classes(decision, n, k, chosen_ids)
     legend, lut = class_table(decision)
     stats = row_stats(decision)
@@ -400,16 +400,15 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
                 log_arms(rec, arms, result.robot_grasps, stage, result.mode or "place")
         if result.human_grasps:
             rec.log("world/receiver/sites", rr.Points3D(
-                [np.asarray(h["position_world"], dtype=float) for h in result.human_grasps],
+                [np.asarray(h.position_world, dtype=float) for h in result.human_grasps],
                 radii=radius * 3.0, colors=RECEIVER_HAND_COLOUR,
-                labels=[f"receiver's {h['hand']} hand on {h['part']}"
+                labels=[f"receiver's {h.hand} hand on {h.part}"
                         for h in result.human_grasps]))  # fmt: skip
 
     # -- stages 5-7 (H2G2): pick, midair, handover
     if 5 in stages:
-        reg = result.regrasp or {}
-        first, second = reg["first"], reg["second"]
-        midair = np.asarray(reg["midair_pose"], dtype=float)
+        first, second = result.regrasp.first, result.regrasp.second
+        midair = np.asarray(result.regrasp.midair_pose, dtype=float)
         steps = (
             (5, initial, [first], [OUTCOME_COLOURS["chosen"]]),
             (6, midair, [first, second], [OUTCOME_COLOURS["chosen"], SECOND_HAND_COLOUR]),
@@ -446,7 +445,8 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
     rec.disconnect()
 
 
-def _log_grippers(rec, ctx: PlanContext, entity: str, grasps: list[dict], colours: list) -> None:
+def _log_grippers(rec, ctx: PlanContext, entity: str, grasps: list[RobotGrasp],
+                  colours: list) -> None:
     """The gripper boxes of ``grasps`` (object frame) as one Boxes3D, each gripper in its
     colour, labelled with hand and grasp id."""
     import rerun as rr
@@ -456,7 +456,7 @@ def _log_grippers(rec, ctx: PlanContext, entity: str, grasps: list[dict], colour
     centres, half, quats = _gripper_boxes(ctx, grasps)
     parts = len(centres) // len(grasps)
     # One label per gripper, on its palm (the first box); the fingers carry none.
-    labels = [f"{g.get('hand')} gripper, grasp {g.get('id')}" if p == 0 else ""
+    labels = [f"{g.hand} gripper, grasp {g.id}" if p == 0 else ""
               for g in grasps for p in range(parts)]  # fmt: skip
     cols = [tuple(col) for col in colours for _ in range(parts)]
     rec.log(entity, rr.Boxes3D(centers=centres, half_sizes=half, quaternions=quats, colors=cols,

@@ -1,0 +1,223 @@
+"""The result's records that planning builds: the robot's grasps (with the arm holding each
+and its joints per stage), the receiver's grasps, and the supporting gripper.
+
+Each record is built once, typed (poses as numpy arrays, metres and radians), and turned into
+its block of the JSON result by ``to_dict()``, which gives JSON-able data in the result's key
+order, floats rounded to :data:`DECIMALS` (:func:`to_jsonable`). The Python facade
+(:class:`handover.Plan`) hands out these same records.
+
+>>> import numpy as np
+>>> held = ArmJoints("right", {"pickup": {"j1": 0.1234567}, "handover": {"j1": 1.0}})
+>>> held.to_dict()
+{'arm': 'right', 'joints': {'pickup': {'j1': 0.123457}, 'handover': {'j1': 1.0}}}
+>>> HumanGrasp("right", np.zeros(3), np.ones(3), "handle").to_dict()["position_world"]
+[1.0, 1.0, 1.0]
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["DECIMALS", "to_jsonable", "dumps", "ArmJoints", "GraspSupport", "RobotGrasp",
+           "HandBox", "HumanGrasp", "PlacementSite"]
+
+DECIMALS = 6
+"""Decimals floats keep in the JSON result: micrometres and microradians."""
+
+
+def to_jsonable(value: Any) -> Any:
+    """Numpy arrays and scalars to lists and floats, rounded to ``DECIMALS``; NaN/inf to None;
+    dict keys to strings. Idempotent (JSON-able data comes back equal)."""
+    if isinstance(value, dict):
+        return {str(k): to_jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return to_jsonable(value.tolist())
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        f = float(value)
+        if not math.isfinite(f):
+            return None
+        r = round(f, DECIMALS)
+        return 0.0 if r == 0 else r  # no "-0.0"
+    return value
+
+
+def dumps(data: Any) -> str:
+    """Deterministic JSON text (indent 2, key order as built, trailing newline)."""
+    return json.dumps(to_jsonable(data), indent=2, ensure_ascii=False) + "\n"
+
+
+@dataclass(frozen=True)
+class ArmJoints:
+    """The arm holding a grasp and its joints at each stage.
+
+    arm : ``left`` | ``right``. joints : stage (``pickup``, ``midair``, ``handover``,
+    ``place``) -> joint name -> value (rad; m for a prismatic joint), stages in the order the
+    grasp is held, joints in chain order: the URDF's forward kinematics put the grasp frame at
+    the grasp's pose there (see :class:`handover.engine.planner.Robot`). fingers_swapped : the
+    stages where the arm holds the grasp turned half a turn about ``a`` (the fingers are
+    alike).
+    """
+
+    arm: str
+    joints: dict[str, dict[str, float]]
+    fingers_swapped: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"arm", "joints"[, "fingers_swapped"]}`` (the last only where a stage swaps)."""
+        out: dict[str, Any] = {"arm": self.arm,
+                               "joints": {stage: dict(q) for stage, q in self.joints.items()}}
+        if self.fingers_swapped:
+            out["fingers_swapped"] = list(self.fingers_swapped)
+        return to_jsonable(out)
+
+
+@dataclass(frozen=True)
+class GraspSupport:
+    """Where a supporting gripper holds the giving one: the supported ``hand`` and its
+    candidate ``grasp``, the part of the giving gripper supported (``at``, e.g. ``wrist``),
+    that point (3,) m in the object frame (``point``) and in the world at the handover
+    (``point_world``), and what the supporting gripper is clear of (``clear_of``)."""
+
+    hand: str
+    grasp: int
+    at: str
+    point: np.ndarray
+    point_world: np.ndarray
+    clear_of: tuple[str, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        return to_jsonable({"hand": self.hand, "grasp": self.grasp, "at": self.at,
+                            "point": self.point, "point_world": self.point_world,
+                            "clear_of": list(self.clear_of)})
+
+
+@dataclass(frozen=True)
+class RobotGrasp:
+    """One of the robot's grasps, as the result's ``robot_grasps`` lists it.
+
+    hand : ``left`` | ``right``. pose : (4, 4) gripper ``[n o a p]`` in the object frame;
+    pose_world : (4, 4) world, with the object at its handover (or placed) pose, and at its
+    initial pose for H2G2's first grasp (``stage`` ``pick``). width : m between the fingers.
+    contacts : (2, 3) m, object frame ((0, 3) for a supporting gripper, which touches the
+    other gripper, not the object). parts : the parts the two contacts touch. score : the
+    attempt's score (None for a support). stage : ``handover``, ``pick`` (H2G2's first
+    grasp), ``place`` or ``support``. arm_joints : the arm holding it and its joints per
+    stage (:class:`ArmJoints`), None for a robot without arms, for a support and where no
+    arm was decided. id : the candidate's index (None for a support). quality : the
+    candidate's grasp quality; roll_deg : its roll about the approach, degrees.
+    staged : the plan holds the object with different grasps at different stages (H2G2, a
+    placement, a support), so the JSON names this grasp's ``stage``; a grasp that picks the
+    object up and hands it over (H1G1, H2G1) has none there. supports : for a supporting
+    gripper, what it supports (:class:`GraspSupport`).
+    """
+
+    hand: str
+    pose: np.ndarray
+    pose_world: np.ndarray
+    width: float
+    contacts: np.ndarray
+    parts: tuple[str, ...]
+    score: float | None
+    stage: str = "handover"
+    arm_joints: ArmJoints | None = None
+    id: int | None = None
+    quality: float | None = None
+    roll_deg: float | None = None
+    staged: bool = False
+    supports: GraspSupport | None = None
+
+    @property
+    def arm(self) -> str | None:
+        """The arm that holds it (``left`` | ``right``), None without one."""
+        return None if self.arm_joints is None else self.arm_joints.arm
+
+    @property
+    def joints(self) -> dict[str, dict[str, float]]:
+        """{stage: {joint name: rad (m for prismatic)}}, empty without an arm."""
+        return {} if self.arm_joints is None else self.arm_joints.joints
+
+    @property
+    def fingers_swapped(self) -> tuple[str, ...]:
+        """The stages where the arm holds it turned half a turn about ``a``."""
+        return () if self.arm_joints is None else self.arm_joints.fingers_swapped
+
+    @property
+    def picks_up(self) -> bool:
+        """Whether this gripper takes the object off the table: every grasp of a plan that
+        is not staged, and H2G2's first grasp and a placement's."""
+        return not self.staged or self.stage in ("pick", "place")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``robot_grasps`` entry: ``hand, id, pose, pose_world, width, contacts, parts,
+        score, quality, roll_deg``, then ``arm, joints[, fingers_swapped]`` with an arm,
+        then ``stage`` when staged; a supporting gripper names its ``stage`` after its
+        ``id`` and ends with ``supports`` (the order the JSON has always had)."""
+        out: dict[str, Any] = {"hand": self.hand, "id": self.id}
+        if self.supports is not None:
+            out["stage"] = self.stage
+        out.update(pose=self.pose, pose_world=self.pose_world, width=self.width,
+                   contacts=self.contacts, parts=list(self.parts), score=self.score,
+                   quality=self.quality, roll_deg=self.roll_deg)
+        if self.supports is not None:
+            out["supports"] = self.supports.to_dict()
+        if self.arm_joints is not None:
+            out.update(self.arm_joints.to_dict())
+        if self.staged and self.supports is None:
+            out["stage"] = self.stage
+        return to_jsonable(out)
+
+
+@dataclass(frozen=True)
+class HandBox:
+    """One box of a receiver's hand model: ``name`` (palm, a finger), ``extents`` (3,) m and
+    ``pose`` (4, 4) world."""
+
+    name: str
+    extents: np.ndarray
+    pose: np.ndarray
+
+    def to_dict(self) -> dict[str, Any]:
+        return to_jsonable({"name": self.name, "extents": self.extents, "pose": self.pose})
+
+
+@dataclass(frozen=True)
+class HumanGrasp:
+    """The receiver's predicted grasp (the seed's C). hand : ``left`` | ``right``.
+    position : (3,) m, object frame; position_world : (3,) m, world, at the handover (or
+    where the object is set down); part : the part under it; model : the boxes of the
+    receiver's hand there (world; empty for an object set down)."""
+
+    hand: str
+    position: np.ndarray
+    position_world: np.ndarray
+    part: str
+    model: tuple[HandBox, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``human_grasps`` entry: ``hand, position, position_world, part, model``."""
+        return to_jsonable({"hand": self.hand, "position": self.position,
+                            "position_world": self.position_world, "part": self.part,
+                            "model": [b.to_dict() for b in self.model]})
+
+
+@dataclass(frozen=True)
+class PlacementSite(HumanGrasp):
+    """Where the receiver takes an object the robot set down (the ``place`` outcome): a
+    :class:`HumanGrasp` without a hand model, whose JSON entry has always listed
+    ``position_world`` last (``hand, position, part, model, position_world``)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return to_jsonable({"hand": self.hand, "position": self.position, "part": self.part,
+                            "model": [b.to_dict() for b in self.model],
+                            "position_world": self.position_world})
