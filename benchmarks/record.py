@@ -124,7 +124,7 @@ def synthetic_plan(n: int, seed: int = 0) -> tuple[PlanResult, PlanContext, Atte
                   poses=poses, location=np.zeros(K, dtype=np.int64), located=np.ones(K, bool),
                   measured={}, hits=((),) * K)
     attempt = Attempt("H1G1", True, None, None, decision, Phase("H1G1", hands=hands))
-    grasp = RobotGrasp(hand="right", pose=cands.poses()[0], pose_world=cands.poses()[0],
+    grasp = RobotGrasp(gripper="right", pose=cands.poses()[0], pose_world=cands.poses()[0],
                        width=0.03, contacts=contacts[0], parts=("handle", "handle"), score=1.0,
                        id=0, quality=float(cands.quality[0]))  # fmt: skip
     trace = [{"grasp": 0, "hand": "right", "rule": r.id, "kind": r.kind, "hard": r.hard,

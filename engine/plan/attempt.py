@@ -28,11 +28,11 @@ __all__ = ["Chosen", "Attempt", "AttemptNotes", "FirstGrasps", "Pairs", "Midair"
 
 @dataclass(frozen=True)
 class Chosen:
-    """One chosen robot grasp: which hand, candidate and presentation, the phase its rules
-    were judged in, and its stage (``pick``: H2G2's first grasp; ``place``: the grasp that
-    sets the object down; else ``handover``)."""
+    """One chosen robot grasp: which gripper (``left`` | ``right``), candidate and
+    presentation, the phase its rules were judged in, and its stage (``pick``: H2G2's first
+    grasp; ``place``: the grasp that sets the object down; else ``handover``)."""
 
-    hand: str
+    gripper: str
     grasp: int
     presentation: int
     phase: Phase

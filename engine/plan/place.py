@@ -87,7 +87,8 @@ class PlacementPlan:
     context : the placement's context (the plan's, with the placed orientations as its
     rotations); attempt : its graph, decision table, phase and chosen grasp (``mode``
     ``place``). pose : (4, 4) object -> world, placed. grasp : candidate index; k : the
-    orientation (index into ``context.rotations``). hand : the robot hand setting it down.
+    orientation (index into ``context.rotations``). gripper : the robot's gripper setting it
+    down.
     site : where the receiver takes it (:class:`~handover.engine.plan.records.PlacementSite`),
     None where no part is theirs to take. record : the JSON ``placement`` (without its
     ``robot_grasp`` and ``rules``, which the result adds).
@@ -100,7 +101,7 @@ class PlacementPlan:
     pose: np.ndarray | None = None
     grasp: int = -1
     k: int = -1
-    hand: str = ""
+    gripper: str = ""
     site: PlacementSite | None = None
     record: dict = field(default_factory=dict)
 
@@ -311,19 +312,20 @@ def _chosen(cg: ConstraintGraph, judged: list[CompiledRule], because: list[Compi
     its grasp, its pose and record. ``site``: the receiver's site on it ((3,) m, object
     frame) and the part under it, or None."""
     from handover.engine.plan.evaluate import trace_row
-    from handover.engine.plan.modes.common import hand_at
+    from handover.engine.plan.modes.common import gripper_at
 
     i, k = int(decision.gi[row]), int(decision.pk[row])
     pose = phase.hands.poses[k]
-    hand = phase.arm or hand_at(pose, rctx.candidates.centre[i], rctx.situation.robot.hands)
+    gripper = phase.arm or gripper_at(pose, rctx.candidates.centre[i],
+                                      rctx.situation.robot.hands)
     trace = trace_row(cg, rctx, phase, i, k, rules=judged, note=NOT_JUDGED)
     causes = {c.id for c in because}
     for e in trace:
         if e["rule"] in causes:
             e["note"] = "forbids handing it over and names fallback: place"
-    trace = [{"grasp": i, "hand": hand, "stage": "place", **e} for e in trace]
+    trace = [{"grasp": i, "hand": gripper, "stage": "place", **e} for e in trace]
     attempt = Attempt("place", True, None, replace(cg, order=judged), decision, phase,
-                      (Chosen(hand, i, k, phase, stage="place"),), float(decision.score[row]),
+                      (Chosen(gripper, i, k, phase, stage="place"),), float(decision.score[row]),
                       trace=tuple(trace))
     taken = None if site is None else PlacementSite(
         hand=rctx.situation.receiver.dominant_hand, position=site[0],
@@ -338,7 +340,7 @@ def _chosen(cg: ConstraintGraph, judged: list[CompiledRule], because: list[Compi
               "orientation": k, "tip_deg": tip_deg,
               "receiver_site": None if taken is None else taken.position_world,
               "measured": values, "why": why, "considered": considered}
-    return PlacementPlan(True, None, rctx, attempt, pose, i, k, hand, taken, record)
+    return PlacementPlan(True, None, rctx, attempt, pose, i, k, gripper, taken, record)
 
 
 def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> PlacementPlan:

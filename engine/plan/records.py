@@ -84,12 +84,12 @@ class ArmJoints:
 
 @dataclass(frozen=True)
 class GraspSupport:
-    """Where a supporting gripper holds the giving one: the supported ``hand`` and its
+    """Where a supporting gripper holds the giving one: the supported ``gripper`` and its
     candidate ``grasp``, the part of the giving gripper supported (``at``, e.g. ``wrist``),
     that point (3,) m in the object frame (``point``) and in the world at the handover
     (``point_world``), and what the supporting gripper is clear of (``clear_of``)."""
 
-    hand: str
+    gripper: str
     grasp: int
     at: str
     point: np.ndarray
@@ -97,7 +97,7 @@ class GraspSupport:
     clear_of: tuple[str, ...]
 
     def to_dict(self) -> dict[str, Any]:
-        return to_jsonable({"hand": self.hand, "grasp": self.grasp, "at": self.at,
+        return to_jsonable({"hand": self.gripper, "grasp": self.grasp, "at": self.at,
                             "point": self.point, "point_world": self.point_world,
                             "clear_of": list(self.clear_of)})
 
@@ -106,7 +106,8 @@ class GraspSupport:
 class RobotGrasp:
     """One of the robot's grasps, as the result's ``robot_grasps`` lists it.
 
-    hand : ``left`` | ``right``. pose : (4, 4) gripper ``[n o a p]`` in the object frame;
+    gripper : ``left`` | ``right`` (the JSON's ``hand``: the robot's hand it is). pose : (4, 4)
+    gripper ``[n o a p]`` in the object frame;
     pose_world : (4, 4) world, with the object at its handover (or placed) pose, and at its
     initial pose for H2G2's first grasp (``stage`` ``pick``). width : m between the fingers.
     contacts : (2, 3) m, object frame ((0, 3) for a supporting gripper, which touches the
@@ -122,7 +123,7 @@ class RobotGrasp:
     gripper, what it supports (:class:`GraspSupport`).
     """
 
-    hand: str
+    gripper: str
     pose: np.ndarray
     pose_world: np.ndarray
     width: float
@@ -163,7 +164,7 @@ class RobotGrasp:
         score, quality, roll_deg``, then ``arm, joints[, fingers_swapped]`` with an arm,
         then ``stage`` when staged; a supporting gripper names its ``stage`` after its
         ``id`` and ends with ``supports`` (the order the JSON has always had)."""
-        out: dict[str, Any] = {"hand": self.hand, "id": self.id}
+        out: dict[str, Any] = {"hand": self.gripper, "id": self.id}
         if self.supports is not None:
             out["stage"] = self.stage
         out.update(pose=self.pose, pose_world=self.pose_world, width=self.width,

@@ -100,7 +100,7 @@ def _gripper_meshes(spec: GripperSpec) -> dict:
     return {"meshes": spec.meshes.model_dump()}
 
 
-def grasp_record(ctx: PlanContext, hand: str, i: int, pose_k: np.ndarray,
+def grasp_record(ctx: PlanContext, gripper: str, i: int, pose_k: np.ndarray,
                  score: float | None, *, stage: str = "handover", staged: bool = False,
                  arm_joints: ArmJoints | None = None) -> RobotGrasp:
     """Candidate ``i`` as a robot grasp of the result: object frame, and world with the
@@ -110,7 +110,7 @@ def grasp_record(ctx: PlanContext, hand: str, i: int, pose_k: np.ndarray,
     c = ctx.candidates
     pose = ctx.gripper_poses()[i].copy()
     return RobotGrasp(
-        hand=hand, pose=pose, pose_world=pose_k @ pose, width=float(c.width[i]),
+        gripper=gripper, pose=pose, pose_world=pose_k @ pose, width=float(c.width[i]),
         contacts=np.array(c.contacts[i], dtype=float),
         parts=tuple(c.part_names[p] for p in c.parts[i]), score=score, stage=stage,
         arm_joints=arm_joints, id=i, quality=float(c.quality[i]),
@@ -292,7 +292,7 @@ def robot_grasps(shown: Shown) -> list[RobotGrasp]:
     from handover.engine.plan.arms.solve import arm_joints
 
     staged = any(c.stage != "handover" for c in a.chosen)
-    out = [grasp_record(sctx, c.hand, c.grasp,
+    out = [grasp_record(sctx, c.gripper, c.grasp,
                         sctx.initial if c.stage == "pick" else c.phase.hands.poses[c.presentation],
                         a.score, stage=c.stage, staged=staged,
                         arm_joints=arm_joints(sctx, c.phase, c.grasp, c.presentation)

@@ -119,8 +119,8 @@ def _same_attempt(a, b) -> None:
     # A mode a strict (hard) rule required says so before the mode's own reason.
     assert a.reason == b.reason or (
         "a hard rule that does not bend: " in a.reason and a.reason.endswith(f": {b.reason}"))
-    assert [(c.hand, c.grasp, c.presentation, c.stage) for c in a.chosen] == \
-        [(c.hand, c.grasp, c.presentation, c.stage) for c in b.chosen]
+    assert [(c.gripper, c.grasp, c.presentation, c.stage) for c in a.chosen] == \
+        [(c.gripper, c.grasp, c.presentation, c.stage) for c in b.chosen]
     if a.decision is not None:
         np.testing.assert_array_equal(a.decision.kept, b.decision.kept)
 
@@ -242,7 +242,7 @@ def world_planner(kb_copy) -> Planner:
 
 def test_a_one_handed_robot_plans_one_hand_only(world_planner):
     knife = world_planner.plan("knife", robot="one_arm")
-    assert knife.mode == "H1G1" and [g.hand for g in knife.robot_grasps] == ["right"]
+    assert knife.mode == "H1G1" and [g.gripper for g in knife.robot_grasps] == ["right"]
     tray = world_planner.plan("tray", robot="one_arm").to_dict()  # needs two hands
     assert not tray["feasible"]
     tried = {m["mode"]: m["reason"] for m in tray["modes_tried"]}

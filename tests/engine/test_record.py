@@ -150,7 +150,7 @@ def _context(cands: CandidateSet) -> PlanContext:
 def _grasp(cands: CandidateSet, i: int, hand: str, score: float,
            stage: str | None = None) -> RobotGrasp:
     pose = cands.poses()[i]
-    return RobotGrasp(hand=hand, pose=pose, pose_world=pose, width=float(cands.width[i]),
+    return RobotGrasp(gripper=hand, pose=pose, pose_world=pose, width=float(cands.width[i]),
                       contacts=cands.contacts[i],
                       parts=tuple(cands.part_names[p] for p in cands.parts[i]), score=score,
                       stage=stage or "handover", id=i, quality=float(cands.quality[i]),
@@ -710,7 +710,7 @@ def test_real_h2g2_plan_records_pick_midair_and_handover(kb, tmp_path):
     assert np.allclose(moves[6][0], result.regrasp.midair_pose[:3, 3], atol=1e-6)
     first, second = result.regrasp.first, result.regrasp.second
     pick_lines = "\n".join(t["text"] for t in summary["trace"] if t["stage"] == 5)
-    assert f"grasp {first.id} ({first.hand} hand) [pick]" in pick_lines
+    assert f"grasp {first.id} ({first.gripper} hand) [pick]" in pick_lines
     # The candidates are drawn at the handover: the second hand's grasp is the chosen one.
     final = by_stage(cols[ENTITY_CENTRES], "Points3D:class_ids")[4]
     assert final[second.id] == CLASS_CHOSEN

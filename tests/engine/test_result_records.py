@@ -32,7 +32,7 @@ TURN = np.array([[0.0, -1.0, 0.0, 0.01], [1.0, 0.0, 0.0, 0.02], [0.0, 0.0, 1.0, 
 
 
 def _grasp(**changes) -> RobotGrasp:
-    fields = dict(hand="right", pose=np.eye(4), pose_world=TURN, width=0.0301234567,
+    fields = dict(gripper="right", pose=np.eye(4), pose_world=TURN, width=0.0301234567,
                   contacts=np.array([[0.0, -0.015, 0.0], [0.0, 0.015, 0.0]]),
                   parts=("handle", "handle"), score=0.87654321, id=7, quality=0.5,
                   roll_deg=-0.0)
@@ -74,9 +74,9 @@ def test_an_arm_s_joints_follow_the_grasp_and_a_staged_grasp_names_its_stage_las
 
 
 def test_a_supporting_gripper_names_its_stage_after_its_id_and_ends_with_what_it_supports():
-    support = GraspSupport(hand="right", grasp=3, at="wrist", point=np.array([0.1, 0, 0]),
+    support = GraspSupport(gripper="right", grasp=3, at="wrist", point=np.array([0.1, 0, 0]),
                            point_world=np.array([0.5, 0.1, 1.0]), clear_of=("object",))
-    g = _grasp(hand="left", id=None, contacts=np.zeros((0, 3)), parts=(), score=None,
+    g = _grasp(gripper="left", id=None, contacts=np.zeros((0, 3)), parts=(), score=None,
                quality=None, roll_deg=None, stage="support", staged=True, supports=support)
     out = g.to_dict()
     assert list(out) == ["hand", "id", "stage", "pose", "pose_world", "width", "contacts",
@@ -89,7 +89,7 @@ def test_a_supporting_gripper_names_its_stage_after_its_id_and_ends_with_what_it
 
 def test_a_regrasp_gives_the_first_gripper_at_the_midair_pose():
     first = _grasp(pose=TURN, stage="pick", staged=True)
-    second = _grasp(hand="left", id=8, staged=True)
+    second = _grasp(gripper="left", id=8, staged=True)
     midair = np.eye(4)
     midair[:3, 3] = [0.4, 0.0, 1.1]
     out = Regrasp(first, midair, second).to_dict()

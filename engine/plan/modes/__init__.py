@@ -27,7 +27,7 @@ from handover.engine.plan.attempt import Attempt, AttemptNotes, Chosen, Relaxati
 from handover.engine.plan.compiler import compile
 from handover.engine.plan.evaluate import trace_row
 from handover.engine.plan.modes import h1g1, h2g1, h2g2  # noqa: F401  (register the planners)
-from handover.engine.plan.modes.common import HANDS_NEEDED, PLANNERS, hand_at
+from handover.engine.plan.modes.common import HANDS_NEEDED, PLANNERS, gripper_at
 from handover.engine.plan.modes.h2g2 import FIRST_NOTE, first_rules
 from handover.engine.plan.records import GraspSupport, RobotGrasp
 
@@ -53,7 +53,7 @@ def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
                                 note=FIRST_NOTE)
         else:
             entries = trace_row(cg, ctx, c.phase, c.grasp, c.presentation)
-        trace.extend({"grasp": c.grasp, "hand": c.hand, "stage": c.stage, **e}
+        trace.extend({"grasp": c.grasp, "hand": c.gripper, "stage": c.stage, **e}
                      for e in entries)
     return trace
 
@@ -279,17 +279,17 @@ def _with_support(ctx: PlanContext, base: Attempt, bend: Bend, rule: CompiledRul
     d = base.decision
     i, k = int(d.gi[support.row]), int(d.pk[support.row])
     pose_k = base.phase.hands.poses[k]
-    hand = hand_at(pose_k, ctx.candidates.centre[i], hands)
-    other = next(h for h in hands if h != hand)
-    chosen = replace(base, chosen=(Chosen(hand, i, k, base.phase),),
+    gripper = gripper_at(pose_k, ctx.candidates.centre[i], hands)
+    other = next(h for h in hands if h != gripper)
+    chosen = replace(base, chosen=(Chosen(gripper, i, k, base.phase),),
                      score=float(d.score[support.row]))
     checked = _checked(ctx, chosen)
     if not checked.feasible:
         return replace(checked, reason=f"{label}: {checked.reason}")
     record = RobotGrasp(
-        hand=other, pose=support.pose, pose_world=pose_k @ support.pose, width=support.width,
+        gripper=other, pose=support.pose, pose_world=pose_k @ support.pose, width=support.width,
         contacts=np.zeros((0, 3)), parts=(), score=None, stage="support", staged=True,
-        supports=GraspSupport(hand=hand, grasp=i, at=bend.support, point=support.wrist,
+        supports=GraspSupport(gripper=gripper, grasp=i, at=bend.support, point=support.wrist,
                               point_world=pose_k[:3, :3] @ support.wrist + pose_k[:3, 3],
                               clear_of=tuple(n for n, ok in support.checked.items() if ok)))
     entry = {
@@ -298,7 +298,7 @@ def _with_support(ctx: PlanContext, base: Attempt, bend: Bend, rule: CompiledRul
         "threshold": f"collision-free at the giving {bend.support}", "score": None,
         "weight": rule.rule.weight, "within": True, "why": bend.why, "source": rule.source,
         "culture": rule.culture, "overrides": [], "safety": False,
-        "note": (f"the {other} gripper supports the {hand} gripper's {bend.support}, clear of "
+        "note": (f"the {other} gripper supports the {gripper} gripper's {bend.support}, clear of "
                  + ", ".join(record.supports.clear_of)),
     }
     return replace(checked, trace=(*checked.trace, entry)).noted(

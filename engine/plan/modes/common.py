@@ -1,4 +1,4 @@
-"""What the mode planners share: their registry, the robot hand nearer a grasp, and moving
+"""What the mode planners share: their registry, the robot gripper nearer a grasp, and moving
 the handover to the next best locations when the arms hold no grasp where it was."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from handover.engine.plan.phase import Hands
 
 __all__ = ["CATALOGUE", "PLANNERS", "HANDS_NEEDED", "RELOCATIONS", "RETRY_CHECKS",
-           "H2G1_RELOCATIONS", "register", "hand_at", "relocated"]
+           "H2G1_RELOCATIONS", "register", "gripper_at", "relocated"]
 
 RELOCATIONS = 6
 """How many times the presentations whose grasps no arm (or pair of arms) holds move to their
@@ -55,7 +55,7 @@ def register(mode: str, hands: int = 1) -> Callable[[Planner], Planner]:
     return add
 
 
-def hand_at(pose: np.ndarray, centre: np.ndarray, hands=("left", "right")) -> str:
+def gripper_at(pose: np.ndarray, centre: np.ndarray, hands=("left", "right")) -> str:
     """The robot hand nearer a grasp centre (object frame) with the object at ``pose``
     (4, 4): left if it lies on the robot's left (+y); a robot with one hand uses it."""
     if len(hands) == 1:

@@ -12,7 +12,7 @@ from handover.engine.plan.compiler import compile
 from handover.engine.plan.evaluate import evaluate
 from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.hands import hands_for
-from handover.engine.plan.modes.common import hand_at, register
+from handover.engine.plan.modes.common import gripper_at, register
 from handover.engine.plan.phase import Phase
 
 if TYPE_CHECKING:
@@ -44,7 +44,7 @@ def plan_h1g1(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
                            notes=AttemptNotes(arm_failures=tuple(failures)))
         best, held = found, phase.but(arm=check.side)
     i, k = int(decision.gi[best]), int(decision.pk[best])
-    hand = held.arm or hand_at(phase.hands.poses[k], ctx.candidates.centre[i],
+    gripper = held.arm or gripper_at(phase.hands.poses[k], ctx.candidates.centre[i],
                                ctx.situation.robot.hands)
-    return Attempt("H1G1", True, None, cg, decision, phase, (Chosen(hand, i, k, held),),
+    return Attempt("H1G1", True, None, cg, decision, phase, (Chosen(gripper, i, k, held),),
                    float(decision.score[best]))

@@ -28,7 +28,7 @@ from handover.engine.plan.compiler import CompiledRule, compile
 from handover.engine.plan.evaluate import evaluate, evaluate_rule
 from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.hands import hands_for
-from handover.engine.plan.modes.common import hand_at, register, relocated
+from handover.engine.plan.modes.common import gripper_at, register, relocated
 from handover.engine.plan.phase import Phase
 from handover.geometry.body_mesh import mesh_hits
 
@@ -198,10 +198,10 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
         f = int(firsts[int(np.argmax(free[:, m]))])
     row = int(pool[m])
     i2, k = int(decision.gi[row]), int(decision.pk[row])
-    first_hand = arm1 or hand_at(ctx.initial, ctx.candidates.centre[f])
-    second_hand = arm2 or ("left" if first_hand == "right" else "right")
+    first_gripper = arm1 or gripper_at(ctx.initial, ctx.candidates.centre[f])
+    second_gripper = arm2 or ("left" if first_gripper == "right" else "right")
     notes = replace(notes, midair=Midair(midair_pose(ctx, second.hands.poses[k]), m))
-    chosen = (Chosen(first_hand, f, k, first.but(other_grasp=i2, arm=arm1), stage="pick"),
-              Chosen(second_hand, i2, k, second.but(other_grasp=f, arm=arm2)))
+    chosen = (Chosen(first_gripper, f, k, first.but(other_grasp=i2, arm=arm1), stage="pick"),
+              Chosen(second_gripper, i2, k, second.but(other_grasp=f, arm=arm2)))
     return Attempt("H2G2", True, None, cg, decision, second, chosen,
                    float(decision.score[row]), notes=notes)

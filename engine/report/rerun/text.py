@@ -90,7 +90,7 @@ def _grasps_table(grasps: list[RobotGrasp]) -> str:
         (["arm (stages)"] if arms else [])
     lines = ["| " + " | ".join(columns) + " |", "|---" * len(columns) + "|"]
     for g in grasps:
-        row = (f"| {g.hand} | {g.id} | {'/'.join(g.parts)} | "
+        row = (f"| {g.gripper} | {g.id} | {'/'.join(g.parts)} | "
                f"{_fmt(g.width)} | {_fmt(g.quality)} | {_fmt(g.score)} |")
         if arms:
             row += f" {g.arm} ({', '.join(g.joints)}) |" if g.arm else " - |"
@@ -219,16 +219,16 @@ def stage_documents(
     if 5 in stages:
         first, second = result.regrasp.first, result.regrasp.second
         docs[5] = (
-            title(5) + f"\nThe {first.hand} hand picks grasp {first.id} "
+            title(5) + f"\nThe {first.gripper} hand picks grasp {first.id} "
             f"({'/'.join(first.parts)}) at the initial pose."
         )
         docs[6] = (
-            title(6) + f"\nThe {second.hand} hand takes grasp {second.id} "
-            f"({'/'.join(second.parts)}) while the {first.hand} "
+            title(6) + f"\nThe {second.gripper} hand takes grasp {second.id} "
+            f"({'/'.join(second.parts)}) while the {first.gripper} "
             "hand still holds the object; the grippers do not collide."
         )
         docs[7] = (
-            title(7) + f"\nThe {second.hand} hand presents the object "
+            title(7) + f"\nThe {second.gripper} hand presents the object "
             "(shown under `world/handover`)."
         )
     if not result.feasible:

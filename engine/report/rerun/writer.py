@@ -456,7 +456,7 @@ def _log_grippers(rec, ctx: PlanContext, entity: str, grasps: list[RobotGrasp],
     centres, half, quats = _gripper_boxes(ctx, grasps)
     parts = len(centres) // len(grasps)
     # One label per gripper, on its palm (the first box); the fingers carry none.
-    labels = [f"{g.hand} gripper, grasp {g.id}" if p == 0 else ""
+    labels = [f"{g.gripper} gripper, grasp {g.id}" if p == 0 else ""
               for g in grasps for p in range(parts)]  # fmt: skip
     cols = [tuple(col) for col in colours for _ in range(parts)]
     rec.log(entity, rr.Boxes3D(centers=centres, half_sizes=half, quaternions=quats, colors=cols,
