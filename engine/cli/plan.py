@@ -182,6 +182,9 @@ def verify(
     plan_file: Path = typer.Argument(..., metavar="PLAN.json",
                                      help="A plan's JSON (handover plan --json), edited or not."),
     json_out: bool = typer.Option(False, "--json", help="Print the physics block as JSON."),
+    with_receiver: bool = typer.Option(
+        False, "--with-receiver", help="The receiver's fingertip pads take the object at the "
+        "handover and the grippers let go (their pinch force from the receiver's profile)."),
     db: Path | None = typer.Option(
         None, "--db", help="Grasp database folder (its convex/ caches mesh decompositions)."),
 ) -> None:
@@ -206,7 +209,7 @@ def verify(
         raise UsageError(f"{plan_file} is not JSON: {e}") from None
     kb = load_kb_cached(state.kb_dir, None)
     grasp_db = open_db(db)
-    physics = check_plan(kb, data, convex_cache(grasp_db)).to_dict()
+    physics = check_plan(kb, data, convex_cache(grasp_db), receiver=with_receiver).to_dict()
     if json_out:
         typer.echo(json_text(physics), nl=False)
     else:

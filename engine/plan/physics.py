@@ -15,8 +15,17 @@ candidates of the same presentation are checked (at most :data:`FALLBACKS`,
 :func:`check_alternatives`), so the plan says which failed, how they slipped, and which
 holds.
 
-The receiver's side (their pads closing at the handover, the gripper letting go) is not
-simulated here yet: the check ends after the shake at the handover pose.
+Asked to (``receiver=True``), at the handover the receiver takes the object
+(:func:`receiver_grasps`): each of their
+hands as two pads where the plan's hand model puts the fingers and the thumb, pressing with
+the receiver's pinch force (``ReceiverProfile.pinch_force``: weaker for an elder or a child),
+then the grippers open and retreat and the receiver holds it alone. A receiver's grasp the
+pads cannot take (their model has no fingers and thumb, or the pads would start inside the
+object) is left out with a note, and the check ends after the shake. It is not asked by
+default: fingertip pads are a pinch, and the plans' receivers mostly wrap (a built-in tray's
+rim taken by two pads pinching 28.5 N each slips out, and the pads coming in push it in the
+grippers 13 mm), so the receiver's verdict would speak of the pads' model more than of the
+plan.
 """
 
 from __future__ import annotations
@@ -37,7 +46,8 @@ if TYPE_CHECKING:
     from handover.geometry.physics import EnsembleResult, Grasp, Hand, Motion, ObjectModel
 
 __all__ = ["FALLBACKS", "GraspCheck", "PlanPhysics", "object_model", "gripper_hand",
-           "plan_motion", "plan_grasps", "check_group", "check_plan", "check_alternatives"]
+           "plan_motion", "plan_grasps", "receiver_grasps", "check_group", "check_plan",
+           "check_alternatives"]
 
 FALLBACKS = 3
 """At most this many next best candidates are checked when the chosen grasp fails."""
@@ -167,6 +177,42 @@ def plan_grasps(hand: Hand, data: dict) -> list[tuple[str, Any, Grasp]]:
     return out
 
 
+def receiver_grasps(data: dict, pinch_force: float) -> tuple[list[Grasp], list[str]]:
+    """The receiver's hands as pads (object frame) from the plan's ``human_grasps``: for each
+    hand, its ``fingers`` and ``thumb`` boxes (world, at ``object_pose``) give the closing
+    axis ``o`` (fingers to thumb), the origin (midway) and the width between them (their
+    centres' distance less a box's thickness); ``a`` points from the palm to that origin.
+    Returns the grasps and a note for each hand left out."""
+    from handover.geometry.frames import frame_from_o_a, invert_transform, transform_from
+    from handover.geometry.physics import Grasp, Hand
+
+    pads = Hand.receiver_pads(pinch_force)
+    to_object = invert_transform(_matrix(data["object_pose"], "object_pose"))
+    out: list[Grasp] = []
+    notes: list[str] = []
+    for k, h in enumerate(data.get("human_grasps") or []):
+        boxes = {b.get("name"): b for b in h.get("model") or [] if isinstance(b, dict)}
+        if not {"palm", "fingers", "thumb"} <= set(boxes):
+            notes.append(f"receiver's {h.get('hand', k)} hand not simulated: its model has no "
+                         "palm, fingers and thumb")
+            continue
+        centre = {n: (to_object @ _matrix(boxes[n]["pose"], f"human_grasps[{k}].{n}"))[:3, 3]
+                  for n in ("palm", "fingers", "thumb")}
+        across = centre["thumb"] - centre["fingers"]
+        width = float(np.linalg.norm(across) - float(boxes["fingers"]["extents"][1]))
+        origin = (centre["thumb"] + centre["fingers"]) / 2.0
+        toward = origin - centre["palm"]
+        o = across / np.linalg.norm(across)
+        toward = toward - o * (toward @ o)
+        if width <= 0 or width > pads.max_opening or np.linalg.norm(toward) < 1e-6:
+            notes.append(f"receiver's {h.get('hand', k)} hand not simulated: its fingers and "
+                         f"thumb are {width * 1000:.0f} mm apart")
+            continue
+        pose = transform_from(frame_from_o_a(o, toward / np.linalg.norm(toward)), origin)
+        out.append(Grasp(pads, pose, width))
+    return out, notes
+
+
 @dataclass(frozen=True)
 class GraspCheck:
     """The physics check of one grasp group: the ``hands`` and candidate ``ids`` of its
@@ -196,7 +242,8 @@ class GraspCheck:
         return {
             "mode": self.mode,
             "grasps": [{"hand": h, "id": i} for h, i in zip(self.hands, self.ids, strict=True)],
-            "passed": self.passed, "dropped_in": nominal.dropped_in, "slip": slip,
+            "passed": self.passed, "dropped_in": nominal.dropped_in,
+            "receiver_held": nominal.receiver_held, "slip": slip,
             "max_translation_mm": round(nominal.max_translation_mm, 2),
             "max_rotation_deg": round(nominal.max_rotation_deg, 2),
             "margin": ens["margin"], "robust": ens["robust"],
@@ -249,17 +296,21 @@ def _specs(kb: KB, data: dict) -> tuple[ObjectSpec, GripperSpec]:
 
 
 def check_group(obj: ObjectModel, mode: str, grasps: list[tuple[str, Any, Grasp]],
-                motion: Motion) -> GraspCheck:
-    """Run the ensemble on one grasp group (see :func:`plan_grasps`)."""
+                motion: Motion, receiver: list[Grasp] | None = None) -> GraspCheck:
+    """Run the ensemble on one grasp group (see :func:`plan_grasps`), the receiver's pads
+    taking the object at the end if given."""
     from handover.geometry.physics import ensemble
 
-    result = ensemble(obj, [g for _, _, g in grasps], motion, mode=mode)
+    result = ensemble(obj, [g for _, _, g in grasps], motion, mode=mode,
+                      receiver=receiver or None)
     return GraspCheck(mode, tuple(h for h, _, _ in grasps),
                       tuple(None if i is None else int(i) for _, i, _ in grasps), result)
 
 
-def check_plan(kb: KB, data: dict, cache_dir: str | Path | None = None) -> PlanPhysics:
-    """Check a plan's chosen grasps (its JSON result ``data``) in physics.
+def check_plan(kb: KB, data: dict, cache_dir: str | Path | None = None,
+               receiver: bool = False) -> PlanPhysics:
+    """Check a plan's chosen grasps (its JSON result ``data``) in physics; with
+    ``receiver``, the receiver's pads take the object at the handover (module docstring).
 
     Raises UsageError when ``data`` is not a handover plan or its poses and grasps are not
     well formed, UnknownIdError when it names an object or gripper the KB does not hold.
@@ -273,11 +324,33 @@ def check_plan(kb: KB, data: dict, cache_dir: str | Path | None = None) -> PlanP
     hand = gripper_hand(kb, grip_spec)
     grasps = plan_grasps(hand, data)
     motion = plan_motion(data)
+    taker, notes = _receiver(kb, data) if receiver else ([], [])
     try:
-        checked = check_group(obj, data["mode"], grasps, motion)
-    except ValueError as e:  # a grasp that does not fit the object (fingers start inside)
+        checked = check_group(obj, data["mode"], grasps, motion, taker)
+    except ValueError as e:
+        if not taker or "receiver" not in str(e):
+            # a gripper's grasp that does not fit the object (fingers start inside)
+            raise UsageError(f"the plan's grasp cannot be simulated: {e}") from None
+        notes.append(f"the receiver's hands not simulated: {e}")
+        checked = _checked(obj, data["mode"], grasps, motion)
+    return PlanPhysics(checked, seconds=time.perf_counter() - start, notes=tuple(notes))
+
+
+def _checked(obj: ObjectModel, mode: str, grasps: list, motion: Motion) -> GraspCheck:
+    try:
+        return check_group(obj, mode, grasps, motion)
+    except ValueError as e:
         raise UsageError(f"the plan's grasp cannot be simulated: {e}") from None
-    return PlanPhysics(checked, seconds=time.perf_counter() - start)
+
+
+def _receiver(kb: KB, data: dict) -> tuple[list[Grasp], list[str]]:
+    """The receiver's pads (their profile's pinch force), or none with a note."""
+    rid = (data.get("query") or {}).get("receiver") if isinstance(data.get("query"),
+                                                                  dict) else None
+    if rid not in kb.receivers:
+        return [], [f"the plan's receiver {rid!r} is not in the knowledge base: the "
+                    "handover to them is not simulated"]
+    return receiver_grasps(data, kb.receivers[rid].pinch_force)
 
 
 def check_alternatives(kb: KB, ctx: PlanContext, data: dict, physics: PlanPhysics,

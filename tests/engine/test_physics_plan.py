@@ -72,6 +72,18 @@ def test_the_same_check_twice_gives_identical_numbers(kb, hammer_plan):
     assert first == second
 
 
+def test_the_receiver_takes_the_hammer_by_its_handle_and_holds_it(kb, hammer_plan):
+    assert hammer_plan["human_grasps"][0]["part"] == "handle"
+    checked = check_plan(kb, hammer_plan, receiver=True)
+    block = checked.to_dict()["chosen"]
+    assert block["receiver_held"] is True and checked.passed
+    # the grippers let go and the receiver holds it alone, measured in their hand's frame
+    alone = [p for p in block["slip"] if p["phase"] == "handover_hold"]
+    assert [p["holder"] for p in alone] == ["receiver"]
+    assert alone[0]["translation_mm"] < 5.0 and not alone[0]["dropped"]
+    assert check_plan(kb, hammer_plan).to_dict()["chosen"]["receiver_held"] is None
+
+
 def test_a_tray_held_by_one_gripper_at_its_rim_drops_and_by_two_holds(kb, tray_plan):
     assert tray_plan["mode"] == "H2G1"
     both = check_plan(kb, tray_plan)
