@@ -106,7 +106,13 @@ def plan(
     result = planned.result
     data = result.to_dict()
     if rrd is not None:
-        planned.record(rrd)
+        motion = None
+        if data.get("physics") is not None:
+            from handover.engine.plan.physics import record_plan
+            from handover.engine.tools.answer import convex_cache
+
+            motion = record_plan(kb, data, convex_cache(grasp_db))
+        planned.record(rrd, physics=motion)
     text = render(planned, "json").decode("utf-8")
     if output is not None:
         try:

@@ -43,11 +43,18 @@ if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.spec.schema import GripperSpec, ObjectSpec
     from handover.engine.store.kb import KB
-    from handover.geometry.physics import EnsembleResult, Grasp, Hand, Motion, ObjectModel
+    from handover.geometry.physics import (
+        EnsembleResult,
+        Grasp,
+        Hand,
+        Motion,
+        ObjectModel,
+        Trajectory,
+    )
 
 __all__ = ["FALLBACKS", "GraspCheck", "PlanPhysics", "object_model", "gripper_hand",
            "plan_motion", "plan_grasps", "receiver_grasps", "check_group", "check_plan",
-           "check_alternatives"]
+           "check_alternatives", "record_plan"]
 
 FALLBACKS = 3
 """At most this many next best candidates are checked when the chosen grasp fails."""
@@ -399,3 +406,21 @@ def check_alternatives(kb: KB, ctx: PlanContext, data: dict, physics: PlanPhysic
         notes.append(f"none of the {len(failed)} next best candidates checked holds")
     return PlanPhysics(physics.checked, tuple(failed), holds,
                        physics.seconds + time.perf_counter() - start, tuple(notes))
+
+
+def record_plan(kb: KB, data: dict, cache_dir: str | Path | None = None) -> Trajectory:
+    """The nominal check of a plan's chosen grasps (as :func:`check_plan`, without the
+    ensemble or the receiver), recorded: the simulated object and hands over time
+    (:class:`handover.geometry.physics.Trajectory`, 50 Hz), for the recording's ``physics``
+    timeline."""
+    from handover.geometry.physics import check
+
+    obj_spec, grip_spec = _specs(kb, data)
+    obj = object_model(kb, obj_spec, cache_dir)
+    grasps = plan_grasps(gripper_hand(kb, grip_spec), data)
+    try:
+        result = check(obj, [g for _, _, g in grasps], plan_motion(data), mode=data["mode"],
+                       record=True)
+    except ValueError as e:
+        raise UsageError(f"the plan's grasp cannot be simulated: {e}") from None
+    return result.trajectory

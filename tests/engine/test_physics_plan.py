@@ -152,3 +152,27 @@ def test_unknown_object_or_gripper_is_a_clear_error(kb, hammer_plan):
     broken["robot_grasps"][0]["pose"] = np.diag([2.0, 1.0, 1.0, 1.0]).tolist()
     with pytest.raises(UsageError, match="not a rigid transform"):
         check_plan(kb, broken)
+
+
+def test_the_recording_shows_the_simulated_object_from_pick_up_to_the_handover(capsys, tmp_path):
+    from rerun.chunk import RrdReader
+
+    rrd, out = tmp_path / "plan.rrd", tmp_path / "plan.json"
+    code, _, _ = _run(capsys, "plan", "knife", "--physics", "--no-db", "--rrd", str(rrd),
+                      "-o", str(out))
+    assert code == 0
+    data = json.loads(out.read_text())
+    positions, times, fingers = [], [], 0
+    for chunk in RrdReader(rrd).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if chunk.entity_path == "/world/physics/object":
+            positions += [p[0] for p in batch.column("Transform3D:translation").to_pylist()]
+            times += batch.column("physics").to_pylist()
+        if chunk.entity_path == "/world/physics/gripper0/fingers":
+            fingers += batch.num_rows
+    order = np.argsort(times)
+    positions = np.asarray(positions)[order]
+    # from where it lay on the table to where it is handed over, at 50 Hz over the protocol
+    np.testing.assert_allclose(positions[0], np.asarray(data["initial_pose"])[:3, 3], atol=0.005)
+    np.testing.assert_allclose(positions[-1], np.asarray(data["object_pose"])[:3, 3], atol=0.01)
+    assert len(positions) == fingers > 200
