@@ -176,3 +176,22 @@ def test_the_recording_shows_the_simulated_object_from_pick_up_to_the_handover(c
     np.testing.assert_allclose(positions[0], np.asarray(data["initial_pose"])[:3, 3], atol=0.005)
     np.testing.assert_allclose(positions[-1], np.asarray(data["object_pose"])[:3, 3], atol=0.01)
     assert len(positions) == fingers > 200
+
+
+def test_when_the_chosen_grasp_fails_the_next_best_are_checked_until_one_holds(kb):
+    from handover.engine.plan.physics import check_alternatives
+
+    planned = Planner(db=False).plan("hammer")
+    data = _hammer_handle_grasp(planned.to_dict(), 0.27)  # a chosen grasp that drops
+    failed = check_plan(kb, data)
+    assert not failed.passed
+    physics = check_alternatives(kb, planned.context, data, failed, limit=3)
+    assert physics.checked is failed.checked and not physics.passed
+    tried = [c.ids[0] for c in physics.failed] + (
+        [physics.holds.ids[0]] if physics.holds else [])
+    # the next best candidates, best first, as the plan lists them, at most 3
+    assert tried == [a["grasp"] for a in data["alternatives"]][:len(tried)]
+    assert 1 <= len(tried) <= 3
+    assert physics.holds is not None and physics.holds.passed
+    block = physics.to_dict()
+    assert block["alternative_holds"]["grasps"] == [{"hand": "left", "id": tried[-1]}]
