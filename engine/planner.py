@@ -316,8 +316,10 @@ class Plan:
     def to_json(self) -> str:
         return self.result.to_json()
 
-    def record(self, path: str | Path) -> Path:
-        """Write the rerun recording of this plan to ``path`` (``.rrd``). A plan read back
+    def record(self, path: str | Path, physics: Any = None) -> Path:
+        """Write the rerun recording of this plan to ``path`` (``.rrd``); ``physics``: the
+        physics check's recorded motion
+        (:func:`handover.engine.plan.physics.record_plan`) for its timeline. A plan read back
         from its JSON (``handover.Client``) has no context to record: UsageError."""
         from handover.engine.report.rerun.writer import write_recording
 
@@ -326,7 +328,7 @@ class Plan:
 
             raise UsageError("this plan was read from its JSON (the plan service): it has no "
                              "planning context to record; plan it with --rrd where it runs")
-        write_recording(self.result, self.context, path, self.attempt)
+        write_recording(self.result, self.context, path, self.attempt, physics)
         return Path(path)
 
     def __repr__(self) -> str:

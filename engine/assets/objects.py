@@ -28,6 +28,7 @@ __all__ = [
     "gripper_from_spec",
     "mesh_file_object",
     "mesh_object",
+    "primitive_pose",
     "units_hint",
 ]
 
@@ -43,7 +44,7 @@ def primitive_mesh(prim: Primitive):
     """
     from handover.geometry import mesh as gm
 
-    transform = _placement(prim)
+    transform = primitive_pose(prim)
     if prim.is_hollow:
         return _hollow(prim, transform, cavity=False)
     if prim.shape == "box":
@@ -55,7 +56,9 @@ def primitive_mesh(prim: Primitive):
     return gm.icosphere(prim.radius, prim.subdivisions, transform)
 
 
-def _placement(prim: Primitive) -> np.ndarray:
+def primitive_pose(prim: Primitive) -> np.ndarray:
+    """(4, 4) the primitive's frame in the object frame: ``position`` (m) then
+    ``rotation_deg`` (extrinsic x, y, z) about its centre."""
     from handover.geometry.frames import rotation_from_euler_deg, transform_from
 
     return transform_from(rotation_from_euler_deg(prim.rotation_deg), prim.position)
@@ -79,7 +82,7 @@ def _hollow(prim: Primitive, transform: np.ndarray, *, cavity: bool):
 def primitive_cavity(prim: Primitive):
     """The interior (keep-out volume) of a hollow KB primitive (cup, bowl, tube) as a
     closed convex ``trimesh.Trimesh`` in the object frame, or None for a solid one."""
-    return _hollow(prim, _placement(prim), cavity=True) if prim.is_hollow else None
+    return _hollow(prim, primitive_pose(prim), cavity=True) if prim.is_hollow else None
 
 
 def object_interior(kb: KB | None, obj: ObjectSpec, part_mesh: PartMesh | None = None,

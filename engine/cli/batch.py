@@ -42,6 +42,8 @@ def batch(
                                    "the user cache folder)."),
     no_db: bool = typer.Option(False, "--no-db", help="Use no grasp database on disk."),
     progress: bool = typer.Option(True, "--progress/--no-progress", help="Show a progress bar."),
+    physics: bool = typer.Option(False, "--physics", help="Check each handover's chosen grasps "
+                                 "in MuJoCo (columns physics_passed, _mm, _deg, _margin)."),
 ) -> None:  # fmt: skip
     """Plan every (object x culture x receiver x task) query and write one row per query
     (object, culture, receiver, task, outcome, mode, feasible, grasps, score, reason, error)
@@ -62,7 +64,7 @@ def batch(
     console = Console(stderr=True, highlight=False)
     kb = load_kb(state.kb_dir, urdf=False)
     units = expand(kb, objects, cultures, receivers, tasks, scene, mode,
-                   check_mesh_scale(mesh_scale))  # fmt: skip
+                   check_mesh_scale(mesh_scale), physics=physics)  # fmt: skip
     graspdb = open_db(db, disabled=no_db)
     db_root = None if graspdb is None else graspdb.root
     bar = Progress(
@@ -145,6 +147,13 @@ def render_summary(report, console, db_root: Path | None, limit: int = 40) -> No
         f"{len(rows) - n_feas - n_refuse - n_err} infeasible, {n_err} failed; "
         f"{report.skipped} already done. {len(report.rows)} rows in {report.out}."
     )
+    checked = [r for r in rows if r.get("physics_passed") is not None]
+    if checked:
+        held = sum(1 for r in checked if r["physics_passed"])
+        console.print(f"physics: {held} of {len(checked)} handovers hold; largest slip "
+                      f"{max(r['physics_mm'] for r in checked):.2f} mm / "
+                      f"{max(r['physics_deg'] for r in checked):.2f} deg; lowest margin "
+                      f"{min(r['physics_margin'] for r in checked):.2f}")
     console.print(f"grasp database: {db_root if db_root is not None else 'off (--no-db)'}")
     from handover.engine.tools.batch import rule_summary
 

@@ -27,13 +27,13 @@ def check_mesh_scale(mesh_scale: float) -> float:
 
 
 def _request(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0,
-             robot=None, why_not=(), what_if=False, fmt="json"):
+             robot=None, why_not=(), what_if=False, fmt="json", physics=False):
     from handover.engine.tools.answer import PlanRequest
 
     return PlanRequest(object=object_, task=task, receiver=receiver, culture=culture,
                        scene=scene, mode=mode or "auto", gripper=gripper, robot=robot,
                        mesh_scale=check_mesh_scale(mesh_scale), why_not=tuple(why_not),
-                       what_if=what_if, format=fmt)
+                       what_if=what_if, physics=physics, format=fmt)
 
 
 def _query(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0,
@@ -66,6 +66,9 @@ def plan(
     what_if: bool = typer.Option(
         False, "--what-if", help="When infeasible, list the smallest verified changes that "
         "would make the plan feasible (rules, mode, gripper, scene, receiver)."),
+    physics: bool = typer.Option(
+        False, "--physics", help="Check the chosen grasps in MuJoCo (close, lift, carry, hold, "
+        "shake; the robustness ensemble); when they fail, the next best candidates too."),
     rrd: Path | None = typer.Option(None, "--rrd", help="Write a rerun recording here."),
     mcap: Path | None = typer.Option(
         None, "--mcap", help="Write the plan's ROS 2 messages here as an MCAP bag."),
@@ -96,14 +99,20 @@ def plan(
     if json_out:
         fmt = "json"
     request = _request(object_, task, receiver, culture, scene, mode, gripper, mesh_scale,
-                       robot, why_not, what_if)
+                       robot, why_not, what_if, physics=physics)
     grasp_db = open_db(db, disabled=no_db)
     kb = load_kb_cached(state.kb_dir, None if grasp_db is None else kb_cache_dir(grasp_db.root))
     planned = plan_request(kb, request, grasp_db)
     result = planned.result
     data = result.to_dict()
     if rrd is not None:
-        planned.record(rrd)
+        motion = None
+        if data.get("physics") is not None:
+            from handover.engine.plan.physics import record_plan
+            from handover.engine.tools.answer import convex_cache
+
+            motion = record_plan(kb, data, convex_cache(grasp_db))
+        planned.record(rrd, physics=motion)
     text = render(planned, "json").decode("utf-8")
     if output is not None:
         try:
@@ -127,6 +136,8 @@ def plan(
         render_plan(data, Console(highlight=False, soft_wrap=False), explain=explain)
     if what_if and fmt == "text":
         _render_what_if(data, Console(highlight=False, soft_wrap=False))
+    if data.get("physics") is not None and fmt == "text":
+        render_physics(data["physics"], Console(highlight=False, soft_wrap=False))
     if data["outcome"] in EXIT_CODES_4:
         raise typer.Exit(EXIT_INFEASIBLE)
 
@@ -146,6 +157,71 @@ def _render_what_if(data: dict, console) -> None:
     for c in changes:
         mark = "[bold red]SAFETY[/] " if c["safety"] else ""
         console.print(f"  {mark}{c['kind']}: {escape(c['detail'])}")
+
+
+def _group_line(group: dict) -> str:
+    who = ", ".join(f"{g['hand']} grasp {g['id']}" for g in group["grasps"])
+    verdict = "holds" if group["passed"] else (
+        f"drops in {group['dropped_in']}" if group["dropped_in"] else "slips")
+    return (f"{who}: {verdict} (slip {group['max_translation_mm']:.1f} mm / "
+            f"{group['max_rotation_deg']:.1f} deg, margin {group['margin']:.2f}, "
+            f"{group['seconds']:.2f} s)")
+
+
+def render_physics(physics: dict, console) -> None:
+    """Print a plan's physics check: the chosen grasps' verdict, slip and margin, then the
+    next best candidates checked after a failure."""
+    from rich.markup import escape
+
+    mark = "[bold green]PHYSICS[/]" if physics["passed"] else "[bold red]PHYSICS[/]"
+    console.print(f"{mark}: {escape(_group_line(physics['chosen']))}")
+    for group in physics.get("alternatives_failed", []):
+        console.print(f"  alternative {escape(_group_line(group))}")
+    if physics.get("alternative_holds"):
+        console.print(f"  alternative {escape(_group_line(physics['alternative_holds']))}")
+    for note in physics.get("notes", []):
+        console.print(f"  {escape(note)}")
+
+
+@app.command()
+def verify(
+    plan_file: Path = typer.Argument(..., metavar="PLAN.json",
+                                     help="A plan's JSON (handover plan --json), edited or not."),
+    json_out: bool = typer.Option(False, "--json", help="Print the physics block as JSON."),
+    with_receiver: bool = typer.Option(
+        False, "--with-receiver", help="The receiver's fingertip pads take the object at the "
+        "handover and the grippers let go (their pinch force from the receiver's profile)."),
+    db: Path | None = typer.Option(
+        None, "--db", help="Grasp database folder (its convex/ caches mesh decompositions)."),
+) -> None:
+    """Check a plan's grasps in physics (MuJoCo): the object, the gripper and the motion
+    from the plan and the KB. Exit 0 when the grasps hold, 4 when not; 2 for a file that is
+    not a plan or names an object or gripper the KB does not hold."""
+    import json
+
+    from rich.console import Console
+
+    from handover.engine.assets.graspdb import open_db
+    from handover.engine.errors import EXIT_INFEASIBLE, UsageError
+    from handover.engine.load.cache import load_kb_cached
+    from handover.engine.plan.physics import check_plan
+    from handover.engine.tools.answer import convex_cache, json_text
+
+    try:
+        data = json.loads(plan_file.read_text(encoding="utf-8"))
+    except OSError as e:
+        raise UsageError(f"cannot read {plan_file}: {e.strerror or e}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise UsageError(f"{plan_file} is not JSON: {e}") from None
+    kb = load_kb_cached(state.kb_dir, None)
+    grasp_db = open_db(db)
+    physics = check_plan(kb, data, convex_cache(grasp_db), receiver=with_receiver).to_dict()
+    if json_out:
+        typer.echo(json_text(physics), nl=False)
+    else:
+        render_physics(physics, Console(highlight=False, soft_wrap=False))
+    if not physics["passed"]:
+        raise typer.Exit(EXIT_INFEASIBLE)
 
 
 EXIT_CODES_4 = ("refuse", "infeasible")

@@ -114,6 +114,7 @@ class PlanResult:
     refused: list[dict] = field(default_factory=list)
     what_if: list[dict] | None = None
     robot: dict | None = None
+    physics: dict | None = None
 
     def __post_init__(self) -> None:
         if not self.outcome:  # a result built without one: from ``feasible``
@@ -165,6 +166,8 @@ class PlanResult:
             out["why_not"] = self.why_not
         if self.what_if is not None:
             out["what_if"] = self.what_if
+        if self.physics is not None:
+            out["physics"] = self.physics
         return to_jsonable(out)
 
     def to_json(self) -> str:

@@ -318,6 +318,19 @@ class ReceiverProfile(KBModel):
     stature: Annotated[float, Field(gt=0.3, le=2.6, allow_inf_nan=False)] | None = None
     age: Annotated[float, Field(ge=0, le=130, allow_inf_nan=False)] | None = None
     hand: Id = "adult_hand"
+    grip_force: Annotated[float, Field(gt=0, le=300, allow_inf_nan=False)] | None = None
+
+    @property
+    def pinch_force(self) -> float:
+        """N, the pinch the receiver holds a handed object with: ``grip_force`` given, else
+        a comfortable share of their role's lateral pinch norm
+        (:func:`handover.geometry.physics.receiver_grip_force`: an elder and a child weaker
+        than an adult; a superior is an adult)."""
+        if self.grip_force is not None:
+            return self.grip_force
+        from handover.geometry.physics.params import receiver_grip_force
+
+        return receiver_grip_force("adult" if self.role == "superior" else self.role)
 
     @property
     def years(self) -> float:
@@ -345,7 +358,12 @@ class GripperMeshes(KBModel):
 
 class GripperSpec(KBModel):
     """A parallel-jaw gripper (the paper's F_grasp: origin between the fingertips, ``a`` along
-    the fingers, ``o`` the closing direction). Lengths in metres."""
+    the fingers, ``o`` the closing direction). Lengths in metres.
+
+    grip_force : N, the continuous force each jaw presses with (the physics check's
+    actuators; the default 70 N is the Franka Hand's continuous force). torsional_friction :
+    m, the torque a pad resists about its normal per newton pressing (about 2/3 mu r for a
+    contact patch of radius r: 0.003 for rubber at 0.5 on a 9 mm patch)."""
 
     id: Id
     name: str
@@ -357,6 +375,8 @@ class GripperSpec(KBModel):
     palm: tuple[Positive, Positive, Positive]
     clearance: NonNegative = 0.005
     friction: Positive = 0.5
+    grip_force: Annotated[float, Field(gt=0, le=1000, allow_inf_nan=False)] = 70.0
+    torsional_friction: Annotated[float, Field(ge=0, le=0.05, allow_inf_nan=False)] = 0.003
     parallel_tol_deg: Annotated[float, Field(gt=0, le=45)] = 10.0
     min_overlap_area: NonNegative = 0.0
     roll_step_deg: Annotated[float, Field(gt=0, le=180)] = 15.0

@@ -51,8 +51,8 @@ class PlanRequest:
     object : an object id of the KB (or, from the CLI only, a mesh file). task, receiver,
     culture, scene, gripper, robot : ids, None for the defaults. mode : ``auto`` or a
     mode. mesh_scale : a mesh file's units to metres. why_not : candidate ids to explain.
-    what_if : list the verified changes of an infeasible plan. format : one of
-    :data:`FORMATS`.
+    what_if : list the verified changes of an infeasible plan. physics : check the chosen
+    grasps in MuJoCo (the result's ``physics``). format : one of :data:`FORMATS`.
     """
 
     object: str
@@ -66,6 +66,7 @@ class PlanRequest:
     mesh_scale: float = 1.0
     why_not: tuple[int, ...] = ()
     what_if: bool = False
+    physics: bool = False
     format: str = "json"
 
     def __post_init__(self) -> None:
@@ -109,8 +110,10 @@ class PlanRequest:
             raise UsageError(f"'why-not' must be a candidate id or a list of them, got "
                              f"{why_not!r}")
         values["why_not"] = tuple(why_not)
-        if not isinstance(values.get("what_if", False), bool):
-            raise UsageError(f"'what-if' must be true or false, got {values['what_if']!r}")
+        for flag in ("what_if", "physics"):
+            if not isinstance(values.get(flag, False), bool):
+                raise UsageError(f"'{flag.replace('_', '-')}' must be true or false, got "
+                                 f"{values[flag]!r}")
         scale = values.get("mesh_scale", 1.0)
         if isinstance(scale, bool) or not isinstance(scale, int | float):
             raise UsageError(f"'mesh-scale' must be a number, got {scale!r}")
@@ -133,15 +136,42 @@ class PlanRequest:
         why-not, what-if and the format."""
         q = self.query()
         return (q.object, q.task, q.receiver, q.culture, q.scene, q.mode, q.gripper, q.robot,
-                q.mesh_scale, self.why_not, self.what_if, self.format)
+                q.mesh_scale, self.why_not, self.what_if, self.physics, self.format)
 
 
 def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
     """Plan ``request`` with ``kb`` and the grasp database ``db`` (None: generate)."""
     from handover.engine.planner import plan
 
-    return plan(kb, request.query(), why_not=request.why_not, db=db,
-                what_if=request.what_if)
+    planned = plan(kb, request.query(), why_not=request.why_not, db=db,
+                   what_if=request.what_if)
+    if request.physics and request.object not in kb.objects:
+        raise UsageError(f"--physics checks objects of the knowledge base; '{request.object}' "
+                         "is not one")
+    if request.physics and planned.outcome == "handover":
+        planned.result.physics = physics_of(kb, planned, db).to_dict()
+    return planned
+
+
+def convex_cache(db=None) -> Path:
+    """The folder of the physics check's convex decompositions: ``convex`` in the grasp
+    database's folder (the user's default one without a database)."""
+    from handover.engine.assets.graspdb import default_db_dir
+
+    root = getattr(db, "root", None)
+    return Path(root if root is not None else default_db_dir()) / "convex"
+
+
+def physics_of(kb: KB, planned: Plan, db=None):
+    """The physics check of a handover plan's chosen grasps
+    (:func:`handover.engine.plan.physics.check_plan`), and when they fail, of the next best
+    candidates (:func:`~handover.engine.plan.physics.check_alternatives`)."""
+    from handover.engine.plan.physics import check_alternatives, check_plan
+
+    data = planned.result.to_dict()
+    cache = convex_cache(db)
+    checked = check_plan(kb, data, cache)
+    return check_alternatives(kb, planned.context, data, checked, cache)
 
 
 def render(planned: Plan, fmt: str = "json") -> bytes:

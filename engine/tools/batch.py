@@ -74,8 +74,14 @@ COLUMNS: dict[str, str] = {
     "candidates": "int64",  # geometric candidates of the object
     "content_hash": "string",  # KB YAML files + the object's mesh file
     "rules": "string",  # JSON {applied: [id], rejected: {id: rows}, decided: [id]} (coverage)
+    # with --physics, a handover's chosen grasps simulated (null otherwise; docs/json.md)
+    "physics_passed": "bool",
+    "physics_mm": "float64",  # the largest slip, mm and deg
+    "physics_deg": "float64",
+    "physics_margin": "float64",  # the share of the robustness runs that pass
 }
-OPTIONAL_COLUMNS = ("rules", "outcome")  # absent from older files: read as null (outcome:
+OPTIONAL_COLUMNS = ("rules", "outcome", "physics_passed", "physics_mm", "physics_deg",
+                    "physics_margin")  # absent from older files: read as null (outcome:
 # from feasible, the only outcomes then being handover and infeasible)
 KEY_COLUMNS = ("object", "culture", "receiver", "task", "scene", "query_mode")
 
@@ -123,6 +129,7 @@ class Unit:
     obj: ObjectRef
     queries: tuple[BatchQuery, ...]
     content_hash: str
+    physics: bool = False  # check each handover's chosen grasps in MuJoCo
 
 
 def row_key(row: dict) -> tuple[str, ...]:
@@ -252,8 +259,10 @@ def expand(
     scene: str | None = None,
     mode: str = "auto",
     mesh_scale: float = 1.0,
+    physics: bool = False,
 ) -> list[Unit]:
-    """The units of work of a batch, in object order (see :func:`resolve_objects`).
+    """The units of work of a batch, in object order (see :func:`resolve_objects`);
+    ``physics``: each handover's chosen grasps are checked in MuJoCo (the physics columns).
 
     cultures, receivers : ids (comma lists allowed), ``all``, or None for the defaults
         (``common``, ``adult``). tasks : None for each object's default task, ``all`` for
@@ -296,7 +305,7 @@ def expand(
             continue
         scale = f"\0{ref.scale!r}" if ref.scale != 1.0 else ""  # unchanged keys at 1
         digest = hashlib.sha256(f"{base}\0{ref.name}\0{_file_digest(ref.mesh)}{scale}".encode())
-        units.append(Unit(ref, queries, digest.hexdigest()[:32]))
+        units.append(Unit(ref, queries, digest.hexdigest()[:32], physics and ref.kind == "kb"))
     return units
 
 
@@ -328,7 +337,8 @@ def _row(q: BatchQuery, content_hash: str, **values: Any) -> dict:
         "scene": q.scene, "query_mode": q.mode, "mode": None, "feasible": None, "outcome": None,
         "grasps": None,
         "score": None, "reason": None, "error": None, "warnings": "[]", "candidates": None,
-        "content_hash": content_hash, "rules": None,
+        "content_hash": content_hash, "rules": None, "physics_passed": None,
+        "physics_mm": None, "physics_deg": None, "physics_margin": None,
     }  # fmt: skip
     row.update(values)
     return row
@@ -340,8 +350,10 @@ def error_rows(unit: Unit, error: BaseException | str) -> list[dict]:
     return [_row(q, unit.content_hash, error=text) for q in unit.queries]
 
 
-def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: GraspDB | None) -> dict:
-    """Plan one query; its row. Any failure becomes the row's ``error``."""
+def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: GraspDB | None,
+             physics: bool = False) -> dict:
+    """Plan one query; its row (with ``physics``, a handover's chosen grasps checked in
+    MuJoCo: the physics columns). Any failure becomes the row's ``error``."""
     from handover.engine.planner import plan
     from handover.engine.spec.query import Query
 
@@ -354,6 +366,7 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
         try:
             planned = plan(kb, query, db=db)
             result = planned.result
+            checked = _physics_columns(kb, planned, db) if physics else {}
         except Exception as e:  # noqa: BLE001 - one failing object must not stop the batch
             messages = sorted({str(w.message) for w in caught})
             return _row(q, content_hash, error=_error_text(e), warnings=json.dumps(messages))
@@ -368,7 +381,22 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
         candidates=int(result.candidates.get("grasps", 0)),
         rules=json.dumps(_rule_use(result.to_dict(), planned.attempt.decision,
                                    decided_rules), separators=(",", ":")),
+        **checked,
     )  # fmt: skip
+
+
+def _physics_columns(kb: KB, planned, db) -> dict:
+    """The physics columns of a plan (empty unless a handover): passed, largest slip, margin."""
+    if planned.result.outcome != "handover":
+        return {}
+    from handover.engine.plan.physics import check_plan
+    from handover.engine.tools.answer import convex_cache
+
+    checked = check_plan(kb, planned.result.to_dict(), convex_cache(db)).checked
+    nominal = checked.result.nominal
+    return {"physics_passed": checked.passed, "physics_mm": round(nominal.max_translation_mm, 2),
+            "physics_deg": round(nominal.max_rotation_deg, 2),
+            "physics_margin": round(checked.result.margin, 3)}
 
 
 def _rule_use(result: dict, decision, decided_rules) -> dict:
@@ -411,7 +439,8 @@ def run_unit(unit: Unit, kb_dir: str, db_root: str | None) -> list[dict]:
     except Exception as e:  # noqa: BLE001
         return error_rows(unit, e)
     db = GraspDB(db_root) if db_root is not None else MemoryDB()
-    return [plan_row(kb, q, unit.obj, unit.content_hash, db) for q in unit.queries]
+    return [plan_row(kb, q, unit.obj, unit.content_hash, db, unit.physics)
+            for q in unit.queries]
 
 
 def _timed_unit(unit: Unit, kb_dir: str, db_root: str | None) -> tuple[list[dict], float]:
@@ -704,13 +733,17 @@ def run_batch(
     old = read_rows(out)
     write_rows(out, old)  # an --out that cannot be written fails now, not after the batch
     done = {(row_key(r), r["content_hash"]) for r in old if r.get("error") is None}
+    # a handover planned without the physics check is done again when it is asked for
+    unchecked = {(row_key(r), r["content_hash"]) for r in old
+                 if r.get("outcome") == "handover" and r.get("physics_passed") is None}
     todo: list[Unit] = []
     skipped = 0
     for unit in units:
-        left = tuple(q for q in unit.queries if (q.key(), unit.content_hash) not in done)
+        left = tuple(q for q in unit.queries if (q.key(), unit.content_hash) not in done
+                     or (unit.physics and (q.key(), unit.content_hash) in unchecked))
         skipped += len(unit.queries) - len(left)
         if left:
-            todo.append(Unit(unit.obj, left, unit.content_hash))
+            todo.append(Unit(unit.obj, left, unit.content_hash, unit.physics))
     rows_by_key = {row_key(r): r for r in old}
     planned: list[dict] = []
     per_object: dict[str, float] = {}

@@ -344,3 +344,17 @@ def test_a_file_written_before_the_outcome_column_reads_it_from_feasible(tmp_pat
     pq.write_table(pa.Table.from_pylist(rows), path)
     got = {r["object"]: r["outcome"] for r in batch.read_rows(path)}
     assert got == {"a": "handover", "b": "infeasible", "c": None}
+
+
+def test_physics_columns_say_whether_the_chosen_grasps_hold(kb, tmp_path):
+    out = tmp_path / "physics.parquet"
+    plain = _run(kb, batch.expand(kb, "knife"), out, workers=1, db_root=tmp_path / "db")
+    assert plain.rows[0]["physics_passed"] is None  # not asked: not checked
+    # asked on the same file: the handover planned without the check is planned again
+    checked = _run(kb, batch.expand(kb, "knife", physics=True), out, workers=1,
+                   db_root=tmp_path / "db")
+    assert checked.skipped == 0 and len(checked.rows) == 1
+    row = checked.rows[0]
+    assert row["outcome"] == "handover" and row["physics_passed"] is True
+    assert 0.0 <= row["physics_mm"] < 5.0 and 0.0 <= row["physics_margin"] <= 1.0
+    assert batch.read_rows(out) == checked.rows

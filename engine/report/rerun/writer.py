@@ -114,6 +114,7 @@ if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.records import RobotGrasp
     from handover.engine.report.result import PlanResult
+    from handover.geometry.physics import Trajectory
 
 __all__ = ["write_recording", "blueprint", "camera"]
 
@@ -248,12 +249,17 @@ def blueprint(eye: np.ndarray | None = None, target: np.ndarray | None = None):
 
 
 def write_recording(
-    result: PlanResult, ctx: PlanContext, path: Path | str, attempt: Attempt | None = None
+    result: PlanResult, ctx: PlanContext, path: Path | str, attempt: Attempt | None = None,
+    physics: Trajectory | None = None,
 ) -> None:
     """Write the plan ``result`` with its context ``ctx`` as a rerun recording at ``path``.
 
     attempt : the planner's attempt with its decision table and phase (``Plan.attempt``).
         Without one, only stage 0 (and stage 4 for a feasible plan) can be recorded.
+    physics : the physics check's simulated motion
+        (:func:`handover.engine.plan.physics.record_plan`), drawn on the ``physics``
+        timeline (:mod:`handover.engine.report.rerun.physics`): the object and the
+        grippers, fingers moving.
     Written to a temporary file in the same folder, then renamed over ``path``.
     Raises UsageError when ``path`` is a folder or cannot be written.
     """
@@ -262,12 +268,13 @@ def write_recording(
         raise UsageError(f"--rrd {path}: is a folder, give a file name")
     try:
         with atomic_path(path) as tmp:
-            _write(result, ctx, attempt, tmp)
+            _write(result, ctx, attempt, tmp, physics)
     except OSError as e:
         raise write_error("--rrd", path, e) from None
 
 
-def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: Path) -> None:
+def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: Path,
+           physics: Trajectory | None = None) -> None:
     import rerun as rr
 
     decision = attempt.decision if attempt is not None else None
@@ -432,6 +439,11 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
             rec.log(f"{ENTITY_ARMS}/midair", rr.Clear(recursive=True))
             log_arms(rec, arms, result.robot_grasps, "handover", result.mode)
         rec.log(ENTITY_SUMMARY, rr.TextDocument(docs[7], media_type=rr.MediaType.MARKDOWN))
+
+    if physics is not None:
+        from handover.engine.report.rerun.physics import log_physics
+
+        log_physics(rec, ctx, result, mesh, physics)
 
     # -- the trace: one batch
     if log:

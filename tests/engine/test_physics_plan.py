@@ -1,0 +1,197 @@
+"""The physics check of plans through the facade and the CLI: ``handover plan --physics`` and
+``handover verify PLAN.json`` (grasps simulated in MuJoCo, engine/plan/physics.py)."""
+
+from __future__ import annotations
+
+import copy
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from handover import Planner
+from handover.engine.cli.app import main
+from handover.engine.errors import UnknownIdError, UsageError
+from handover.engine.load.loader import load_kb
+from handover.engine.plan.physics import check_plan, object_model
+
+
+@pytest.fixture(scope="module")
+def kb():
+    return load_kb(None)
+
+
+@pytest.fixture(scope="module")
+def hammer_plan() -> dict:
+    return Planner(db=False).plan("hammer").to_dict()
+
+
+@pytest.fixture(scope="module")
+def tray_plan() -> dict:
+    return Planner(db=False).plan("tray").to_dict()
+
+
+def _run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def _hammer_handle_grasp(plan: dict, x: float) -> dict:
+    """The plan with its grasp moved onto the hammer's handle at ``x`` (m from the head's
+    centre along the handle), the jaws closing across its 24 mm thickness (object z), the
+    fingers coming from the claw side (object y): the weight's torque is about the closing
+    axis once the hammer is presented with its handle level."""
+    edited = copy.deepcopy(plan)
+    g = edited["robot_grasps"][0]
+    g["pose"] = [[-1.0, 0.0, 0.0, x], [0.0, 0.0, 1.0, 0.0], [0.0, 1.0, 0.0, 0.0],
+                 [0.0, 0.0, 0.0, 1.0]]
+    g["width"] = 0.024  # the handle box's extent along z (kb/objects/hammer.yaml)
+    return edited
+
+
+def test_hammer_held_at_its_centre_of_mass_holds_and_at_the_handle_end_drops(kb, hammer_plan):
+    com = object_model(kb, kb.objects["hammer"]).centre_of_mass()
+    # the handle (0.28 m box from x = 0.01) carries most of the volume: the centre of mass
+    # lies on it, 11 cm from the head's centre
+    assert 0.09 < com[0] < 0.13
+    at_com = check_plan(kb, _hammer_handle_grasp(hammer_plan, float(com[0])))
+    assert at_com.passed
+    assert at_com.checked.result.nominal.max_translation_mm < 5.0
+    at_end = check_plan(kb, _hammer_handle_grasp(hammer_plan, 0.27))
+    assert not at_end.passed  # 16 cm from the centre of mass: ~0.9 N m about the jaws' axis
+    assert at_end.checked.result.nominal.max_rotation_deg > 5.0
+
+
+def test_the_same_check_twice_gives_identical_numbers(kb, hammer_plan):
+    first = check_plan(kb, hammer_plan).to_dict()["chosen"]
+    second = check_plan(kb, hammer_plan).to_dict()["chosen"]
+    for key in ("seconds",):
+        first.pop(key), second.pop(key)
+    assert first == second
+
+
+def test_the_receiver_takes_the_hammer_by_its_handle_and_holds_it(kb, hammer_plan):
+    assert hammer_plan["human_grasps"][0]["part"] == "handle"
+    checked = check_plan(kb, hammer_plan, receiver=True)
+    block = checked.to_dict()["chosen"]
+    assert block["receiver_held"] is True and checked.passed
+    # the grippers let go and the receiver holds it alone, measured in their hand's frame
+    alone = [p for p in block["slip"] if p["phase"] == "handover_hold"]
+    assert [p["holder"] for p in alone] == ["receiver"]
+    assert alone[0]["translation_mm"] < 5.0 and not alone[0]["dropped"]
+    assert check_plan(kb, hammer_plan).to_dict()["chosen"]["receiver_held"] is None
+
+
+def test_a_tray_held_by_one_gripper_at_its_rim_drops_and_by_two_holds(kb, tray_plan):
+    assert tray_plan["mode"] == "H2G1"
+    both = check_plan(kb, tray_plan)
+    assert both.passed and both.checked.hands == ("left", "right")
+    one = copy.deepcopy(tray_plan)
+    one["mode"], one["robot_grasps"] = "H1G1", one["robot_grasps"][:1]
+    alone = check_plan(kb, one)
+    assert not alone.passed and alone.checked.result.nominal.dropped
+
+
+def test_plan_with_physics_has_its_block_in_the_json(capsys):
+    code, out, _ = _run(capsys, "plan", "book", "--physics", "--json", "--no-db")
+    assert code == 0
+    data = json.loads(out)
+    physics = data["physics"]
+    chosen = physics["chosen"]
+    assert physics["passed"] is chosen["passed"] is True  # a book held across its faces
+    # the book is handed with a midair regrasp: both grasps checked, one after the other
+    assert data["mode"] == chosen["mode"] == "H2G2"
+    first, second = data["regrasp"]["first"], data["regrasp"]["second"]
+    assert chosen["grasps"] == [{"hand": first["hand"], "id": first["id"]},
+                                {"hand": second["hand"], "id": second["id"]}]
+    held = {(p["phase"], p["holder"]) for p in chosen["slip"]}
+    assert ("shake", first["hand"]) in held and ("regrasp_shake", second["hand"]) in held
+    assert 0.0 <= chosen["margin"] <= 1.0 and len(chosen["ensemble"]) == 6
+
+
+def test_plan_without_physics_has_no_block(capsys):
+    code, out, _ = _run(capsys, "plan", "book", "--json", "--no-db")
+    assert code == 0 and "physics" not in json.loads(out)
+
+
+def test_verify_fails_a_plan_whose_grasp_was_moved_to_a_bad_place(capsys, tmp_path: Path,
+                                                                  hammer_plan):
+    good = tmp_path / "good.json"
+    good.write_text(json.dumps(_hammer_handle_grasp(hammer_plan, 0.11)))
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(_hammer_handle_grasp(hammer_plan, 0.27)))
+    db = str(tmp_path / "db")
+    assert _run(capsys, "verify", str(good), "--db", db)[0] == 0
+    code, out, _ = _run(capsys, "verify", str(bad), "--db", db, "--json")
+    assert code == 4
+    assert json.loads(out)["passed"] is False
+
+
+@pytest.mark.parametrize("content, says", [
+    ("not json {", "is not JSON"),
+    ('{"a": 1}', "not a plan"),
+    ("[1, 2]", "not a plan"),
+])
+def test_verify_refuses_what_is_not_a_plan(capsys, tmp_path: Path, content, says):
+    path = tmp_path / "plan.json"
+    path.write_text(content)
+    code, _, err = _run(capsys, "verify", str(path), "--db", str(tmp_path / "db"))
+    assert code == 2 and says in err and "Traceback" not in err
+
+
+def test_unknown_object_or_gripper_is_a_clear_error(kb, hammer_plan):
+    other = dict(hammer_plan, object="anvil")
+    with pytest.raises(UnknownIdError, match="object 'anvil'"):
+        check_plan(kb, other)
+    other = dict(hammer_plan, gripper=dict(hammer_plan["gripper"], id="claw_machine"))
+    with pytest.raises(UnknownIdError, match="gripper 'claw_machine'"):
+        check_plan(kb, other)
+    broken = copy.deepcopy(hammer_plan)
+    broken["robot_grasps"][0]["pose"] = np.diag([2.0, 1.0, 1.0, 1.0]).tolist()
+    with pytest.raises(UsageError, match="not a rigid transform"):
+        check_plan(kb, broken)
+
+
+def test_the_recording_shows_the_simulated_object_from_pick_up_to_the_handover(capsys, tmp_path):
+    from rerun.chunk import RrdReader
+
+    rrd, out = tmp_path / "plan.rrd", tmp_path / "plan.json"
+    code, _, _ = _run(capsys, "plan", "knife", "--physics", "--no-db", "--rrd", str(rrd),
+                      "-o", str(out))
+    assert code == 0
+    data = json.loads(out.read_text())
+    positions, times, fingers = [], [], 0
+    for chunk in RrdReader(rrd).stream().to_chunks():
+        batch = chunk.to_record_batch()
+        if chunk.entity_path == "/world/physics/object":
+            positions += [p[0] for p in batch.column("Transform3D:translation").to_pylist()]
+            times += batch.column("physics").to_pylist()
+        if chunk.entity_path == "/world/physics/gripper0/fingers":
+            fingers += batch.num_rows
+    order = np.argsort(times)
+    positions = np.asarray(positions)[order]
+    # from where it lay on the table to where it is handed over, at 50 Hz over the protocol
+    np.testing.assert_allclose(positions[0], np.asarray(data["initial_pose"])[:3, 3], atol=0.005)
+    np.testing.assert_allclose(positions[-1], np.asarray(data["object_pose"])[:3, 3], atol=0.01)
+    assert len(positions) == fingers > 200
+
+
+def test_when_the_chosen_grasp_fails_the_next_best_are_checked_until_one_holds(kb):
+    from handover.engine.plan.physics import check_alternatives
+
+    planned = Planner(db=False).plan("hammer")
+    data = _hammer_handle_grasp(planned.to_dict(), 0.27)  # a chosen grasp that drops
+    failed = check_plan(kb, data)
+    assert not failed.passed
+    physics = check_alternatives(kb, planned.context, data, failed, limit=3)
+    assert physics.checked is failed.checked and not physics.passed
+    tried = [c.ids[0] for c in physics.failed] + (
+        [physics.holds.ids[0]] if physics.holds else [])
+    # the next best candidates, best first, as the plan lists them, at most 3
+    assert tried == [a["grasp"] for a in data["alternatives"]][:len(tried)]
+    assert 1 <= len(tried) <= 3
+    assert physics.holds is not None and physics.holds.passed
+    block = physics.to_dict()
+    assert block["alternative_holds"]["grasps"] == [{"hand": "left", "id": tried[-1]}]
