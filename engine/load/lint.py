@@ -42,7 +42,9 @@ Warnings:
     receiver and no vocabulary documents (a typo, or a hazard nobody handles), at the tag;
   - an object part that no geometry belongs to; an ``axis`` rule that applies to an object
     lacking that axis; a document whose id differs from its file name (loader); a file
-    outside the KB folders (loader).
+    outside the KB folders (loader);
+  - an object tagged for a ``keep_out`` rule whose geometry has no opening to measure
+    (:mod:`handover.engine.load.lint_measure`, with the deep checks only).
 
 Checks that refer across documents are skipped for a kind whose files failed to load, so one
 broken file does not cause a cascade of false errors.
@@ -74,8 +76,9 @@ def lint_kb(kb: KB, failed_kinds: Iterable[str] = (), urdf: bool = True) -> list
     """Every semantic problem of ``kb``, sorted, each once.
 
     failed_kinds : document kinds (folder names) with a file that did not load; checks that
-    need all documents of such a kind are skipped. urdf : parse robots' URDF files too (else
-    only their paths are checked).
+    need all documents of such a kind are skipped. urdf : the deep checks too: parse robots'
+    URDF files (else only their paths are checked), and build the geometry of the objects a
+    rule must measure (:mod:`handover.engine.load.lint_measure`).
     """
     failed = set(failed_kinds)
     issues: list[KBIssue] = []
@@ -83,6 +86,10 @@ def lint_kb(kb: KB, failed_kinds: Iterable[str] = (), urdf: bool = True) -> list
         issues.extend(lint_object(kb, obj))
     issues.extend(lint_cultures(kb, failed))
     issues.extend(lint_references(kb, failed, urdf))
+    if urdf and not {"objects", "etiquette"} & failed:  # the deep checks build geometry
+        from handover.engine.load.lint_measure import lint_measurements
+
+        issues.extend(lint_measurements(kb))
     for test_file in kb.tests.values():
         issues.extend(lint_tests(kb, test_file, failed))
     return sorted(set(issues))
@@ -295,7 +302,9 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                         yield kb.issue(
                             rule,
                             f"rule '{rule.id}' applies to object '{obj.id}' ({obj.source}), "
-                            f"which defines no axis '{rule.axis}': the rule cannot judge it",
+                            f"which defines no axis '{rule.axis}': the rule cannot judge it"
+                            + (" (it is unknown in a plan, and a hard rule then does not hand "
+                               "the object over)" if rule.applies.object_tags_any else ""),
                             "axis",
                             severity="warning",
                         )

@@ -366,6 +366,44 @@ def test_axis_rule_on_an_object_without_the_axis_warns(make_kb):
     assert "rule 'tip_away' applies to object 'knife' (objects/knife.yaml:1)" in warning.message
 
 
+KEEP_OUT = """\
+  - id: out_of_the_opening
+    kind: keep_out
+    tags: [open_container]
+    of: [gripper, receiver_hand]
+    safety: true
+    why: Nothing goes into an open container.
+"""
+
+
+def cup(shape: str) -> str:
+    body = ("{shape: cylinder, part: body, radius: 0.04, height: 0.1, position: [0, 0, 0.05]}"
+            if shape == "solid" else
+            "{shape: cup, part: body, radius: 0.04, height: 0.1, thickness: 0.004, "
+            "position: [0, 0, 0.05]}")
+    return ("id: cup\nname: Cup\nmass: 0.3\ntags: [open_container]\ngeometry:\n"
+            f"  primitives:\n    - {body}\nparts:\n  body: {{tags: [handle]}}\n"
+            "axes:\n  up: [0, 0, 1]\n")
+
+
+@pytest.mark.parametrize("shape", ["solid", "hollow"])
+def test_an_open_container_without_an_opening_to_measure_warns(make_kb, shape):
+    root = make_kb({"etiquette/common.yaml": culture(COMMON_RULES + KEEP_OUT),
+                    "objects/cup.yaml": cup(shape)})
+    found = [w for w in load_kb(root).warnings if "cannot measure it" in w.message]
+    if shape == "hollow":
+        assert found == []
+        return
+    (warning,) = found
+    assert warning.file == "objects/cup.yaml" and warning.line == 1
+    assert "tagged open_container" in warning.message
+    assert "no cup, bowl or tube primitive" in warning.message
+    assert "out_of_the_opening" in warning.message
+    # planning loads skip the deep checks (they build every object's geometry)
+    assert not [w for w in load_kb(root, urdf=False).warnings
+                if "cannot measure it" in w.message]
+
+
 # ---------------------------------------------------------------- tags nobody handles
 
 

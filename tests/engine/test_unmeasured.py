@@ -155,3 +155,13 @@ def test_a_plan_blocked_by_a_rule_that_cannot_measure_says_what_and_how_to_fix_i
     assert "not measured" in plan.reason
     assert "tip_away" in plan.reason and "axis 'tip'" in plan.reason
     assert "give the object an axis 'tip'" in plan.reason
+
+
+def test_an_open_container_without_an_opening_is_unknown_not_passed(crate_ctx):
+    rule = parse_rule({"id": "keep", "kind": "keep_out", "tags": ["open_container"],
+                       "of": ["gripper", "receiver_hand"], "why": "t"})
+    assert judge.not_applicable(rule, crate_ctx) is None
+    phase = phases(crate_ctx)["one hand, receiver there"]
+    out = judge.evaluate(rule, crate_ctx, phase, np.arange(5), np.zeros(5, int))
+    assert out.unknown.all() and not out.passed.any()
+    assert "no 'up' axis" in out.unknown_why  # the crate names none: nothing to look along
