@@ -500,14 +500,18 @@ def test_a_keep_out_rule_s_tags_are_checked_like_any_rule_tag(make_kb):
 
 
 def test_the_builtin_vocabulary_has_rules_for_every_hazard(builtin_kb):
-    from handover.engine.load.lint import rule_tags
+    from handover.engine.load.lint import rule_tags, vocabulary
+    from handover.engine.store.hazards import tag_families
 
     hazards = ["sharp", "pointed", "needle", "hot", "liquid", "open_container", "fragile",
-               "nozzle", "heavy", "small"]
+               "nozzle", "heavy", "small", "chemical", "medication", "swallowable", "flame",
+               "battery", "magnet"]
     common = builtin_kb.culture("common")
     named = {tag for r in common.rules for tag, _ in rule_tags(r)}
-    for tag in hazards:
-        assert tag in common.vocabulary and tag in named, tag
+    families = tag_families(builtin_kb)
+    for tag in hazards:  # declared with what it means, and a rule for it or its family
+        assert tag in families.declared and tag in vocabulary(builtin_kb), tag
+        assert families.expand([tag]) & named, tag
     assert any(r.kind == "axis" and r.axis == "nozzle" and r.safety for r in common.rules)
     assert tag_warnings(builtin_kb) == []
 
