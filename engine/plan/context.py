@@ -13,7 +13,12 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from handover.engine.plan.presentation import presentation_rotations, principal_axes, rule_goals
+from handover.engine.plan.presentation import (
+    own_frame,
+    presentation_rotations,
+    principal_axes,
+    rule_goals,
+)
 from handover.engine.plan.situation import Situation
 from handover.engine.plan.world import World, build_world
 from handover.engine.spec.applies import Facts
@@ -295,7 +300,9 @@ def build_context(
         tags=facts.tags, mass=facts.mass, size=facts.size, min_width=facts.min_width,
         payload=facts.payload, max_opening=facts.max_opening, role=s.receiver.role,
         age=s.receiver.years, task=s.task_id, mode=None))
-    rotations = presentation_rotations(s.toward, goals, principal_axes(part_mesh.mesh.triangles))
+    shape = principal_axes(part_mesh.mesh.triangles)
+    rotations = presentation_rotations(s.toward, goals, shape,
+                                       frame=own_frame(s.obj.axes, shape))
     return PlanContext(
         situation=situation,
         part_mesh=part_mesh,
