@@ -105,6 +105,10 @@ def refusal_text(ctx: PlanContext, c: CompiledRule) -> str:
     from handover.engine.spec.applies import check
 
     _, holds = check(c.rule.applies, query_facts(ctx, "H1G1"))
+    named = set(c.rule.applies.object_tags_any)
+    came = [f"{tag}: {how}" for tag, how in ctx.facts.derived if tag in named]
+    if came:  # a tag the object's file does not write: implied by another, or measured
+        holds += " [" + "; ".join(came) + "]"
     return (f"rule {c.id} ({c.source}) refuses to hand {ctx.situation.obj.id} to this "
             f"receiver ({holds}): {c.rule.why.strip()}")
 

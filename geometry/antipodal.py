@@ -13,7 +13,10 @@ mug or a bottle has no large facets, so its grasps come from here:
 3. Keep pairs with ``min_opening <= |q - p| <= max_opening`` whose normals both lie within
    the friction cone of the line ``p -> q`` (:func:`geometry.quality.in_friction_cone`).
    Where the wall is thin (a cup's side) the ray leaves through the inner surface: one
-   contact outside, one inside, pinching the wall.
+   contact outside, one inside, pinching the wall. Where the line crosses a cavity or a gap
+   and leaves the object again farther on (a cup's body, across both walls), the last exit
+   gives a second pair, jaws closing on the object from outside: a ray cast back along the
+   line from beyond the whole object finds it.
 4. Oblique pairs: from each point also cast ``oblique_rays`` rays at directions spread
    over the cone of ``oblique_fraction * atan(mu)`` about ``-n_p`` (:func:`cone_directions`,
    seeded), kept by the same tests, so a pair exists wherever a parallel-jaw grasp is
@@ -196,21 +199,55 @@ def _cast_pairs(
     friction: float,
 ) -> ContactPairs:
     """Antipodal pairs from rays cast into the material from surface ``points`` (n, 3) on
-    ``faces`` (n,) along ``directions`` (n, 3) (pointing inward: ``d . n_p < 0``); the pair
-    is kept when the ray leaves through a face facing along it, within the opening, with
-    both normals in the friction cone of the line between the contacts. Not deduplicated;
-    in the canonical orientation (closing axis along the generic direction)."""
-    from handover.geometry.candidates import SOURCE_ANTIPODAL
-
+    ``faces`` (n,) along ``directions`` (n, 3) (pointing inward: ``d . n_p < 0``): where the
+    ray first leaves the material (a thin wall pinched across), and where the line leaves the
+    object for good (:func:`_envelope_exits`: jaws closing on a hollow body from outside). A
+    pair is kept when its far contact faces along the ray, within the opening, with both
+    normals in the friction cone of the line between the contacts. Not deduplicated; in the
+    canonical orientation (closing axis along the generic direction)."""
     n_p = mesh.face_normals[faces]
     step = 1e-5 * float(mesh.scale)
     origins = points - step * n_p
     hit, dist = ray_first_hits(mesh, origins, directions)
+    q = origins + np.where(np.isfinite(dist), dist, 0.0)[:, None] * directions
+    first = _pairs(mesh, points, faces, q, hit, directions, min_opening, max_opening,
+                   friction)
+    far, far_hit = _envelope_exits(mesh, points, directions, hit, q, step)
+    envelope = _pairs(mesh, points, faces, far, far_hit, directions, min_opening,
+                      max_opening, friction)
+    return ContactPairs.concatenate([first, envelope])
+
+
+def _envelope_exits(mesh: trimesh.Trimesh, points: np.ndarray, directions: np.ndarray,
+                    first_hit: np.ndarray, first: np.ndarray,
+                    step: float) -> tuple[np.ndarray, np.ndarray]:
+    """Where each line from ``points`` (n, 3) along ``directions`` (n, 3) leaves the object
+    for good: a ray cast back from beyond the whole object (twice its scale away) along
+    ``-d``; its first hit, when it faces along ``d``, is the last exit. (n, 3) points and
+    (n,) faces, the face -1 where the line has no exit other than its first one (``first``,
+    ``first_hit``: a convex section, or a solid), so that only lines crossing a cavity or a
+    gap (a cup's body, across its two walls) add a pair."""
+    reach = 2.0 * float(mesh.scale)
+    starts = points + reach * directions
+    hit, dist = ray_first_hits(mesh, starts, -directions)
+    far = starts - np.where(np.isfinite(dist), dist, 0.0)[:, None] * directions
+    beyond = np.einsum("ij,ij->i", far - first, directions) > 10.0 * step
+    hit = np.where((hit >= 0) & (beyond | (first_hit < 0)), hit, -1)
+    return far, hit
+
+
+def _pairs(mesh: trimesh.Trimesh, points: np.ndarray, faces: np.ndarray, q: np.ndarray,
+           hit: np.ndarray, directions: np.ndarray, min_opening: float, max_opening: float,
+           friction: float) -> ContactPairs:
+    """The pairs (``points``, ``q``) whose far face ``hit`` (-1: none) faces along the ray,
+    within the opening, both normals in the friction cone; canonically oriented."""
+    from handover.geometry.candidates import SOURCE_ANTIPODAL
+
     ok = hit >= 0
-    points, faces, n_p, hit = points[ok], faces[ok], n_p[ok], hit[ok]
-    q = origins[ok] + dist[ok][:, None] * directions[ok]
+    points, faces, q, hit, d = points[ok], faces[ok], q[ok], hit[ok], directions[ok]
+    n_p = mesh.face_normals[faces]
     n_q = mesh.face_normals[hit]
-    leaving = np.einsum("ij,ij->i", n_q, directions[ok]) > 0
+    leaving = np.einsum("ij,ij->i", n_q, d) > 0
     width = np.linalg.norm(q - points, axis=1)
     ok = leaving & (width >= max(min_opening, 1e-9)) & (width <= max_opening)
     points, faces, n_p, hit, q, n_q, width = (

@@ -31,7 +31,10 @@ normal; the overlap's centre is a grasp site. Here:
 5. Contacts: the line through a site along the common normal meets each facet's plane; the
    grasp centre is their midpoint. A ray cast (embree) from each contact to the other must
    meet the other facet first, at the expected distance: the material between the
-   fingers is solid (no hole or cavity in between), and the rays name the contact faces.
+   fingers is solid (no hole or cavity in between), and the rays name the contact faces;
+   or, with a cavity or a gap between them (a cup's body, across both walls), rays cast
+   back from beyond the whole object must meet each contact first: nothing of the object
+   lies beyond either, and the jaws close on it from outside.
 
 The closing direction ``o`` is the common normal, from facet ``i`` to facet ``j`` (``i < j``).
 The reference approach (roll 0), perpendicular to ``o``, is the overlap's long axis for grid
@@ -584,6 +587,15 @@ def facet_sites(
     face0, d0 = ray_first_hits(mesh, c1 - step * uu, -uu)
     ok = (np.abs(d1 - (width - step)) <= tol) & (np.abs(d0 - (width - step)) <= tol)
     ok &= (face0 >= 0) & (face1 >= 0)
+    # or a cavity or a gap between them, and nothing of the object beyond either contact:
+    # the jaws close on it from outside (a cup's body across both walls)
+    far = 2.0 * float(mesh.scale)
+    out1, e1 = ray_first_hits(mesh, c1 + far * uu, -uu)
+    out0, e0 = ray_first_hits(mesh, c0 - far * uu, uu)
+    around = ~ok & (out0 >= 0) & (out1 >= 0) & (np.abs(e1 - far) <= tol) \
+        & (np.abs(e0 - far) <= tol)
+    face0, face1 = np.where(around, out0, face0), np.where(around, out1, face1)
+    ok |= around
     owner, uu, fi, fj, c0, c1, face0, face1, approach2d = (
         x[ok] for x in (owner, uu, fi, fj, c0, c1, face0, face1, approach2d)
     )

@@ -1,12 +1,14 @@
 """An open container's interior: the volume no finger, palm or hand may enter.
 
-An :class:`Interior` is one or more closed pieces (watertight meshes, object frame, m):
-for a hollow primitive the cavity its builder describes (:mod:`geometry.hollow`'s
-``*_cavity``), for a mesh the volume its convex hull adds inside the opening
-(:func:`mesh_interior`). Membership is vectorised: a convex piece is tested against its
-face planes (exact for the polyhedron), any other piece by ray parity (embreex through
-trimesh). Posed boxes (finger, palm, hand boxes) enter when any point of a lattice over
-the box lies inside, or any vertex of a piece lies inside the box.
+An :class:`Interior` is one or more closed pieces, object frame, m: for a hollow primitive the
+cavity its builder describes (:mod:`geometry.hollow`'s ``*_cavity``, a watertight convex
+mesh), for any other surface (a mesh file, walls built of boxes) the columns it holds
+standing along its ``up`` axis (:func:`mesh_interior`, :class:`geometry.held.Columns`).
+Membership is vectorised: a convex mesh piece is tested against its face planes (exact for
+the polyhedron), any other mesh by ray parity (embreex through trimesh), columns by their
+floors and levels. Posed boxes (finger, palm, hand boxes) enter when any point of a lattice
+over the box lies inside, or any vertex of a piece (the hull of a piece of columns) lies
+inside the box.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.geometry.held import Columns, held_volume
 from handover.geometry.mesh import MeshError, contains
 
 if TYPE_CHECKING:
@@ -39,8 +42,9 @@ def box_lattice(count: int) -> np.ndarray:
 class Interior:
     """The keep-out volume inside an opening, in the object frame (m).
 
-    pieces : list of watertight ``trimesh.Trimesh`` with outward normals; the interior is
-        their union (no piece: nothing is inside).
+    pieces : watertight ``trimesh.Trimesh`` with outward normals, or
+        :class:`~handover.geometry.held.Columns`; the interior is their union (no piece:
+        nothing is inside).
     """
 
     pieces: list = field(default_factory=list)
@@ -48,9 +52,9 @@ class Interior:
     def __post_init__(self) -> None:
         self.pieces = list(self.pieces)
         for k, piece in enumerate(self.pieces):
-            if not piece.is_watertight:
+            if not isinstance(piece, Columns) and not piece.is_watertight:
                 raise MeshError(f"interior piece {k} is not a closed volume")
-        self._convex = [bool(p.is_convex) for p in self.pieces]
+        self._convex = [not isinstance(p, Columns) and bool(p.is_convex) for p in self.pieces]
 
     def __len__(self) -> int:
         return len(self.pieces)
@@ -64,12 +68,15 @@ class Interior:
         """All pieces as one mesh (for display), or None when there is none."""
         import trimesh
 
-        return trimesh.util.concatenate(self.pieces) if self.pieces else None
+        meshes = [p.mesh() if isinstance(p, Columns) else p for p in self.pieces]
+        meshes = [m for m in meshes if m is not None]
+        return trimesh.util.concatenate(meshes) if meshes else None
 
     def transformed(self, transform: np.ndarray) -> Interior:
         """The interior moved by a rigid ``transform`` (4, 4)."""
         t = np.asarray(transform, dtype=float)
-        return Interior([p.copy().apply_transform(t) for p in self.pieces])
+        return Interior([p.transformed(t) if isinstance(p, Columns)
+                         else p.copy().apply_transform(t) for p in self.pieces])
 
     def contains(self, points: np.ndarray) -> np.ndarray:
         """(n,) bool: whether each point (n, 3), m, object frame, lies inside a piece (on
@@ -77,6 +84,10 @@ class Interior:
         pts = np.asarray(points, dtype=float).reshape(-1, 3)
         inside = np.zeros(len(pts), dtype=bool)
         for piece, convex in zip(self.pieces, self._convex, strict=True):
+            if isinstance(piece, Columns):
+                todo = np.flatnonzero(~inside)
+                inside[todo] = piece.contains(pts[todo])
+                continue
             lo, hi = piece.bounds
             near = np.flatnonzero(((pts >= lo - _PLANE_TOL) & (pts <= hi + _PLANE_TOL)).all(1))
             near = near[~inside[near]]
@@ -90,6 +101,13 @@ class Interior:
             else:
                 inside[near] = contains(piece, pts[near])
         return inside
+
+    def vertices(self) -> np.ndarray:
+        """(V, 3) m, object frame: the pieces' vertices (a piece of columns: the hull of its
+        corners)."""
+        out = [p.corners() if isinstance(p, Columns) else np.asarray(p.vertices)
+               for p in self.pieces]
+        return np.concatenate(out) if out else np.zeros((0, 3))
 
     def boxes_enter(
         self,
@@ -116,7 +134,7 @@ class Interior:
         local = unit[None, :, :] * half[:, None, :]  # (n, L, 3)
         points = c[:, None, :] + np.einsum("nij,nlj->nli", rot, local)
         enter = self.contains(points.reshape(-1, 3)).reshape(len(c), -1).any(axis=1)
-        vertices = np.concatenate([np.asarray(p.vertices) for p in self.pieces])
+        vertices = self.vertices()
         rest = np.flatnonzero(~enter)
         if len(rest):
             rel = vertices[None, :, :] - c[rest, None, :]  # (m, V, 3)
@@ -126,65 +144,16 @@ class Interior:
         return enter
 
 
-def mesh_interior(
-    mesh: trimesh.Trimesh,
-    up: np.ndarray | None = None,
-    *,
-    min_fraction: float = 1e-3,
-    max_tilt_deg: float = 45.0,
-) -> Interior:
-    """The interior of an open container given as a mesh: the volume its convex hull adds.
+def mesh_interior(mesh: trimesh.Trimesh, up: np.ndarray | None) -> Interior:
+    """The interior of an open container given as a surface (a mesh file, or walls built of
+    solids): what it holds standing along ``up`` (:func:`geometry.held.held_volume`), one
+    piece of columns; no piece when it holds nothing (a solid, a closed box, a floor with a
+    hole) or when no ``up`` is given (an opening cannot be told without the way it stands).
 
-    mesh : watertight, object frame, m (a hollow cup, a bowl). up : (3,) the direction the
-        opening faces (the object's ``up`` axis): when given, only the pieces of hull minus
-        mesh whose boundary on the hull (their lid) faces mostly (more than half its area)
-        within ``max_tilt_deg`` of ``up`` are kept (the inside of a cup, not the gap
-        between its handle and its body).
-    min_fraction : pieces smaller than this fraction of the hull's volume are dropped
-        (tessellation slivers).
-
-    The hull minus the mesh is computed with manifold3d and split into connected pieces.
-    Raises :class:`MeshError` when the mesh is not watertight.
+    mesh : object frame, m; need not be closed (rays see a scanned surface with holes in its
+    sides). up : (3,) the direction its opening faces (the object's ``up`` axis), or None.
     """
-    import manifold3d as m3
-    import trimesh
-
-    if not mesh.is_watertight:
-        raise MeshError("the mesh is not watertight: its interior cannot be computed")
-    hull = mesh.convex_hull
-
-    def solid(m: trimesh.Trimesh):
-        return m3.Manifold(
-            m3.Mesh64(
-                vert_properties=np.ascontiguousarray(m.vertices, dtype=np.float64),
-                tri_verts=np.ascontiguousarray(m.faces, dtype=np.uint64),
-            )
-        )
-
-    body, outer = solid(mesh), solid(hull)
-    if body.status() != m3.Error.NoError or outer.status() != m3.Error.NoError:
-        raise MeshError("the mesh is not a closed manifold: its interior cannot be computed")
-    rest = outer - body
-    normals = np.asarray(hull.face_normals)
-    offsets = np.einsum("ij,ij->i", normals, hull.triangles[:, 0])
-    tol = 1e-6 * max(float(hull.scale), 1e-9)
-    pieces = []
-    for part in rest.decompose():
-        out = part.to_mesh64()
-        piece = trimesh.Trimesh(
-            np.asarray(out.vert_properties, dtype=float)[:, :3],
-            np.asarray(out.tri_verts, dtype=np.int64),
-            process=True,
-        )
-        if not len(piece.faces) or piece.volume < min_fraction * hull.volume:
-            continue
-        if up is not None:
-            u = np.asarray(up, dtype=float).reshape(3)
-            u = u / np.linalg.norm(u)
-            on_hull = (piece.triangles_center @ normals.T - offsets).max(axis=1) > -tol
-            facing = piece.face_normals @ u >= np.cos(np.deg2rad(max_tilt_deg))
-            lid = piece.area_faces[on_hull & facing].sum()
-            if not lid > 0.5 * piece.area_faces[on_hull].sum():
-                continue
-        pieces.append(piece)
-    return Interior(pieces)
+    if up is None:
+        return Interior([])
+    held = held_volume(mesh, np.asarray(up, dtype=float))
+    return Interior([held] if len(held) else [])

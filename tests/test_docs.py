@@ -43,7 +43,8 @@ MARKED = {
 }
 MODELINE = re.compile(r"^# yaml-language-server: \$schema=\.\./schema/(?P<kind>\w+)\.json$")
 PATH_COMMENT = re.compile(r"^# (?P<path>\w+/[\w.-]+\.yaml)$")
-FOLDERS = ("objects", "etiquette", "receivers", "grippers", "hands", "robots", "scenes", "tests")
+FOLDERS = ("objects", "etiquette", "receivers", "grippers", "hands", "robots", "scenes", "tests",
+           "hazards")
 TWO_COMMANDS = (
     "python3.11 -m venv .venv && . .venv/bin/activate && pip install . "
     "&& handover plan knife --explain\n",

@@ -88,23 +88,21 @@ def primitive_cavity(prim: Primitive):
 def object_interior(kb: KB | None, obj: ObjectSpec, part_mesh: PartMesh | None = None,
                     parts: set[str] | None = None) -> Interior:
     """The object's openings as one :class:`geometry.interior.Interior` (object frame, m):
-    the cavities of its hollow primitives (only those of ``parts`` when given); for a mesh
-    file, the volume its convex hull adds in pieces that open along the object's ``up`` axis
-    (all such pieces when it has none; nothing when the mesh is not watertight).
-    ``part_mesh`` saves loading the mesh again (``kb`` is then not needed). Which objects
-    have an opening that matters is the KB's to say (``open_container``)."""
+    the cavities of its hollow primitives (only those of ``parts`` when given); for any other
+    object (a mesh file, or primitives with no cup, bowl or tube among those parts: walls of
+    boxes round a tray), what its surface holds standing along the object's ``up`` axis
+    (:func:`geometry.interior.mesh_interior`; nothing without an ``up`` axis). ``part_mesh``
+    saves building the mesh again (``kb`` is then not needed). Which objects have an opening
+    that matters is the KB's to say (``open_container``)."""
     from handover.geometry.interior import Interior, mesh_interior
-    from handover.geometry.mesh import MeshError
 
     if obj.geometry.primitives:
         pieces = [primitive_cavity(p) for p in obj.geometry.primitives
                   if p.is_hollow and (parts is None or p.part in parts)]  # fmt: skip
-        return Interior(pieces)
+        if pieces:
+            return Interior(pieces)
     pm = part_mesh if part_mesh is not None else object_part_mesh(kb, obj)
-    try:
-        return mesh_interior(pm.mesh, obj.axes.get("up"))
-    except MeshError:
-        return Interior([])
+    return mesh_interior(pm.mesh, obj.axes.get("up"))
 
 
 def object_part_mesh(kb: KB, obj: ObjectSpec) -> PartMesh:

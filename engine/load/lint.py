@@ -24,6 +24,9 @@ Errors:
     ``applies.tasks`` naming a task no object has;
   - a receiver's ``hand`` or a robot's (or an arm's) ``gripper`` that does not exist; two
     obstacles with one id in a scene;
+  - in ``hazards/``: a hazard tag declared twice, an implied tag nothing declares or
+    documents, a cycle of implications, a measured hazard whose tag is not declared
+    (:func:`handover.engine.store.hazards.hazard_issues`);
   - a robot's ``urdf`` that is missing, outside the KB, xacro, or does not parse (the URDF's
     file:line in the message); an arm naming a link the URDF lacks; an arm's chain with mimic,
     floating or planar joints or none that moves (:func:`lint_robot`);
@@ -40,9 +43,11 @@ Warnings:
   - a robot's ``reach`` beyond what its arms reach at full stretch;
   - a tag on an object or a part that no rule of any culture names, no task wants for the
     receiver and no vocabulary documents (a typo, or a hazard nobody handles), at the tag;
-  - an object part that no geometry belongs to; an ``axis`` rule that applies to an object
-    lacking that axis; a document whose id differs from its file name (loader); a file
-    outside the KB folders (loader).
+  - an object part that no geometry belongs to; an ``axis`` rule that applies to an object by
+    its tags (``applies.object_tags_any``) when the object lacks that axis; a document
+    whose id differs from its file name (loader); a file outside the KB folders (loader);
+  - an object tagged for a ``keep_out`` rule whose geometry has no opening to measure
+    (:mod:`handover.engine.load.lint_measure`, with the deep checks only).
 
 Checks that refer across documents are skipped for a kind whose files failed to load, so one
 broken file does not cause a cascade of false errors.
@@ -60,7 +65,13 @@ from handover.engine.load.lint_scene import lint_scene
 from handover.engine.spec.applies import Facts
 from handover.engine.spec.query import DEFAULTS
 from handover.engine.spec.schema import KBModel, KBTestFile, ObjectSpec, RobotSpec, RuleBase
-from handover.engine.store.cultures import _resolve, applies_to_object, object_facts, object_tags
+from handover.engine.store.cultures import (
+    _resolve,
+    applies_to_object,
+    object_facts,
+    object_tags,
+)
+from handover.engine.store.hazards import hazard_issues, tag_families
 
 if TYPE_CHECKING:
     from handover.engine.store.kb import KB
@@ -75,15 +86,24 @@ def lint_kb(kb: KB, failed_kinds: Iterable[str] = (), urdf: bool = True) -> list
     """Every semantic problem of ``kb``, sorted, each once.
 
     failed_kinds : document kinds (folder names) with a file that did not load; checks that
-    need all documents of such a kind are skipped. urdf : parse robots' URDF files too (else
-    only their paths are checked).
+    need all documents of such a kind are skipped. urdf : the deep checks too: parse robots'
+    URDF files (else only their paths are checked), and build the geometry of the objects a
+    rule must measure (:mod:`handover.engine.load.lint_measure`).
     """
     failed = set(failed_kinds)
     issues: list[KBIssue] = []
     for obj in kb.objects.values():
         issues.extend(lint_object(kb, obj))
     issues.extend(lint_cultures(kb, failed))
+    if "hazards" not in failed and not {"etiquette", "objects"} & failed:
+        known = {name for c in kb.cultures.values() for name in c.vocabulary}
+        known |= set().union(*(object_tags(o) for o in kb.objects.values()))
+        issues.extend(hazard_issues(kb, known))
     issues.extend(lint_references(kb, failed, urdf))
+    if urdf and not {"objects", "etiquette"} & failed:  # the deep checks build geometry
+        from handover.engine.load.lint_measure import lint_measurements
+
+        issues.extend(lint_measurements(kb))
     for test_file in kb.tests.values():
         issues.extend(lint_tests(kb, test_file, failed))
     return sorted(set(issues))
@@ -211,9 +231,13 @@ def rule_tags(rule: RuleBase) -> Iterator[tuple[str, tuple[str | int, ...]]]:
 
 
 def vocabulary(kb: KB) -> dict[str, str]:
-    """The tags and axis names the cultures document (``vocabulary``: name -> meaning), the
-    first culture's meaning kept for a name documented twice."""
+    """The tags and axis names the KB documents, name -> meaning: the hazard tags of its
+    ``hazards/`` files first (their ``means``), then the cultures' ``vocabulary``; the first
+    meaning kept for a name documented twice."""
     out: dict[str, str] = {}
+    for doc in kb.hazards.values():
+        for name, spec in doc.tags.items():
+            out.setdefault(name, spec.means)
     for culture in kb.cultures.values():
         for name, meaning in culture.vocabulary.items():
             out.setdefault(name, meaning)
@@ -255,7 +279,9 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
     if "objects" in failed:
         return
     documented = set(vocabulary(kb)) if "etiquette" not in failed else set()
-    carried = set().union(*(object_tags(o) for o in kb.objects.values()))
+    families = tag_families(kb) if "hazards" not in failed else None
+    carried = set().union(*(object_tags(o, families) for o in kb.objects.values()))
+    carried |= {m.tag for m in families.measured} if families is not None else set()
     if "etiquette" not in failed:
         known = used_tags(kb) | documented
         for obj in kb.objects.values():
@@ -293,15 +319,18 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                     )
                     continue
                 for obj in kb.objects.values():
-                    if rule.axis in obj.axes:
+                    # a rule with no tag condition is about every object with that axis
+                    if rule.axis in obj.axes or not rule.applies.object_tags_any:
                         continue
                     if obj.id not in facts:
-                        facts[obj.id] = object_facts(obj)
+                        facts[obj.id] = object_facts(obj, families)
                     if applies_to_object(rule, obj, facts[obj.id]):
                         yield kb.issue(
                             rule,
                             f"rule '{rule.id}' applies to object '{obj.id}' ({obj.source}), "
-                            f"which defines no axis '{rule.axis}': the rule cannot judge it",
+                            f"which defines no axis '{rule.axis}': the rule cannot judge it "
+                            "(it is unknown in a plan, and a hard rule then does not hand the "
+                            "object over)",
                             "axis",
                             severity="warning",
                         )

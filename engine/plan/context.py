@@ -13,7 +13,12 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from handover.engine.plan.presentation import presentation_rotations, principal_axes, rule_goals
+from handover.engine.plan.presentation import (
+    own_frame,
+    presentation_rotations,
+    principal_axes,
+    rule_goals,
+)
 from handover.engine.plan.situation import Situation
 from handover.engine.plan.world import World, build_world
 from handover.engine.spec.applies import Facts
@@ -26,23 +31,28 @@ if TYPE_CHECKING:
     from handover.engine.plan.phase import Hands
     from handover.engine.plan.world import Locations
     from handover.engine.spec.schema import RuleBase
+    from handover.engine.store.hazards import TagFamilies
     from handover.geometry.candidates import CandidateSet
     from handover.geometry.collision import BoxWorld
     from handover.geometry.gripper import Gripper, PosedBoxes
     from handover.geometry.hand import HumanHand
     from handover.geometry.mesh import PartMesh
 
-__all__ = ["ObjectFacts", "Memo", "PlanContext", "build_context", "initial_pose", "scene_boxes"]
+__all__ = ["ObjectFacts", "Memo", "PlanContext", "build_context", "initial_pose", "scene_boxes",
+           "measured_hazards"]
 
 
 @dataclass(frozen=True)
 class ObjectFacts:
     """Query-level facts that rule conditions (``Applies``) read.
 
-    tags : object tags plus every part's tags. size : m, largest extent of the oriented
-    bounding box; min_width : m, its smallest extent (informative: whether one gripper spans
-    the object is decided from the grasp candidates, :meth:`PlanContext.single_grasps`).
-    payload : kg, one robot hand's. max_opening : m, the gripper's.
+    tags : object tags plus every part's tags, with the tags they imply and the hazards
+    measured on the geometry (kb/hazards). size : m, largest extent of the oriented bounding
+    box; min_width : m, its smallest extent (informative: whether one gripper spans the
+    object is decided from the grasp candidates, :meth:`PlanContext.single_grasps`).
+    payload : kg, one robot hand's. max_opening : m, the gripper's. derived : the tags of
+    ``tags`` the object's file does not write, each with how it came (``implied by corrosive
+    (hazards/household.yaml:90)``, ``measured: fits the small-parts cylinder ...``).
     """
 
     tags: frozenset[str]
@@ -51,6 +61,7 @@ class ObjectFacts:
     min_width: float
     payload: float
     max_opening: float
+    derived: tuple[tuple[str, str], ...] = ()
 
 
 _UNSET: Any = object()
@@ -253,18 +264,32 @@ def build_context(
     gripper: Gripper,
     hand: HumanHand,
     rules: Sequence[RuleBase] = (),
+    families: TagFamilies | None = None,
 ) -> PlanContext:
     """Compute presentations, initial pose, scene and the object's facts for one query.
     Where the receiver's hands go depends on the rules of each mode: see
     :meth:`PlanContext.hands`. ``rules``: the culture's rules, whose axis rules add the
     presentations solved from the object's named axes
-    (:func:`~handover.engine.plan.presentation.rule_goals`)."""
+    (:func:`~handover.engine.plan.presentation.rule_goals`). ``families``: the KB's hazard
+    vocabulary (:func:`~handover.engine.store.hazards.tag_families`): the tags each tag
+    implies, and the hazards measured on the geometry (:func:`measured_hazards`)."""
     from handover.geometry.collision import BoxWorld
 
     vertices = np.asarray(part_mesh.mesh.vertices, dtype=float)
     boxes = scene_boxes(situation)
     extents = _obb_extents(vertices)
+    written = set(situation.obj.tags).union(*(set(p.tags) for p in situation.obj.parts.values()))
     tags = set(situation.obj.tags).union(*part_tags) if part_tags else set(situation.obj.tags)
+    derived: dict[str, str] = {}
+    if families is not None:
+        derived.update(families.implied_by(written))
+        for tag, how in measured_hazards(families, vertices):
+            brought = families.expand([tag]) - {tag}
+            for other in sorted(brought - tags - {tag}):
+                derived.setdefault(other, f"implied by {tag}, {how}")
+            derived.setdefault(tag, how)
+            tags |= {tag} | brought
+        tags = set(families.expand(tags))
     facts = ObjectFacts(
         tags=frozenset(tags),
         mass=float(situation.obj.mass),
@@ -272,13 +297,16 @@ def build_context(
         min_width=float(extents.min()),
         payload=float(situation.robot.payload_per_hand),
         max_opening=float(gripper.max_opening),
+        derived=tuple(sorted((t, how) for t, how in derived.items() if t not in written)),
     )
     s = situation
     goals = rule_goals(rules, s.task, s.obj.axes, s.directions, Facts(
         tags=facts.tags, mass=facts.mass, size=facts.size, min_width=facts.min_width,
         payload=facts.payload, max_opening=facts.max_opening, role=s.receiver.role,
         age=s.receiver.years, task=s.task_id, mode=None))
-    rotations = presentation_rotations(s.toward, goals, principal_axes(part_mesh.mesh.triangles))
+    shape = principal_axes(part_mesh.mesh.triangles)
+    rotations = presentation_rotations(s.toward, goals, shape,
+                                       frame=own_frame(s.obj.axes, shape))
     return PlanContext(
         situation=situation,
         part_mesh=part_mesh,
@@ -293,6 +321,25 @@ def build_context(
         scene_box_list=boxes,
         facts=facts,
     )
+
+
+def measured_hazards(families: TagFamilies, vertices: np.ndarray) -> list[tuple[str, str]]:
+    """The hazards the KB reads from an object's geometry (``vertices`` (n, 3), m, object
+    frame), whatever its tags: ``(tag, how)`` for each that holds, ``how`` in words with the
+    orientation's measures (an object that fits the small-parts cylinder is
+    ``swallowable``)."""
+    from handover.geometry.cylinder_fit import fits_in_cylinder
+
+    out = []
+    for m in families.measured:
+        cyl = m.fits_cylinder
+        fit = fits_in_cylinder(vertices, cyl.diameter, cyl.length)
+        if fit.fits:
+            out.append((m.tag, f"measured ({m.source}): it fits the {cyl.diameter * 1e3:.1f} "
+                                f"mm x {cyl.length * 1e3:.1f} mm cylinder ({fit.length * 1e3:.1f} "
+                                f"mm long and {fit.width * 1e3:.1f} mm across in some "
+                                "orientation)"))
+    return out
 
 
 def _obb_extents(vertices: np.ndarray) -> np.ndarray:

@@ -15,6 +15,11 @@ causes.
 Rows are ordered grasp-major: row ``r`` is grasp ``r // K`` in presentation ``r % K``. The
 best row has the highest score; ties go to the lower row index, so the choice is
 deterministic.
+
+A rule that could not measure a row (:class:`~handover.engine.plan.judge.Outcome`'s
+``unknown``) fails it: a hard rule that is unknown removes the row like a failure, and the
+table keeps which rows were unknown (``unknown``) and why (``unknown_why``), so the reason of
+an infeasible attempt says what could not be measured and how to fix the KB.
 """
 
 from __future__ import annotations
@@ -53,6 +58,9 @@ class Decision:
     soft_scores : (R, S) float. Each soft rule's score on the kept rows.
     first_fail : (R,) int, index into ``hard`` of the first failing rule in order (-1: kept).
     hard, soft : the compiled rules, in evaluation order.
+    unknown : (R, H) bool. Hard rule h could not measure row r (which counts as failing it:
+    ``fails`` holds it too). unknown_why : rule id -> why it could not measure (and how to
+    fix the KB), for the rules with an unknown row.
     """
 
     gi: np.ndarray
@@ -66,6 +74,8 @@ class Decision:
     first_fail: np.ndarray
     soft_scores: np.ndarray
     measured: dict[str, np.ndarray] = field(default_factory=dict)
+    unknown: np.ndarray | None = None
+    unknown_why: dict[str, str] = field(default_factory=dict)
     # (ctx, phase, graph) the table was judged in: what :meth:`exact` completes it with.
     judged_in: tuple | None = field(default=None, repr=False, compare=False)
     _exact: Decision | None = field(default=None, repr=False, compare=False)
@@ -82,9 +92,18 @@ class Decision:
             self._exact = complete(self, *self.judged_in[:2])
         return self._exact
 
+    def __post_init__(self) -> None:
+        if self.unknown is None:
+            self.unknown = np.zeros(self.fails.shape, dtype=bool)
+
     @property
     def n_rows(self) -> int:
         return len(self.gi)
+
+    def unmeasured(self) -> dict[str, int]:
+        """Rows each hard rule could not measure (only the rules with such rows), by id."""
+        counts = (self.unknown & self.checked).sum(axis=0)
+        return {c.id: int(counts[h]) for h, c in enumerate(self.hard) if counts[h]}
 
     def ranking(self) -> np.ndarray:
         """Indices of kept rows, best first (score descending, then row index)."""
@@ -141,6 +160,7 @@ def complete(decision: Decision, ctx: PlanContext, phase: Phase) -> Decision:
     is. The rows that fail fewest known rules are completed first; the patterns they give
     (with those of the rows the fast path judged fully) then leave out the rest."""
     fails, checked = decision.fails.copy(), decision.checked.copy()
+    unknown, unknown_why = decision.unknown.copy(), dict(decision.unknown_why)
     measured = dict(decision.measured)
     n_rows, n_hard = fails.shape
     todo_rows = ~checked.all(axis=1)
@@ -170,11 +190,14 @@ def complete(decision: Decision, ctx: PlanContext, phase: Phase) -> Decision:
             out = evaluate_rule(c, ctx, phase, decision.gi[todo], decision.pk[todo])
             fails[todo, h] = ~out.passed
             checked[todo, h] = True
+            unknown[todo, h] = out.unknown
+            if out.unknown.any():
+                unknown_why.setdefault(c.id, out.unknown_why)
             values = np.array(measured.get(c.id, np.full(n_rows, np.nan)), dtype=float)
             values[todo] = out.measured
             measured[c.id] = values
-    return replace(decision, fails=fails, checked=checked, measured=measured, judged_in=None,
-                   _exact=None, _sets=None)
+    return replace(decision, fails=fails, checked=checked, measured=measured, unknown=unknown,
+                   unknown_why=unknown_why, judged_in=None, _exact=None, _sets=None)
 
 
 def evaluate_rule(c: CompiledRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
@@ -203,6 +226,8 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
     rows = len(gi)
     fails = np.zeros((rows, len(hard)), dtype=bool)
     checked = np.zeros((rows, len(hard)), dtype=bool)
+    unknown = np.zeros((rows, len(hard)), dtype=bool)
+    unknown_why: dict[str, str] = {}
     measured: dict[str, np.ndarray] = {}
 
     alive = np.ones(rows, dtype=bool)
@@ -214,12 +239,16 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
                 out = evaluate_rule(c, ctx, phase, gi[idx], pk[idx])
                 fails[idx, h] = ~out.passed
                 checked[idx, h] = True
+                unknown[idx, h] = out.unknown
                 measured[c.id][idx] = out.measured
         else:
             out = evaluate_rule(c, ctx, phase, gi, pk)
             fails[:, h] = ~out.passed
             checked[:, h] = True
+            unknown[:, h] = out.unknown
             measured[c.id] = out.measured
+        if unknown[:, h].any():
+            unknown_why[c.id] = out.unknown_why
         alive &= ~fails[:, h]
 
     # First failing hard rule in evaluation order (collision rules come last by cost).
@@ -241,7 +270,7 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
     return Decision(
         gi=gi, pk=pk, hard=hard, soft=soft, fails=fails, checked=checked, kept=alive,
         score=score, first_fail=first_fail, soft_scores=soft_scores, measured=measured,
-        judged_in=(ctx, phase, cg),
+        unknown=unknown, unknown_why=unknown_why, judged_in=(ctx, phase, cg),
     )  # fmt: skip
 
 
@@ -251,9 +280,11 @@ def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,
     """Every rule's outcome on one row in ``phase``. With ``rules``, only those are judged
     and the other active rules are listed as not applicable with ``note``. Active rules
     come first in evaluation order, then the inactive ones with their reason. Each entry:
-    rule, kind, hard, status (pass | fail | scored | not_applicable), measured, unit,
-    threshold, score, weight, why, source, culture, overrides, safety, note, and what the
-    rule's kind adds (:meth:`~handover.engine.spec.kinds.RuleBase.detail`)."""
+    rule, kind, hard, status (pass | fail | scored | unknown | not_applicable), measured,
+    unit, threshold, score, weight, why, source, culture, overrides, safety, note (for
+    ``unknown``: what could not be measured and how to fix the KB, also as
+    ``unknown_why``), and what the rule's kind adds
+    (:meth:`~handover.engine.spec.kinds.RuleBase.detail`)."""
     gi = np.array([grasp])
     pk = np.array([presentation])
     entries = []
@@ -263,12 +294,20 @@ def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,
             entries.append(_entry(replace(c, reason=note), "not_applicable", None, None))
             continue
         out: Outcome = evaluate_rule(c, ctx, phase, gi, pk)
+        if out.inapplicable is not None:
+            entries.append(_entry(replace(c, reason=out.inapplicable), "not_applicable", None,
+                                  None))
+            continue
         passed = bool(out.passed[0])
-        if c.rule.hard:
+        if out.unknown[0]:
+            status, passed = "unknown", None
+        elif c.rule.hard:
             status = "pass" if passed else "fail"
         else:
             status = "scored"
         entry = _entry(c, status, out, passed)
+        if status == "unknown":
+            entry["note"] = entry["unknown_why"] = out.unknown_why
         if out.unit == "part index" and entry["measured"] is not None and entry["measured"] >= 0:
             entry["measured_part"] = ctx.part_mesh.part_names[int(entry["measured"])]
         if c.rule.kind == "collision":  # measured: what the gripper hit, named

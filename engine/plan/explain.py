@@ -44,6 +44,7 @@ def infeasible_reason(decision: Decision, mode: str, quick: bool = False) -> str
     sets.sort(key=lambda s: s[:4])
     shown = _pick_sets(sets)
     text = [f"{mode}: no candidate passes every hard rule"]
+    text += _unmeasured(exact)
     causes = _geometric_causes(exact, decision.judged_in, sets, names)
     if causes:
         text.append("; the cause: " + "; ".join(causes))
@@ -60,6 +61,25 @@ def infeasible_reason(decision: Decision, mode: str, quick: bool = False) -> str
                 f"; no set among the {SETS_CHECKED} smallest failure patterns lets a candidate "
                 "through once lifted")
     return "".join(text)
+
+
+def _unmeasured(exact: Decision) -> list[str]:
+    """What the hard rules could not measure (each rule once, with its rows and why, the
+    safety rules first): a rule that cannot measure never passes, so these rows were
+    removed for want of a measurement, and the KB says how to give one."""
+    counts = exact.unmeasured()
+    if not counts:
+        return []
+    rules = sorted((c for c in exact.hard if c.id in counts),
+                   key=lambda c: (not c.rule.safety, exact.hard.index(c)))
+    said = []
+    for c in rules:
+        n, total = counts[c.id], exact.n_rows
+        which = f"any of the {n} candidates" if n == total else f"{n} of {total} candidates"
+        kind = "safety rule" if c.rule.safety else "rule"
+        said.append(f"the {kind} {c.id} ({c.source}) could not measure {which}: "
+                    f"{exact.unknown_why.get(c.id, '')}")
+    return ["; not measured: " + "; ".join(said)]
 
 
 def _pick_sets(sets: list[tuple]) -> list[tuple]:

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from handover.engine.plan.compiler import ConstraintGraph
     from handover.engine.plan.context import PlanContext
 
-__all__ = ["hands", "receiver_roles", "hands_for"]
+__all__ = ["hands", "receiver_roles", "hands_for", "keep_out"]
 
 
 def receiver_roles(cg: ConstraintGraph, ctx: PlanContext) -> Roles:
@@ -34,32 +34,46 @@ def hands_for(cg: ConstraintGraph, ctx: PlanContext, count: int = 1,
     under ``cg``'s contact and location rules, the candidate locations ``avoid`` tried
     last."""
     rules = tuple(c for c in cg.order if c.rule.kind == "location")
-    return hands(ctx, receiver_roles(cg, ctx), count, rules, avoid)
+    return hands(ctx, receiver_roles(cg, ctx), count, rules, avoid, keep_out(cg))
+
+
+def keep_out(cg: ConstraintGraph) -> tuple[str, ...]:
+    """The tags whose openings the receiver's hand is kept out of by ``cg``'s active hard
+    ``keep_out`` rules (sorted, each once)."""
+    return tuple(sorted({t for c in cg.order if c.rule.kind == "keep_out" and c.rule.hard
+                         and "receiver_hand" in c.rule.of for t in c.rule.tags}))
 
 
 def hands(ctx: PlanContext, roles: Roles, count: int = 1, location_rules: tuple = (),
-          avoid: tuple[int, ...] = ()) -> Hands:
+          avoid: tuple[int, ...] = (), keep_out: tuple[str, ...] = ()) -> Hands:
     """Where the receiver's ``count`` hands (1 or 2) go in every presentation, given
     which parts the people may hold, and where each presentation is offered under the
     compiled ``location_rules``, the candidate locations ``avoid`` tried last
-    (:func:`~handover.engine.plan.offer.place`; memoised by roles, count, the rules and
-    ``avoid``)."""
+    (:func:`~handover.engine.plan.offer.place`; memoised by roles, count, the rules,
+    ``avoid`` and ``keep_out``). ``keep_out``: tags of the object's openings the hand stays
+    out of as it turns to fit (a mug's: its palm does not rest in the drink)."""
     memo = ctx.memo.hands
     key = (roles, count, tuple(c.rule.model_dump_json() for c in location_rules))
     avoid = tuple(sorted({int(v) for v in avoid}))
     if avoid:
         key = (*key, ("avoid", avoid))
+    keep_out = tuple(sorted(set(keep_out)))
+    if keep_out:
+        key = (*key, ("keep_out", keep_out))
     if key not in memo:
-        memo[key] = _hands(ctx, roles, count, location_rules, key, avoid)
+        memo[key] = _hands(ctx, roles, count, location_rules, key, avoid, keep_out)
     return memo[key]
 
 
 def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
-           key: tuple, avoid: tuple[int, ...] = ()) -> Hands:
+           key: tuple, avoid: tuple[int, ...] = (), keep_out: tuple[str, ...] = ()) -> Hands:
     """See :func:`hands`. The giver's graspable region (parts the robot may
     hold) gives ``s_range``, whose robot-side half the ``giver_side`` rule measures (the paper's
     3.1: "the half of the graspable region near the robot")."""
+    from handover.engine.plan.features import open_interior
+
     mesh = ctx.part_mesh.mesh
+    opening = open_interior(ctx, keep_out) if keep_out else None
     centroids = np.asarray(mesh.triangles_center)
     face_part = np.asarray(ctx.part_mesh.face_part)
     graspable = np.array([not (t & roles.giver_forbid) for t in ctx.part_tags] or [True],
@@ -80,6 +94,7 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
             region, ctx.rotations, s.toward, grip_width=s.hand.grip_width,
             where=s.task.receiver_site if s.task is not None else "middle",
             finger_thickness=s.hand.finger_thickness, hand=ctx.hand, mesh=mesh,
+            opening=opening if opening is not None and len(opening) else None,
         ),)
     receiving = (s.receiver.dominant_hand,) if count == 1 else (
         s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")

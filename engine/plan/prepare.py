@@ -73,10 +73,11 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
         situation.obj = situation.obj.model_copy(update={"mass": max(mass, 1e-3)})
     else:
         part_mesh = assets.object_part_mesh(kb, situation.obj)
-    part_tags = [
-        set(situation.obj.parts[name].tags) if name in situation.obj.parts else set()
-        for name in part_mesh.part_names
-    ]
+    from handover.engine.store.cultures import part_tags as tags_of_parts
+    from handover.engine.store.hazards import tag_families
+
+    families = tag_families(kb)  # what each tag implies (kb/hazards)
+    part_tags = tags_of_parts(situation.obj, part_mesh.part_names, families)
     gripper = assets.gripper_from_spec(situation.gripper, kb)
     collider = ObjectCollider(part_mesh.mesh)
     candidates, stats = cached_candidates(part_mesh, gripper, {"seed": 0}, db,
@@ -92,7 +93,7 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
 
     rules = [r.rule for r in resolve_culture(kb, situation.query.culture)]
     ctx = build_context(situation, part_mesh, part_tags, candidates, stats, gripper, hand,
-                        rules)
+                        rules, families)
     ctx.collider = collider
     ctx.kb_root = kb.root
     ctx.arms_cache = arms_cache

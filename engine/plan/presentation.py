@@ -53,14 +53,45 @@ __all__ = [
     "unique_rotations",
     "rule_goals",
     "principal_axes",
+    "own_frame",
     "presentation_rotations",
     "handover_poses",
 ]
 
 
+def own_frame(axes: Mapping[str, Sequence[float]],
+              shape_axes: np.ndarray | None = None) -> np.ndarray:
+    """(3, 3) the object's own frame, columns ``x, y, z`` in the object frame: the frame the
+    24 aligned presentations turn (:func:`presentation_rotations`). The object frame itself
+    when every named axis lies along one of its axes (the KB's convention: standing on a
+    table, z up) or it names none; else the frame its named axes make, so that the aligned
+    presentations are the same physical orientations whatever frame the file is written
+    in: ``z`` its ``up`` axis, ``x`` the first other named axis (by name) across it, else its
+    first principal axis across it (``shape_axes`` rows); with no ``up``, ``x`` the first
+    named axis and ``z`` the next one across it, else a principal axis."""
+    named = {k: np.asarray(v, dtype=float) for k, v in axes.items()}
+    named = {k: v / np.linalg.norm(v) for k, v in named.items() if np.linalg.norm(v) > 1e-12}
+    aligned = all(np.isclose(np.abs(v).max(), 1.0, atol=1e-9) for v in named.values())
+    if not named or aligned:
+        return np.eye(3)
+    others = [named[k] for k in sorted(named) if k != "up"]
+    shape = list(shape_axes) if shape_axes is not None else []
+    fallback = [*shape, *np.eye(3)]
+    if "up" in named:
+        z = named["up"]
+        x = next(a for a in (_across(c, z) for c in [*others, *fallback]) if a is not None)
+    else:
+        x = others[0]
+        z = next(a for a in (_across(c, x) for c in [*others[1:], *fallback])
+                 if a is not None)
+    x = _across(x, z)
+    return np.stack([x, np.cross(z, x), z], axis=1)
+
+
 def presentation_rotations(toward: np.ndarray, goals: Sequence[AxisGoal] = (),
                            shape_axes: np.ndarray | None = None,
-                           roll_step_deg: float = ROLL_STEP_DEG) -> np.ndarray:
+                           roll_step_deg: float = ROLL_STEP_DEG,
+                           frame: np.ndarray | None = None) -> np.ndarray:
     """The candidate orientations of the object at the handover.
 
     toward : (3,) unit, world, horizontal. Robot -> receiver.
@@ -68,9 +99,11 @@ def presentation_rotations(toward: np.ndarray, goals: Sequence[AxisGoal] = (),
     shape_axes : (M, 3) rows, object frame: the object's principal axes that its shape
         decides (:func:`principal_axes`), which fix the turn about a goal's axis when no
         other goal does; after them (or None), the frame axis most across the goal's axis.
+    frame : (3, 3) the object's own frame (:func:`own_frame`; None: the object frame), whose
+        axes the 24 aligned presentations map onto the receiver-frame basis.
     Returns (K, 3, 3) float: rotation matrices object frame -> world, in a fixed order: the
-    24 frame-aligned ones first (identity-aligned first: object x toward the receiver, z
-    up) but those that put a goal's axis within its rule's bounds without meeting the goal
+    24 aligned ones first (the frame's x toward the receiver, its z up, first) but those that
+    put a goal's axis within its rule's bounds without meeting the goal
     (:func:`meets_approximately`), then those solved from ``goals`` that no earlier one
     matches within ``SAME_ROTATION_DEG``. An object written with its named axes along its
     frame's axes keeps all 24 (they meet a rule exactly or miss it by 90 degrees or more).
@@ -86,6 +119,8 @@ def presentation_rotations(toward: np.ndarray, goals: Sequence[AxisGoal] = (),
             if np.linalg.det(p) > 0:
                 mats.append(basis @ p)
     aligned = np.asarray(mats)
+    if frame is not None:
+        aligned = aligned @ np.asarray(frame, dtype=float).T  # the frame's axes, not the file's
     if not goals:
         return aligned
     # A frame-aligned presentation that meets a rule only roughly (a glass tilted 20 degrees

@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     import trimesh
 
     from handover.geometry.hand import HumanHand
+    from handover.geometry.interior import Interior
 
 # A compact object's receiver hand stops this far (m) short of the object's middle.
 COMPACT_GAP = 0.005
@@ -172,6 +173,7 @@ def predict_receiver_sites(
     finger_thickness: float = 0.02,
     hand: HumanHand | None = None,
     mesh: trimesh.Trimesh | None = None,
+    opening: Interior | None = None,
 ) -> ReceiverSites:
     """The paper's C for every presentation.
 
@@ -191,7 +193,8 @@ def predict_receiver_sites(
 
     rotations : (K, 3, 3) object -> world. grip_width : m, the hand's width along the part.
     hand : the receiver's hand model; mesh : the object (object frame, m). Without both, the
-        hand never turns.
+        hand never turns. opening : the object's openings the hand must not enter either (a
+        mug's cavity: a palm that rests in it does not fit), object frame, or None.
     """
     k = len(rotations)
     site = np.full((k, 3), np.nan)
@@ -248,7 +251,7 @@ def predict_receiver_sites(
             # the hand turns about the part's axis
             approach = np.einsum("kij,kj->ki", _spin(axes, turn), default)
             return _wrapped(region, band_site, part, axes, approach, band, grip_width, mesh)
-    return _fitted(measure, hand, mesh)
+    return _fitted(measure, hand, mesh, opening)
 
 
 APPROACH_TURNS_DEG = (0.0, 45.0, -45.0, 90.0, -90.0)
@@ -275,16 +278,20 @@ def _spin(axes: np.ndarray, deg: float) -> np.ndarray:
     return rotation_about_axis(axes, np.full(len(axes), np.radians(deg)))
 
 
-def _fitted(measure, hand, mesh) -> ReceiverSites:
+def _fitted(measure, hand, mesh, opening: Interior | None = None) -> ReceiverSites:
     """The receiver's sites with each presentation's hand turned (``APPROACH_TURNS_DEG``,
     ``measure(turn)`` giving the sites of every presentation at that turn) to the first turn
-    at which its boxes reach at most ``HAND_GIVE`` into ``mesh`` (the least deep where none
-    does). Without a hand model or a mesh: the untouched first turn."""
+    at which its boxes reach at most ``HAND_GIVE`` into ``mesh`` and none enters ``opening``
+    (the least deep where none does; a box in the opening counts as :data:`IN_OPENING`
+    deep). Without a hand model or a mesh: the untouched first turn."""
     first = measure(APPROACH_TURNS_DEG[0])
     if hand is None or mesh is None or not first.valid.any():
         return first
-    from handover.geometry.penetration import box_depths
+    from functools import partial
 
+    from handover.geometry.penetration import box_depths as into_solid
+
+    box_depths = partial(_depths, into_solid, opening)
     chosen = first
     best = _box_depths(first, hand, mesh, np.flatnonzero(first.valid), box_depths)
     todo = np.flatnonzero(first.valid)[best[first.valid] > HAND_GIVE]
@@ -299,6 +306,22 @@ def _fitted(measure, hand, mesh) -> ReceiverSites:
             best[better] = depth[better]
         todo = todo[best[todo] > HAND_GIVE]
     return chosen
+
+
+IN_OPENING = 1.0
+"""m: how deep a hand's box that enters the object's opening counts while the hand turns to
+fit (deeper than any box into the material: a turn that keeps out of the opening wins)."""
+
+
+def _depths(into_solid, opening: Interior | None, mesh, centres: np.ndarray,
+            rotations: np.ndarray, halves: np.ndarray, lattice: int) -> np.ndarray:
+    """(n,) m: how deep each box reaches into ``mesh`` (``into_solid``), and
+    :data:`IN_OPENING` for a box that enters ``opening``."""
+    depth = into_solid(mesh, centres, rotations, halves, lattice=lattice)
+    if opening is not None:
+        enter = opening.boxes_enter(centres, rotations, halves, lattice=lattice)
+        depth = np.where(enter, np.maximum(depth, IN_OPENING), depth)
+    return depth
 
 
 def _box_depths(sites: ReceiverSites, hand, mesh, ks: np.ndarray, box_depths) -> np.ndarray:

@@ -165,7 +165,7 @@ def _why_not(attempt: Attempt, ctx: PlanContext, grasp: int) -> dict:
     rows = np.flatnonzero(d.gi == grasp)
     feasible_in = [int(d.pk[r]) for r in rows if d.kept[r]]
     trace = trace_row(attempt.graph, ctx, attempt.phase, grasp, k)
-    failed = [e["rule"] for e in trace if e["status"] == "fail"]
+    failed = [e["rule"] for e in trace if e["status"] in ("fail", "unknown")]
     row = int(rows[k]) if len(rows) > k else None
     chosen = attempt.chosen[-1] if attempt.chosen else None
     if chosen is not None and grasp in {c.grasp for c in attempt.chosen}:

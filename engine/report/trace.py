@@ -14,6 +14,7 @@ STATUS_STYLE = {
     "pass": "[green]pass[/]",
     "fail": "[bold red]FAIL[/]",
     "scored": "[cyan]score[/]",
+    "unknown": "[bold magenta]UNKNOWN[/]",
     "not_applicable": "[dim]n/a[/]",
 }
 
@@ -38,6 +39,9 @@ def _trace_tree(title: str, entries: list[dict]):
         kind = "hard" if e["hard"] else f"soft x{_fmt(e.get('weight'))}"
         if e["status"] == "not_applicable":
             label = f"{status} [bold]{e['rule']}[/] ({kind}) [dim]{escape(e.get('note') or '')}[/]"
+        elif e["status"] == "unknown":
+            label = (f"{status} [bold]{e['rule']}[/] ({kind}): not measured: "
+                     f"{escape(e.get('unknown_why') or '')}")
         else:
             measured = _fmt(e["measured"], e.get("unit", ""))
             if e.get("measured_part"):

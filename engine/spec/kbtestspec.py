@@ -99,7 +99,7 @@ class KBTestExpect(KBModel):
     receiver_parts_any: list[Tag] = []
     robot_parts_none: list[Tag] = []
     axes: dict[Id, dict[Direction, str]] = {}
-    rules: dict[Id, Literal["pass", "fail", "scored", "not_applicable"]] = {}
+    rules: dict[Id, Literal["pass", "fail", "scored", "unknown", "not_applicable"]] = {}
     warnings_contain: list[Annotated[str, Field(min_length=1)]] = []
     reason_contains: list[Annotated[str, Field(min_length=1)]] = []
 

@@ -19,6 +19,8 @@ Kinds of KB document, one per file, told apart by their folder:
                (in :mod:`handover.engine.spec.robotspec`)
 ``scenes/``    :class:`SceneSpec`       table, obstacles, receiver placement, initial pose
 ``tests/``     :class:`KBTestFile`      cases run by ``handover kb test`` (:mod:`.kbtestspec`)
+``hazards/``   :class:`HazardFile`      hazard tags, what they mean and imply, and the hazards
+               measured on the geometry (:mod:`.hazards`)
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from typing import Annotated, Literal, Union
 from pydantic import Field, TypeAdapter, field_validator, model_validator
 
 from handover.engine.spec.applies import Applies
+from handover.engine.spec.hazards import HazardFile
 from handover.engine.spec.kbmodel import (
     DIRECTIONS,
     Direction,
@@ -72,6 +75,7 @@ __all__ = [
     "ObjectPlacement",
     "SceneSpec",
     "KBTestFile",
+    "HazardFile",
     "DOCUMENT_KINDS",
 ]
 
@@ -462,4 +466,5 @@ DOCUMENT_KINDS: dict[str, type[KBModel]] = {
     "robots": RobotSpec,
     "scenes": SceneSpec,
     "tests": KBTestFile,
+    "hazards": HazardFile,
 }

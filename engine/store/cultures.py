@@ -16,6 +16,7 @@ Example::
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -25,6 +26,7 @@ from handover.engine.spec.schema import Culture, ObjectSpec, Primitive, RuleBase
 from handover.geometry.frames import rotation_from_euler_deg
 
 if TYPE_CHECKING:
+    from handover.engine.store.hazards import TagFamilies
     from handover.engine.store.kb import KB
 
 __all__ = [
@@ -34,6 +36,7 @@ __all__ = [
     "culture_chain",
     "applies_to_object",
     "object_tags",
+    "part_tags",
     "object_extents",
     "object_size",
     "object_facts",
@@ -255,12 +258,27 @@ def _check_safety(
 # ---------------------------------------------------------------- rules and objects
 
 
-def object_tags(obj: ObjectSpec) -> set[str]:
-    """The object's own tags and the tags of all its parts."""
+def object_tags(obj: ObjectSpec, families: TagFamilies | None = None) -> set[str]:
+    """The object's own tags and the tags of all its parts, with every tag they imply in the
+    KB's hazard vocabulary ``families`` (:func:`handover.engine.store.hazards.tag_families`)
+    when given."""
     tags = set(obj.tags)
     for part in obj.parts.values():
         tags.update(part.tags)
-    return tags
+    return set(families.expand(tags)) if families is not None else tags
+
+
+def part_tags(obj: ObjectSpec, names: Iterable[str],
+              families: TagFamilies | None = None) -> list[set[str]]:
+    """The tags each part of ``names`` carries: its own, the object's (a tag of the whole
+    object is a tag of every part of it: a hot potato is hot all over), and every tag those
+    imply in ``families`` (an unknown part name: the object's alone)."""
+    whole = set(obj.tags)
+    out = []
+    for name in names:
+        tags = whole | (set(obj.parts[name].tags) if name in obj.parts else set())
+        out.append(set(families.expand(tags)) if families is not None else tags)
+    return out
 
 
 def _half_extents(p: Primitive) -> tuple[float, float, float]:
@@ -313,13 +331,16 @@ OBJECT_CONDITIONS = ("object_tags_any", "object_tags_none", "min_mass", "min_siz
 """The ``applies`` fields the object alone decides."""
 
 
-def object_facts(obj: ObjectSpec) -> Facts:
-    """What the object alone tells a rule's conditions (no query: the rest unknown)."""
-    return Facts(tags=frozenset(object_tags(obj)), mass=obj.mass, size=object_size(obj))
+def object_facts(obj: ObjectSpec, families: TagFamilies | None = None) -> Facts:
+    """What the object alone tells a rule's conditions (no query: the rest unknown); its
+    tags with what they imply in ``families``. Hazards measured on the geometry
+    (``swallowable``) need the geometry: a plan's facts have them, these do not."""
+    return Facts(tags=frozenset(object_tags(obj, families)), mass=obj.mass,
+                 size=object_size(obj))
 
 
-def applies_to_object(rule: RuleBase, obj: ObjectSpec, facts: Facts | None = None
-                      ) -> bool | None:
+def applies_to_object(rule: RuleBase, obj: ObjectSpec, facts: Facts | None = None,
+                      families: TagFamilies | None = None) -> bool | None:
     """Whether the object-dependent conditions of ``rule`` (:data:`OBJECT_CONDITIONS`) hold
     for ``obj``, judged by :func:`handover.engine.spec.applies.check`. None when only the
     geometry of a mesh could tell (``min_size`` on a mesh object). The receiver, task, mode,
@@ -327,5 +348,5 @@ def applies_to_object(rule: RuleBase, obj: ObjectSpec, facts: Facts | None = Non
     them "can apply". facts : :func:`object_facts` of ``obj`` when the caller has them (a
     check of many rules against many objects computes each object's once)."""
     only = Applies(**{f: getattr(rule.applies, f) for f in OBJECT_CONDITIONS})
-    return check(only, object_facts(obj) if facts is None else facts)[0]
+    return check(only, object_facts(obj, families) if facts is None else facts)[0]
 

@@ -18,6 +18,7 @@ from handover.engine.errors import KBIssue, UnknownIdError, UsageError
 from handover.engine.spec.schema import (
     Culture,
     GripperSpec,
+    HazardFile,
     HumanHandSpec,
     KBModel,
     KBTestFile,
@@ -40,6 +41,7 @@ KIND_ATTRS: dict[str, tuple[str, str]] = {
     "robots": ("robots", "robot"),
     "scenes": ("scenes", "scene"),
     "tests": ("tests", "test file"),
+    "hazards": ("hazards", "hazard file"),
 }
 
 
@@ -60,6 +62,7 @@ class KB:
     robots: dict[str, RobotSpec] = field(default_factory=dict)
     scenes: dict[str, SceneSpec] = field(default_factory=dict)
     tests: dict[str, KBTestFile] = field(default_factory=dict)
+    hazards: dict[str, HazardFile] = field(default_factory=dict)
     warnings: list[KBIssue] = field(default_factory=list)
     marks: dict[str, Marks] = field(default_factory=dict, repr=False)
 

@@ -114,6 +114,7 @@ def rule_coverage(kb: KB, runs: list[CaseRun]) -> dict[str, Any]:
     """
     from handover.engine.load.lint import rule_tags
     from handover.engine.store.cultures import object_tags
+    from handover.engine.store.hazards import tag_families
 
     keys = _keys(kb)
     rules: dict[str, dict[str, Any]] = {}
@@ -138,8 +139,9 @@ def rule_coverage(kb: KB, runs: list[CaseRun]) -> dict[str, Any]:
             rules[key]["decided"] += int(r["rule"] in decided)
     read = {tag for c in kb.cultures.values() for rule in c.rules for tag, _ in rule_tags(rule)}
     carried = set().union(set(), *(object_tags(o) for o in kb.objects.values()))
+    families = tag_families(kb)  # a tag is read when a rule reads it or a tag it implies
     return {
         "rules": rules,
         "never_applied": [k for k, v in rules.items() if v["applied"] == 0],
-        "unread_tags": sorted(carried - read),
+        "unread_tags": sorted(t for t in carried if not families.expand([t]) & read),
     }

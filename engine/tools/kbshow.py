@@ -29,12 +29,15 @@ from handover.engine.store.cultures import (
     culture_parent,
     object_size,
     object_tags,
+    part_tags,
     resolve_culture,
 )
+from handover.engine.store.hazards import tag_families
 
 if TYPE_CHECKING:
     from handover.engine.spec.schema import KBModel, ObjectSpec, RuleBase, Task
     from handover.engine.store.cultures import ResolvedRule
+    from handover.engine.store.hazards import TagFamilies
     from handover.engine.store.kb import KB
 
 __all__ = [
@@ -183,9 +186,10 @@ def object_view(kb: KB, obj: ObjectSpec, culture: str) -> dict[str, Any]:
     ``culture`` that can apply to it (``rules``, see :func:`rule_view`) or cannot
     (``not_applicable``: id, source, reason)."""
     resolved = resolve_culture(kb, culture)
+    families = tag_families(kb)
     rules, skipped = [], []
     for rr in resolved:
-        reason = not_applicable(rr.rule, obj)
+        reason = not_applicable(rr.rule, obj, families)
         if reason is None:
             rules.append(rule_view(rr, obj))
         else:
@@ -217,7 +221,7 @@ def object_view(kb: KB, obj: ObjectSpec, culture: str) -> dict[str, Any]:
             for tid, t in obj.tasks.items()
         ],
         "default_task": obj.default_task,
-        "tags_with_rules": tag_rules(kb, culture, only=object_tags(obj)),
+        "tags_with_rules": tag_rules(kb, culture, only=object_tags(obj, families)),
         "culture": culture,
         "rules_in_culture": len(resolved),
         "rules": rules,
@@ -284,18 +288,23 @@ class ObjectOnly:
     part_tags: list[set[str]]
 
     @classmethod
-    def of(cls, obj: ObjectSpec, task_id: str | None) -> ObjectOnly:
-        """The object ``obj`` queried with its task ``task_id`` (None: no task)."""
+    def of(cls, obj: ObjectSpec, task_id: str | None,
+           families: TagFamilies | None = None) -> ObjectOnly:
+        """The object ``obj`` queried with its task ``task_id`` (None: no task); its parts'
+        tags as a plan has them (the object's, and what they imply in ``families``)."""
         task = obj.tasks[task_id] if task_id is not None else None
-        return cls(_ObjectSituation(obj, task), [set(p.tags) for p in obj.parts.values()])
+        return cls(_ObjectSituation(obj, task), part_tags(obj, obj.parts, families))
 
 
-def not_applicable(rule: RuleBase, obj: ObjectSpec) -> str | None:
+def not_applicable(rule: RuleBase, obj: ObjectSpec,
+                   families: TagFamilies | None = None) -> str | None:
     """Why ``rule`` cannot bear on ``obj`` whatever the query (None when it can): the object
     fails its conditions, or the rule's kind cannot judge this object with any of its tasks
-    (the reason given is the one for the object's default task)."""
-    if applies_to_object(rule, obj) is False:
+    (the reason given is the one for the object's default task). ``families``: the KB's
+    hazard vocabulary (what the object's tags imply)."""
+    if applies_to_object(rule, obj, families) is False:
         return f"needs {describe_applies(rule.applies)}"
     tasks = [obj.default_task, *(t for t in obj.tasks if t != obj.default_task)]
-    reasons = [judge.not_applicable(rule, ObjectOnly.of(obj, t)) for t in tasks]  # type: ignore[arg-type]
+    reasons = [judge.not_applicable(rule, ObjectOnly.of(obj, t, families))  # type: ignore[arg-type]
+               for t in tasks]
     return None if None in reasons else reasons[0]

@@ -274,7 +274,7 @@ def _decisive(case: KBTestCase, result: dict[str, Any], limit: int = 8) -> list[
     for t in result["trace"]:
         named = t["rule"] in case.expect.rules
         about_axis = t["kind"] == "axis" and any(a in t["threshold"] for a in axes)
-        if t["status"] != "fail" and not named and not about_axis:
+        if t["status"] not in ("fail", "unknown") and not named and not about_axis:
             continue
         key = (t["rule"], t["status"], t["hand"])
         if key in seen:

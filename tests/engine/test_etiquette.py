@@ -42,8 +42,8 @@ def test_japanese_replaces_in_place_and_appends(builtin_kb):
     assert ids.index("handle_first") == common.index("handle_toward_receiver")
     assert "sharp_tip_away" not in ids and "handle_toward_receiver" not in ids
     # new rules come last, in file order
-    assert ids[-1] == "two_hands_for_superiors"
-    assert len(ids) == len(common) + 1
+    assert ids[-2:] == ["two_hands_for_superiors", "business_card_faces_receiver"]
+    assert len(ids) == len(common) + 2
     tip = resolved[ids.index("tip_toward_giver")]
     assert tip.culture == "japanese"
     assert [(o.rule.id, o.culture) for o in tip.overrides] == [("sharp_tip_away", "common")]

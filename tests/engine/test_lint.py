@@ -366,6 +366,44 @@ def test_axis_rule_on_an_object_without_the_axis_warns(make_kb):
     assert "rule 'tip_away' applies to object 'knife' (objects/knife.yaml:1)" in warning.message
 
 
+KEEP_OUT = """\
+  - id: out_of_the_opening
+    kind: keep_out
+    tags: [open_container]
+    of: [gripper, receiver_hand]
+    safety: true
+    why: Nothing goes into an open container.
+"""
+
+
+def cup(shape: str) -> str:
+    body = ("{shape: cylinder, part: body, radius: 0.04, height: 0.1, position: [0, 0, 0.05]}"
+            if shape == "solid" else
+            "{shape: cup, part: body, radius: 0.04, height: 0.1, thickness: 0.004, "
+            "position: [0, 0, 0.05]}")
+    return ("id: cup\nname: Cup\nmass: 0.3\ntags: [open_container]\ngeometry:\n"
+            f"  primitives:\n    - {body}\nparts:\n  body: {{tags: [handle]}}\n"
+            "axes:\n  up: [0, 0, 1]\n")
+
+
+@pytest.mark.parametrize("shape", ["solid", "hollow"])
+def test_an_open_container_without_an_opening_to_measure_warns(make_kb, shape):
+    root = make_kb({"etiquette/common.yaml": culture(COMMON_RULES + KEEP_OUT),
+                    "objects/cup.yaml": cup(shape)})
+    found = [w for w in load_kb(root).warnings if "cannot measure it" in w.message]
+    if shape == "hollow":
+        assert found == []
+        return
+    (warning,) = found
+    assert warning.file == "objects/cup.yaml" and warning.line == 1
+    assert "tagged open_container" in warning.message
+    assert "no cup, bowl or tube primitive" in warning.message
+    assert "out_of_the_opening" in warning.message
+    # planning loads skip the deep checks (they build every object's geometry)
+    assert not [w for w in load_kb(root, urdf=False).warnings
+                if "cannot measure it" in w.message]
+
+
 # ---------------------------------------------------------------- tags nobody handles
 
 
@@ -462,14 +500,18 @@ def test_a_keep_out_rule_s_tags_are_checked_like_any_rule_tag(make_kb):
 
 
 def test_the_builtin_vocabulary_has_rules_for_every_hazard(builtin_kb):
-    from handover.engine.load.lint import rule_tags
+    from handover.engine.load.lint import rule_tags, vocabulary
+    from handover.engine.store.hazards import tag_families
 
     hazards = ["sharp", "pointed", "needle", "hot", "liquid", "open_container", "fragile",
-               "nozzle", "heavy", "small"]
+               "nozzle", "heavy", "small", "chemical", "medication", "swallowable", "flame",
+               "battery", "magnet"]
     common = builtin_kb.culture("common")
     named = {tag for r in common.rules for tag, _ in rule_tags(r)}
-    for tag in hazards:
-        assert tag in common.vocabulary and tag in named, tag
+    families = tag_families(builtin_kb)
+    for tag in hazards:  # declared with what it means, and a rule for it or its family
+        assert tag in families.declared and tag in vocabulary(builtin_kb), tag
+        assert families.expand([tag]) & named, tag
     assert any(r.kind == "axis" and r.axis == "nozzle" and r.safety for r in common.rules)
     assert tag_warnings(builtin_kb) == []
 

@@ -19,6 +19,7 @@ from handover.engine.plan.receiver_sites import (
     predict_two_hand_sites,
     receiver_region,
 )
+from handover.geometry.frames import rotation_from_euler_deg
 
 TOWARD = np.array([1.0, 0.0, 0.0])
 
@@ -342,3 +343,19 @@ def test_a_coarse_handle_is_held_on_it_at_its_far_end_round_its_true_section():
     assert 0.29 - 0.085 / 2 - 1e-9 <= sites.site[0][0] <= 0.29 - 0.085 / 4 + 1e-9
     assert_allclose(sites.site[0][1:], [0.0, 0.0], atol=1e-9)
     assert_allclose(sorted([sites.thickness[0], sites.depth[0]]), [0.024, 0.03], atol=1e-9)
+
+
+def test_the_aligned_presentations_turn_with_the_object_s_named_axes_not_its_file():
+    from handover.engine.plan.presentation import own_frame
+
+    axes = {"up": [0.0, 0.0, 1.0], "handle": [1.0, 0.0, 0.0]}
+    assert_allclose(own_frame(axes), np.eye(3))  # named along its frame: the frame itself
+    turn = rotation_from_euler_deg(np.array([30.0, -50.0, 120.0]))
+    turned = {k: turn @ np.asarray(v) for k, v in axes.items()}
+    assert_allclose(own_frame(turned), turn, atol=1e-12)  # z its up, x its handle
+    toward = np.array([1.0, 0.0, 0.0])
+    plain = presentation_rotations(toward)
+    skewed = presentation_rotations(toward, frame=own_frame(turned))
+    # the same physical orientations: each puts the turned file's axes where the plain puts
+    # the plain file's
+    assert_allclose(skewed @ turn, plain, atol=1e-12)

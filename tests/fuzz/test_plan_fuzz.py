@@ -54,6 +54,15 @@ axis in the same world direction within ``AXIS_TOL_DEG``. Not the same rows: the
 decides the turn about an axis the shape leaves free (a round tumbler's), and the
 frame-aligned presentations that miss every rule differ.
 
+Soft rules too: where only a soft rule decides a named axis's direction (a mug's handle to
+a left-handed receiver's left; a carton's label to the receiver), the 24 aligned
+presentations are those of the object's own frame, the one its named axes make
+(``engine.plan.presentation.own_frame``), so that a file written in a skewed frame is tried in
+the same physical orientations. Not yet for a small bottle whose label only a soft rule
+turns: the candidates differ with the frame (sampled on the composed mesh, whose faces the
+frame orders; rolls started from a frame-chosen perpendicular), the arms reach other ones,
+and the bottle is offered another way (an expected failure below).
+
 Symmetric shapes are the limit of this invariance: where a regular or mirror-symmetric facet
 overlap offers equal choices of reference approach, one is taken by the frame, and the roll
 angles (15 degrees apart) then sample other directions. So the cylinders of the invariance
@@ -413,7 +422,42 @@ TEMPLATES: dict[str, dict] = {
                         "position": [0, 0, 0.11]}],
         "parts": {"cover": ["pages", "spine"]},
         "axes": {"up": [0, 0, 1], "readable": [-1, 0, 0]}},
+    "left_hand_mug": {  # upright (hard), its handle to a left-handed receiver's left (soft)
+        "mass": 0.35, "tags": ["kitchen", "drinkware", "open_container"],
+        "receiver": "left_handed",
+        "primitives": [
+            {"shape": "tube", "part": "rim", "radius": 0.041, "height": 0.01,
+             "thickness": 0.005, "position": [0, 0, 0.09]},
+            {"shape": "cup", "part": "body", "radius": 0.041, "height": 0.085,
+             "thickness": 0.005, "bottom_thickness": 0.006, "position": [0, 0, 0.0425]},
+            {"shape": "box", "part": "handle", "extents": [0.010, 0.012, 0.062],
+             "position": [0.071, 0, 0.05]},
+            {"shape": "box", "part": "handle", "extents": [0.036, 0.012, 0.009],
+             "position": [0.056, 0, 0.0765]},
+            {"shape": "box", "part": "handle", "extents": [0.036, 0.012, 0.009],
+             "position": [0.056, 0, 0.0235]}],
+        "parts": {"rim": ["rim", "food_contact"], "body": ["body"], "handle": ["handle"]},
+        "axes": {"up": [0, 0, 1], "handle": [1, 0, 0]}},
+    "juice_carton": {  # no hard rule on its direction: its label to the receiver (soft)
+        "mass": 0.3, "tags": [],
+        "primitives": [{"shape": "box", "part": "carton", "extents": [0.06, 0.04, 0.12],
+                        "position": [0, 0, 0.06]}],
+        "parts": {"carton": ["body"]},
+        "axes": {"up": [0, 0, 1], "readable": [1, 0, 0]}},
 }  # fmt: skip
+
+
+# A bottle with its label on its side and nothing hard about its direction: which way it is
+# offered is left to the soft label rule, against the other soft scores and the arms.
+PILL_BOTTLE = {
+    "mass": 0.08, "tags": ["medication"],
+    "primitives": [
+        {"shape": "cylinder", "part": "bottle", "radius": 0.02, "height": 0.075,
+         "position": [0, 0, 0.0375]},
+        {"shape": "cylinder", "part": "cap", "radius": 0.019, "height": 0.015,
+         "position": [0, 0, 0.0825]}],
+    "parts": {"bottle": ["body"], "cap": ["cap"]},
+    "axes": {"up": [0, 0, 1], "readable": [1, 0, 0]}}  # fmt: skip
 
 
 def _about(axis, deg: float) -> np.ndarray:
@@ -481,8 +525,9 @@ def handover_summary(planned, axes: dict) -> tuple:
 _PLAIN: dict[str, tuple] = {}
 
 
-def check_rotated_invariance(template_id: str, rotation: np.ndarray) -> None:
-    template = TEMPLATES[template_id]
+def check_rotated_invariance(template_id: str, rotation: np.ndarray,
+                             template: dict | None = None) -> None:
+    template = TEMPLATES[template_id] if template is None else template
     turned = rotated_object(f"{template_id}_turned", template, rotation)
     kb = dataclasses.replace(KB, objects={
         **KB.objects,
@@ -496,10 +541,12 @@ def check_rotated_invariance(template_id: str, rotation: np.ndarray) -> None:
     })  # fmt: skip
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the composed primitives are not watertight
+        receiver = template.get("receiver", "adult")
         if template_id not in _PLAIN:
             _PLAIN[template_id] = handover_summary(
-                plan(kb, Query(object=template_id, scene="fuzz_a")), template["axes"])
-        b_plan = plan(kb, Query(object=turned.id, scene="fuzz_b"))
+                plan(kb, Query(object=template_id, scene="fuzz_a", receiver=receiver)),
+                template["axes"])
+        b_plan = plan(kb, Query(object=turned.id, scene="fuzz_b", receiver=receiver))
     a, a_axes = _PLAIN[template_id]
     turned_axes = {k: rotation @ np.asarray(v, dtype=float) for k, v in template["axes"].items()}
     b, b_axes = handover_summary(b_plan, turned_axes)
@@ -521,6 +568,30 @@ def test_an_object_with_named_axes_plans_the_same_in_any_rotated_frame(template,
 @pytest.mark.parametrize("turn", range(len(SKEWS)))
 def test_a_tumbler_in_a_skewed_frame_plans_like_the_upright_file(turn):
     check_rotated_invariance("tumbler", SKEWS[turn])
+
+
+@pytest.mark.parametrize("turn", range(len(SKEWS)))
+def test_a_mug_in_a_skewed_frame_keeps_its_handle_to_a_left_handed_receiver(turn):
+    """A soft rule decides where the handle goes (``mug_handle_to_dominant_hand``): the same
+    mug written in a skewed frame is offered with its handle the same way, within
+    ``AXIS_TOL_DEG``."""
+    check_rotated_invariance("left_hand_mug", SKEWS[turn])
+
+
+@pytest.mark.parametrize("turn", range(len(SKEWS)))
+def test_a_carton_in_a_skewed_frame_is_offered_its_label_the_same_way(turn):
+    """Only a soft rule (``readable_faces_receiver``) and the other soft scores choose how a
+    carton is offered: the 24 aligned presentations turn with its named axes
+    (``engine.plan.presentation.own_frame``), not with the frame its file is written in."""
+    check_rotated_invariance("juice_carton", SKEWS[turn])
+
+
+@pytest.mark.xfail(strict=True, reason="the candidates are sampled on the composed mesh, whose "
+                   "faces the frame orders, and approached at rolls the frame starts: in the "
+                   "skewed frame the arms reach no upright grasp among the best, and the bottle "
+                   "is offered lying, its label sideways")
+def test_a_pill_bottle_in_a_skewed_frame_is_offered_like_the_upright_file():
+    check_rotated_invariance("pill_bottle", SKEWS[0], PILL_BOTTLE)
 
 
 # ---------------------------------------------------------------- never a crash

@@ -84,16 +84,27 @@ def test_deduplicate_keeps_the_best_of_near_identical_pairs():
     assert deduplicate(sites, np.array([0.9, 0.9, 0.1]), 0.0025).tolist() == [0, 2]
 
 
-def test_pairs_stay_inside_the_material_of_a_non_convex_object():
-    # an L-shaped bracket: rays from the inner corner's faces leave through the arms
+def test_pairs_of_a_non_convex_object_pinch_its_material_or_span_it_from_outside():
+    # an L-shaped bracket: rays from the inner corner's faces leave through the arms, and a
+    # line across the notch gives jaws on the outside of both arms
+    from handover.geometry.mesh import ray_first_hits
+
     a = gm.box((0.06, 0.02, 0.02))
     b = gm.box((0.02, 0.06, 0.02), transform_from(None, [-0.02, 0.03, 0.0]))
     pm = gm.compose([("a", a), ("b", b)])
     assert pm.mesh.is_watertight
     found = antipodal_sites(pm.mesh, spacing=0.004, **OPEN)
-    mids = found.sites.centre
-    assert len(mids) > 0
-    assert pm.mesh.contains(mids).all()
+    c, o = found.sites.contacts, found.sites.axis
+    assert len(c) > 0
+    inside = pm.mesh.contains(found.sites.centre)
+    assert inside.any()
+    # a pair whose midpoint is in the air spans the whole object: nothing of it lies beyond
+    # either contact along the closing line (the jaws close on it from outside)
+    span = ~inside
+    step = 1e-6
+    beyond_1, _ = ray_first_hits(pm.mesh, c[span, 1] + step * o[span], o[span])
+    beyond_0, _ = ray_first_hits(pm.mesh, c[span, 0] - step * o[span], -o[span])
+    assert (beyond_1 < 0).all() and (beyond_0 < 0).all()
 
 
 # ---------------------------------------------------------------- oblique pairs
@@ -170,3 +181,34 @@ def test_oblique_pairs_are_seeded():
     a = antipodal_sites(m, spacing=0.011, seed=5, **OPEN).sites
     b = antipodal_sites(m, spacing=0.011, seed=5, **OPEN).sites
     assert a.contacts.tobytes() == b.contacts.tobytes()
+
+
+# ---------------------------------------------------------------- around a cavity
+
+
+def test_a_hollow_cup_is_gripped_across_its_body_from_outside_as_well_as_across_its_wall():
+    from handover.geometry import hollow
+
+    r, h, t = 0.04, 0.1, 0.005
+    cup = hollow.cup(r, h, t, sections=64)  # open at +z, centred half its height below the rim
+    found = antipodal_sites(cup, spacing=0.004, **OPEN)
+    c = found.sites.contacts  # (S, 2, 3)
+    radius = np.linalg.norm(c[:, :, :2], axis=2)  # of each contact, about the cup's axis
+    outer = np.abs(radius - r) < 1e-3  # on the outer surface (64 sections: within 0.2 mm)
+    inner = np.abs(radius - (r - t)) < 1e-3
+    across_body = outer.all(axis=1) & (found.sites.width > 2 * r - 0.002)
+    across_wall = (outer[:, 0] & inner[:, 1]) | (inner[:, 0] & outer[:, 1])
+    assert across_wall.any()  # the wall pinched, one finger in the cavity
+    assert across_body.sum() > 20  # the jaws closing on the body from outside
+    heights = c[across_body][:, :, 2].mean(axis=1)
+    assert np.ptp(heights) > 0.6 * h  # all along the wall, not only across the solid floor
+    # the line between its contacts crosses the cavity (its midpoint is in it)
+    mid = found.sites.centre[across_body]
+    assert (np.linalg.norm(mid[:, :2], axis=1) < r - t).all()
+
+
+def test_a_solid_convex_object_gains_no_pair_from_the_envelope():
+    # a convex solid's lines leave it once: the pairs are those of its first exits only
+    box = gm.box((0.05, 0.04, 0.03))
+    found = antipodal_sites(box, spacing=0.004, oblique_rays=0, **OPEN)
+    assert found.pairs == len(sample_surface(box, 0.004)[0])  # one pair per sample, no more

@@ -115,21 +115,31 @@ def test_mesh_interior_of_a_hollow_mug_is_its_cavity_not_the_handle_gap():
     low = gm.box((0.025, 0.02, 0.01), transform_from(None, [0.0505, 0, -0.025]))
     mug = gm.compose([("body", body), ("handle", bar), ("handle", top), ("handle", low)])
     cavity_volume = POLY * (r - t) ** 2 * (h - t)
-    every = mesh_interior(mug.mesh)
-    assert len(every) == 2  # the cavity and the gap inside the handle
     opening = mesh_interior(mug.mesh, up=[0, 0, 1])
     assert len(opening) == 1
-    assert opening.volume == pytest.approx(cavity_volume, rel=1e-6)
-    probe = np.array([[0, 0, 0.0], [0.046, 0, 0.0], [0.0, 0, 0.06]])
-    assert opening.contains(probe).tolist() == [True, False, False]
-    assert every.contains(probe).tolist() == [True, True, False]
+    # what it holds, in columns half a millimetre wide: the cavity within a few per cent
+    assert opening.volume == pytest.approx(cavity_volume, rel=0.04)
+    probe = np.array([[0, 0, 0.0], [0.046, 0, 0.0], [0.0, 0, 0.06], [0.03, 0, 0.049]])
+    assert opening.contains(probe).tolist() == [True, False, False, True]
+    assert len(mesh_interior(mug.mesh, up=None)) == 0  # no way up: no opening to tell
 
 
-def test_mesh_interior_needs_a_closed_mesh():
-    open_mesh = gm.box((0.1, 0.1, 0.1))
-    open_mesh.update_faces(np.arange(10))
-    with pytest.raises(gm.MeshError, match="watertight"):
-        mesh_interior(open_mesh)
+def test_mesh_interior_needs_no_closed_mesh_but_a_floor():
+    r, h, t = 0.04, 0.1, 0.004
+    cup = hollow.cup(r, h, t, sections=S)
+    side = np.flatnonzero(np.abs(cup.face_normals[:, 2]) < 0.1)  # outer and inner walls
+    outer = side[np.linalg.norm(cup.triangles_center[side, :2], axis=1) > r - t / 2][:6]
+    holed = cup.copy()
+    holed.update_faces(np.setdiff1d(np.arange(len(cup.faces)), outer))  # holes in its side
+    assert not holed.is_watertight
+    inside = mesh_interior(holed, up=[0, 0, 1])
+    assert inside.contains(np.array([[0.0, 0.0, 0.0]])).all()
+    # a hole right through the floor (its inner and outer faces at the middle) drains it
+    through = np.flatnonzero((np.abs(cup.face_normals[:, 2]) > 0.9)
+                             & (cup.triangles_center[:, 2] < 0))
+    drained = cup.copy()
+    drained.update_faces(np.setdiff1d(np.arange(len(cup.faces)), through))
+    assert len(mesh_interior(drained, up=[0, 0, 1])) == 0
 
 
 def test_a_mug_wall_is_pinched_one_finger_inside_one_outside():

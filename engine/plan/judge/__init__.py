@@ -20,12 +20,14 @@ from handover.engine.plan.judge.base import (
     check_complete,
     detail,
     evaluate,
+    inapplicable,
     judges,
     not_applicable,
+    unknown,
 )
 
-__all__ = ["JUDGES", "Judge", "Outcome", "angle_deg", "bounds", "detail", "evaluate", "judges",
-           "not_applicable"]
+__all__ = ["JUDGES", "Judge", "Outcome", "angle_deg", "bounds", "detail", "evaluate",
+           "inapplicable", "judges", "not_applicable", "unknown"]
 
 for _info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
     if _info.name != "base":

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.judge.base import Outcome, angle_deg, bounds, judges
+from handover.engine.plan.judge.base import Outcome, angle_deg, bounds, judges, unknown
 from handover.engine.spec.kinds.axis import AxisRule
 
 if TYPE_CHECKING:
@@ -18,8 +18,12 @@ __all__ = ["evaluate", "not_applicable"]
 
 
 def not_applicable(rule: AxisRule, ctx: PlanContext) -> str | None:
+    """An object without the rule's axis: not applicable when the rule applies whatever the
+    object's tags (a direction rule about every object with such an axis); a rule that
+    applies to this object because of its tags (``applies.object_tags_any``: a sharp object
+    and its ``tip``) is judged, and says ``unknown`` for want of the axis."""
     obj = ctx.situation.obj
-    if rule.axis not in obj.axes:
+    if rule.axis not in obj.axes and not rule.applies.object_tags_any:
         return f"object '{obj.id}' has no axis '{rule.axis}'"
     return None
 
@@ -28,6 +32,14 @@ def evaluate(rule: AxisRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
              pk: np.ndarray) -> Outcome:
     from handover.engine.plan.features import axis_world
 
+    obj = ctx.situation.obj
+    if rule.axis not in obj.axes:
+        tags = "/".join(rule.applies.object_tags_any)
+        bound = bounds(np.zeros(0), rule.min_deg, rule.max_deg, "deg")[1]
+        return unknown(len(gi), f"object '{obj.id}' is tagged {tags} but has no axis "
+                       f"'{rule.axis}', so where it points cannot be measured: give the "
+                       f"object an axis '{rule.axis}' (object frame) in its YAML",
+                       f"angle({rule.axis}, {rule.toward}) {bound}", "deg")
     direction = ctx.situation.directions[rule.toward]
     angles = angle_deg(axis_world(ctx, rule.axis), direction)[pk]
     ok, threshold = bounds(angles, rule.min_deg, rule.max_deg, "deg")

@@ -5,6 +5,15 @@ rule kind (one module per kind in this package, named as the kind's module in
 A judge gives ``evaluate`` (the rule on rows ``(gi, pk)`` of an attempt's phase, vectorised),
 optionally ``detail`` (extra fields of its trace entry on one row) and ``not_applicable``
 (why the rule cannot judge this object although its conditions hold).
+
+A rule's outcome on a row is three-valued: it passes, it fails, or it is unknown, because the
+rule could not measure what it is about there (an opening that could not be computed from a
+mesh, a part the object's tags name that no region marks, an arm that was not solved). An
+unknown row never passes: a hard rule rejects it and a soft one gives it no credit, and the
+outcome says why (:attr:`Outcome.unknown_why`: what could not be measured and how to fix the
+KB). A rule with nothing to judge in a phase at all (a collision rule whose only target is
+the other gripper, in a one-hand mode) says so in :attr:`Outcome.inapplicable`: its rows
+are left as they are and its trace entry is ``not_applicable``, never ``pass``.
 """
 
 from __future__ import annotations
@@ -32,6 +41,8 @@ __all__ = [
     "check_complete",
     "angle_deg",
     "bounds",
+    "unknown",
+    "inapplicable",
 ]
 
 
@@ -41,6 +52,11 @@ class Outcome:
 
     passed : (R,) bool. measured : (R,) float (unit in ``unit``; NaN where not measured).
     score : (R,) float in [0, 1]. threshold : human-readable bound, e.g. ">= 100 deg".
+    unknown : (R,) bool, or None for no row: the rows where the rule could not measure what
+    it is about; they never pass and score 0 (enforced here, whatever the judge computed).
+    unknown_why : why not, in a sentence that says how to fix the KB (required when a row
+    is unknown). inapplicable : why the rule has nothing to judge in this phase at all (its
+    rows pass through untouched, and the trace says ``not_applicable``), else None.
     """
 
     passed: np.ndarray
@@ -48,8 +64,38 @@ class Outcome:
     score: np.ndarray
     threshold: str
     unit: str
+    unknown: np.ndarray | None = None
+    unknown_why: str = ""
+    inapplicable: str | None = None
+
+    def __post_init__(self) -> None:
+        self.passed = np.asarray(self.passed, dtype=bool)
+        self.score = np.asarray(self.score, dtype=float)
+        if self.unknown is None:
+            self.unknown = np.zeros(self.passed.shape, dtype=bool)
+        self.unknown = np.broadcast_to(np.asarray(self.unknown, dtype=bool),
+                                       self.passed.shape).copy()
+        if self.unknown.any():
+            if not self.unknown_why:
+                raise ValueError("an outcome with unknown rows must say why (unknown_why)")
+            self.passed = self.passed & ~self.unknown
+            self.score = np.where(self.unknown, 0.0, self.score)
+            self.measured = np.where(self.unknown, np.nan,
+                                     np.asarray(self.measured, dtype=float))
 
 
+def unknown(rows: int, why: str, threshold: str, unit: str) -> Outcome:
+    """The outcome of a rule that cannot measure anything on this object: every one of
+    ``rows`` unknown, ``why`` saying what could not be measured and how to fix the KB."""
+    return Outcome(np.zeros(rows, dtype=bool), np.full(rows, np.nan), np.zeros(rows),
+                   threshold, unit, np.ones(rows, dtype=bool), why)
+
+
+def inapplicable(rows: int, why: str, threshold: str = "", unit: str = "") -> Outcome:
+    """The outcome of a rule with nothing to judge in this phase (``why``): its ``rows`` are
+    let through unmeasured, and its trace entry says ``not_applicable`` with ``why``."""
+    return Outcome(np.ones(rows, dtype=bool), np.full(rows, np.nan), np.ones(rows),
+                   threshold, unit, inapplicable=why)
 
 
 def angle_deg(u: np.ndarray, v: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.judge.base import Outcome, judges
+from handover.engine.plan.judge.base import Outcome, inapplicable, judges
 from handover.engine.spec.kinds.clearance import ClearanceRule
 
 if TYPE_CHECKING:
@@ -19,13 +19,20 @@ __all__ = ["evaluate"]
 
 def evaluate(rule: ClearanceRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
              pk: np.ndarray) -> Outcome:
+    threshold = f">= {rule.min_m:g} m"
+    if not phase.receiver_present:
+        return inapplicable(len(gi), "the receiver's hands are not there in this phase",
+                            threshold, "m")
     dist = np.full(len(gi), np.inf)
     for sites in phase.hands.sites:  # the nearest receiver hand counts
         d = np.linalg.norm(ctx.candidates.centre[gi] - sites.site[pk], axis=1)
         dist = np.minimum(dist, np.where(sites.valid[pk], d, np.inf))
+    none = ~np.isfinite(dist)  # no receiver's hand has a site in this presentation
     ok = dist >= rule.min_m - 1e-9
     score = np.clip(dist / max(2.0 * rule.min_m, 1e-9), 0.0, 1.0)
-    return Outcome(ok, dist, score, f">= {rule.min_m:g} m", "m")
+    return Outcome(ok, dist, score, threshold, "m", none,
+                   "the receiver's hand has no site on the object in this presentation, so "
+                   "its distance to the gripper cannot be measured")
 
 
 judges(ClearanceRule, evaluate=evaluate)

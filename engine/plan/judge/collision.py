@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.judge.base import Outcome, judges
+from handover.engine.plan.judge.base import Outcome, inapplicable, judges
 from handover.engine.spec.kinds.collision import CollisionRule
 
 if TYPE_CHECKING:
@@ -38,10 +38,12 @@ def evaluate(rule: CollisionRule, ctx: PlanContext, phase: Phase, gi: np.ndarray
         if hit is not None:
             checked.append(target)
             mask |= np.where(hit, f.COLLISION_BITS[target], 0)
+    if not checked:
+        return inapplicable(len(gi), f"none of its targets ({', '.join(rule.against)}) is "
+                            "met in this phase", "no collision", "targets hit")
     ok = mask == 0
     return Outcome(ok, mask.astype(float), ok.astype(float),
-                   "no collision with " + ", ".join(checked or ["nothing checked here"]),
-                   "targets hit")
+                   "no collision with " + ", ".join(checked), "targets hit")
 
 
 judges(CollisionRule, evaluate=evaluate)

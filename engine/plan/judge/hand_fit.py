@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.judge.base import Outcome, judges
+from handover.engine.plan.judge.base import Outcome, inapplicable, judges
 from handover.engine.spec.kinds.hand_fit import HandFitRule
 
 if TYPE_CHECKING:
@@ -33,8 +33,8 @@ def evaluate(rule: HandFitRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
     threshold = (f"site <= {rule.max_site_gap_m:g} m off the part; palm and fingers <= "
                  f"{rule.max_depth_m:g} m into it; a grip a hand can take")
     if not phase.receiver_present:
-        ok = np.ones(len(gi), dtype=bool)
-        return Outcome(ok, np.full(len(gi), np.nan), ok.astype(float), threshold, "m")
+        return inapplicable(len(gi), "the receiver's hands are not there in this phase",
+                            threshold, "m")
     _, depth, ok = _per_presentation(rule, ctx, phase)
     return Outcome(ok[pk], depth[pk], ok[pk].astype(float), threshold, "m")
 

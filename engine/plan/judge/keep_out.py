@@ -7,30 +7,46 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.judge.base import Outcome, judges
+from handover.engine.plan.judge.base import Outcome, inapplicable, judges, unknown
 from handover.engine.spec.kinds.keep_out import KeepOutRule
 
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Phase
 
-__all__ = ["evaluate", "detail", "not_applicable"]
+__all__ = ["evaluate", "detail", "not_applicable", "opening_problem"]
 
 
 def not_applicable(rule: KeepOutRule, ctx: PlanContext) -> str | None:
     """Read from the object's description alone (``kb show`` asks before any geometry is
-    built): primitives with no hollow one on a tagged part have no opening; a mesh file
-    may have one."""
+    built): a rule whose tags neither the object nor a part carries has nothing to keep out
+    of. An object that carries them is judged: where its opening cannot be found, the rule
+    says ``unknown`` (:func:`opening_problem`), never ``pass``."""
     obj = ctx.situation.obj
-    if not obj.geometry.primitives:
-        return None
     tags = set(rule.tags)
-    whole = bool(set(obj.tags) & tags)
-    if any(p.is_hollow and (whole or set(obj.parts[p.part].tags) & tags)
-           for p in obj.geometry.primitives if p.part in obj.parts or whole):
+    if tags & set(obj.tags) or any(tags & set(p.tags) for p in obj.parts.values()):
         return None
-    return (f"no opening is modelled on the parts tagged {'/'.join(rule.tags)} (a cup, "
-            "bowl or tube primitive, or a hollow mesh)")
+    return f"neither the object nor a part is tagged {'/'.join(rule.tags)}"
+
+
+def opening_problem(rule: KeepOutRule, ctx: PlanContext) -> str:
+    """Why no opening was found on an object the rule is about, and how to fix the KB."""
+    obj = ctx.situation.obj
+    tagged = "/".join(rule.tags)
+    if "up" not in obj.axes:
+        return (f"object '{obj.id}' is tagged {tagged} but has no 'up' axis to find its "
+                "opening along: give it an 'up' axis (object frame), the way it stands "
+                "when it holds something")
+    if obj.geometry.primitives:
+        return (f"object '{obj.id}' is tagged {tagged} but its geometry has no opening: no "
+                "cup, bowl or tube primitive on the parts so tagged, and its surface holds "
+                "nothing standing along 'up' (a solid): model the container with a cup, "
+                "bowl or tube primitive (or walls round a cavity), or give it a mesh with "
+                "its cavity")
+    return (f"object '{obj.id}' is tagged {tagged} but no cavity that holds anything standing "
+            "along its 'up' axis was found in its mesh (a closed or solid mesh, a hole in "
+            "its floor, or an 'up' axis that is not the way it stands): give it a mesh with "
+            "its cavity open along 'up', or correct its 'up' axis")
 
 
 def _entered(rule: KeepOutRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
@@ -58,11 +74,18 @@ def _entered(rule: KeepOutRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
 
 def evaluate(rule: KeepOutRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
              pk: np.ndarray) -> Outcome:
+    from handover.engine.plan import features as f
+
+    threshold = f"no box of the {' or '.join(rule.of)} inside the opening"
+    unit = "boxes inside the opening"
+    if "gripper" not in rule.of and not phase.receiver_present:
+        return inapplicable(len(gi), "the receiver's hands are not there in this phase",
+                            threshold, unit)
+    if not len(f.open_interior(ctx, tuple(rule.tags))):
+        return unknown(len(gi), opening_problem(rule, ctx), threshold, unit)
     count, _ = _entered(rule, ctx, phase, gi, pk)
     ok = count == 0
-    return Outcome(ok, count.astype(float), ok.astype(float),
-                   f"no box of the {' or '.join(rule.of)} inside the opening",
-                   "boxes inside the opening")
+    return Outcome(ok, count.astype(float), ok.astype(float), threshold, unit)
 
 
 def detail(rule: KeepOutRule, ctx: PlanContext, phase: Phase, grasp: int,

@@ -21,7 +21,9 @@ def evaluate(rule: LocationRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
              pk: np.ndarray) -> Outcome:
     values = np.asarray(phase.hands.measured[rule.measure], dtype=float)[pk]
     ok, score = rule.judge(values)
-    return Outcome(ok, values, score, rule.threshold(), LOCATION_MEASURES[rule.measure][0])
+    return Outcome(ok, values, score, rule.threshold(), LOCATION_MEASURES[rule.measure][0],
+                   ~np.isfinite(values), f"no location where the object could be offered in "
+                   f"this presentation, so its {rule.measure} cannot be measured")
 
 
 judges(LocationRule, evaluate=evaluate)

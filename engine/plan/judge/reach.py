@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.judge.base import Outcome, judges
+from handover.engine.plan.judge.base import Outcome, inapplicable, judges
 from handover.engine.spec.kinds.reach import ReachRule
 
 if TYPE_CHECKING:
@@ -42,8 +42,9 @@ def evaluate(rule: ReachRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
     where = ", ".join(STAGE_WORDS[s] for s in names) or "no stage"
     side = getattr(phase, "arm", None)
     if ctx.arms is None or not names:
-        ok = np.ones(len(gi), dtype=bool)
-        return Outcome(ok, np.ones(len(gi)), ok.astype(float), ">= 1", "fraction of stages")
+        return inapplicable(len(gi), "no arm holds the object in this phase"
+                            if ctx.arms is not None else "the robot has no arms",
+                            ">= 1", "fraction of stages")
     if side is not None:  # the arm is decided: exact inverse kinematics
         checks = confirm(ctx, phase, side, gi, pk)
         measured = np.array([c.held.mean() for c in checks]) if checks \

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.judge.base import Outcome, judges
+from handover.engine.plan.judge.base import Outcome, inapplicable, judges
 from handover.engine.spec.kinds.torque import GRAVITY, TorqueRule, load_shares, pair_lever
 
 if TYPE_CHECKING:
@@ -42,11 +42,17 @@ def torques(rule: TorqueRule, ctx: PlanContext, share: np.ndarray, lever: np.nda
 
 def evaluate(rule: TorqueRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
              pk: np.ndarray) -> Outcome:
+    if phase is not None and phase.mode == "H2G1" and phase.other_grasp is None:
+        return inapplicable(len(gi), "H2G1: judged with the other gripper's grasp, once it is "
+                            "known (the share of the weight and its lever need both)",
+                            f"<= {rule.max_nm:g} N m", "N m")
     torque = torques(rule, ctx, *grasp_loads(ctx, phase, gi, pk))
     known = np.isfinite(torque)
-    ok = ~known | (torque <= rule.max_nm + 1e-12)
-    score = np.where(known, np.clip(1.0 - torque / max(rule.max_nm, 1e-9), 0.0, 1.0), 1.0)
-    return Outcome(ok, torque, score, f"<= {rule.max_nm:g} N m", "N m")
+    ok = known & (torque <= rule.max_nm + 1e-12)
+    score = np.where(known, np.clip(1.0 - torque / max(rule.max_nm, 1e-9), 0.0, 1.0), 0.0)
+    return Outcome(ok, torque, score, f"<= {rule.max_nm:g} N m", "N m", ~known,
+                   "the lever of the object's weight about the grasp is not known (no centre "
+                   "of mass, or no partner grasp to share it with)")
 
 
 def detail(rule: TorqueRule, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:

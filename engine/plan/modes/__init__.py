@@ -6,8 +6,9 @@ context, so trying H2G1 first and H1G1 next gives H1G1 the same result as forcin
 
 Every feasible attempt is checked before it is accepted: the trace of each chosen grasp,
 judged in the phase the planner chose it in, must pass every hard rule; otherwise the attempt
-is turned infeasible with the failing rule named. A plan whose own trace says a hard rule
-failed is never reported as feasible.
+is turned infeasible with the failing rule named (or, for a rule that could not measure,
+what it could not measure and how to fix the KB). A plan whose own trace says a hard rule
+failed, or could not be measured, is never reported as feasible.
 
 Etiquette that bends (:func:`choose`): a soft mode rule's ``bends_to`` alternatives are tried
 after its own mode (one hand giving while the other gripper supports its wrist:
@@ -84,6 +85,12 @@ def _checked(ctx: PlanContext, attempt: Attempt) -> Attempt:
         names = ", ".join(f"{e['rule']} ({e['hand']} hand, grasp {e['grasp']})" for e in failed)
         return attempt.rejected(f"{attempt.mode}: the chosen grasps fail hard rules in their "
                                 f"own trace: {names}")
+    unknown = [e for e in trace if e["hard"] and e["status"] == "unknown"]
+    if unknown:  # a hard rule that could not measure never passes
+        names = "; ".join(f"{e['rule']} ({e['source']}, {e['hand']} hand, grasp "
+                          f"{e['grasp']}): {e['unknown_why']}" for e in unknown)
+        return attempt.rejected(f"{attempt.mode}: hard rules could not measure the chosen "
+                                f"grasps: {names}")
     return replace(attempt, trace=tuple(trace))
 
 

@@ -27,7 +27,8 @@ if TYPE_CHECKING:
 
 __all__ = ["LEVELS", "stage_documents", "log_entries"]
 
-LEVELS = {"pass": "INFO", "scored": "INFO", "fail": "WARN", "not_applicable": "DEBUG"}
+LEVELS = {"pass": "INFO", "scored": "INFO", "fail": "WARN", "unknown": "WARN",
+          "not_applicable": "DEBUG"}
 
 
 def _fmt(value: Any, digits: int = 3) -> str:
@@ -50,6 +51,8 @@ def _trace_line(e: dict) -> str:
     body = f"{e.get('rule')} ({e.get('kind')}, {hard}): {status}"
     if status == "not_applicable":
         body += f" - {e.get('note') or ''}".rstrip(" -")
+    elif status == "unknown":
+        body += f" (not measured: {e.get('unknown_why') or ''})"
     else:
         measured = _fmt(e.get("measured"))
         unit = e.get("unit") or ""
