@@ -324,7 +324,7 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                         continue
                     if obj.id not in facts:
                         facts[obj.id] = object_facts(obj, families)
-                    if applies_to_object(rule, obj, facts[obj.id]):
+                    if applies_to_object(rule, obj, facts=facts[obj.id]):
                         yield kb.issue(
                             rule,
                             f"rule '{rule.id}' applies to object '{obj.id}' ({obj.source}), "

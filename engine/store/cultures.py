@@ -339,8 +339,8 @@ def object_facts(obj: ObjectSpec, families: TagFamilies | None = None) -> Facts:
                  size=object_size(obj))
 
 
-def applies_to_object(rule: RuleBase, obj: ObjectSpec, facts: Facts | None = None,
-                      families: TagFamilies | None = None) -> bool | None:
+def applies_to_object(rule: RuleBase, obj: ObjectSpec, families: TagFamilies | None = None,
+                      *, facts: Facts | None = None) -> bool | None:
     """Whether the object-dependent conditions of ``rule`` (:data:`OBJECT_CONDITIONS`) hold
     for ``obj``, judged by :func:`handover.engine.spec.applies.check`. None when only the
     geometry of a mesh could tell (``min_size`` on a mesh object). The receiver, task, mode,
