@@ -59,6 +59,20 @@ axes:
 """
 SLUG_BOXES = {"body": ((0.0, 0.0, 0.0), (0.024, 0.024, 0.03))}
 
+TOY = """\
+id: toy_block
+name: Toy block
+mass: 0.1
+tags: [toy]
+geometry:
+  primitives:
+    - {shape: box, part: body, extents: [0.07, 0.07, 0.07]}
+parts:
+  body: {tags: []}
+axes:
+  up: [0, 0, 1]
+"""
+
 TODDLER = """\
 id: toddler
 name: Toddler
@@ -148,6 +162,7 @@ def kb_dir(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("outcomes") / "kb"
     shutil.copytree(builtin_kb_dir(), root)
     files = {"objects/paring_knife.yaml": PARING_KNIFE, "objects/slug.yaml": SLUG,
+             "objects/toy_block.yaml": TOY,
              "receivers/toddler.yaml": TODDLER, "receivers/sitter.yaml": SITTER,
              "etiquette/careful.yaml": CAREFUL, "etiquette/careful_place.yaml": CAREFUL_PLACE,
              "etiquette/mixed.yaml": MIXED,
@@ -474,3 +489,18 @@ def test_a_box_rests_on_its_largest_face_first_and_a_ball_nowhere():
     assert (np.diff(tips) <= 1e-9).all() and (tips >= MIN_TIP_DEG).all()
     ball = trimesh.creation.icosphere(subdivisions=3, radius=0.03)
     assert len(resting_rotations(ball.vertices, np.zeros(3))[0]) == 0
+
+
+def test_a_toddler_gets_a_toy_within_reach_set_down_or_handed_low(kb_dir, planner):
+    """A 0.95 m toddler, whose shoulder (0.78 m) is hardly above the 0.75 m table: the toy
+    is either set down where their arm reaches, or handed where their grasp site is within
+    their arm's reach and below their chin (0.870 H), never at their face."""
+    plan = planner.plan("toy_block", receiver="toddler")
+    assert plan.outcome in ("handover", "place"), plan.reason
+    scene = _scene(kb_dir)
+    shoulder, reach = _shoulder_and_reach(0.95, scene)
+    for hand in plan.to_dict()["human_grasps"]:
+        site = np.asarray(hand["position_world"], dtype=float)
+        assert np.linalg.norm(site - shoulder) <= reach
+        assert site[2] < 0.870 * 0.95
+    assert plan.to_dict()["human_grasps"]
