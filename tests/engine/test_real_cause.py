@@ -112,14 +112,4 @@ def test_the_mode_tried_first_speaks_even_when_another_got_further(planner):
     assert plan.outcome == "infeasible"
     tried = {t["mode"]: t for t in plan.to_dict()["modes_tried"]}
     assert not any(t["feasible"] for t in tried.values())
-    assert plan.reason.startswith(tried["H1G1"]["reason"])
-    # the hand that does not fit names fallback: place, so setting it down was tried too,
-    # and the reason says why that failed as well: a book is set down lying, not upright
-    assert "setting it down instead (fallback of receiver_hand_fits" in plan.reason
-    assert "book_upright" in plan.reason.split("setting it down instead")[1]
-
-
-def test_a_shelf_over_the_object_blocks_setting_it_down_too_and_the_reason_says_both(planner):
-    plan = planner.plan("tile", scene="under_shelf")
-    handing, placing = plan.reason.split("setting it down instead")
-    assert "scene:shelf at pick-up" in handing and "scene:shelf at pick-up" in placing
+    assert plan.reason == tried["H1G1"]["reason"]
