@@ -120,6 +120,25 @@ class Landmarks:
             return self.right_shoulder
         raise BodyError(f"hand must be 'left' or 'right', got {hand!r}")
 
+    def leaning_shoulder(self, hand: str, lean: np.ndarray) -> np.ndarray:
+        """(L, 3) the shoulder joint of ``hand`` when the trunk bends forward by each ``lean``
+        (L,) rad about the hip joints (the pelvis and legs stay, the upper body turns as one
+        piece toward ``facing``): what a person does to reach a table below their chest.
+        A lean of 0 gives :meth:`shoulder`."""
+        angle = np.atleast_1d(np.asarray(lean, dtype=float))
+        if angle.ndim != 1 or not np.isfinite(angle).all() or (angle < 0).any() \
+                or (angle > np.pi / 2).any():
+            raise BodyError(f"lean must be angles in [0, pi/2] rad, got {lean!r}")
+        hip_z = (_KNEE if self.posture == "seated" else _HIP) * self.stature
+        pivot = self.position + np.array([0.0, 0.0, hip_z])
+        v = self.shoulder(hand) - pivot
+        a, b, c = float(v @ self.facing), float(v @ self.left), float(v[2])
+        cos, sin = np.cos(angle), np.sin(angle)
+        fwd = a * cos + c * sin
+        up = c * cos - a * sin
+        return (pivot + b * self.left + fwd[:, None] * self.facing[None, :]
+                + up[:, None] * np.array([0.0, 0.0, 1.0]))
+
     def side(self, hand: str) -> np.ndarray:
         """(3,) horizontal unit vector from the body's midline toward ``hand``'s side."""
         self.shoulder(hand)

@@ -6,12 +6,22 @@ physical ones, and safety rules after every other set.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from handover.engine.plan.blocking import SETS_CHECKED, verified_sets
 from handover.engine.plan.compiler import CompiledRule
 from handover.engine.plan.evaluate import Decision
-from handover.engine.plan.features import collision_targets, handover_targets
+from handover.engine.plan.features import (
+    COLLISION_BITS,
+    LABELS,
+    collision_targets,
+    handover_targets,
+)
+
+if TYPE_CHECKING:
+    from handover.engine.plan.context import PlanContext
 
 __all__ = ["infeasible_reason", "PHYSICAL_KINDS"]
 
@@ -32,6 +42,7 @@ def infeasible_reason(decision: Decision, mode: str, quick: bool = False) -> str
     if quick:
         return f"{mode}: no candidate passes every hard rule"
     exact = decision.exact()
+    ctx = decision.judged_in[0] if decision.judged_in is not None else None
     by_id = {c.id: c for c in exact.hard}
     names = _target_names(decision)
     sets = []
@@ -51,7 +62,7 @@ def infeasible_reason(decision: Decision, mode: str, quick: bool = False) -> str
     parts = []
     for rank, _, neg, ids, rules, rows in shown:
         label = " + ".join(ids)
-        hits = _set_hits(exact, rules, rows, names)
+        hits = _set_hits(exact, rules, rows, names, ctx)
         if rank == 0:
             label += f" [geometry{': hits ' + hits if hits else ''}]"
         elif rank == 2:
@@ -101,17 +112,41 @@ def _target_names(decision: Decision) -> tuple[str, ...]:
     return handover_targets(ctx, phase.hands).names if phase is not None else ()
 
 
+def _pickup_hits(ctx: PlanContext, gi: np.ndarray) -> dict[str, int]:
+    """What the gripper hits at pick-up on the rows whose grasps are ``gi`` (R,), by the
+    scene's box names: ``{"scene:shelf at pick-up": rows}`` (a row hitting two boxes counts
+    for both)."""
+    scene = ctx.scene
+    if not len(gi) or not len(scene):
+        return {}
+    grasps, back = np.unique(gi, return_inverse=True)
+    poses = np.einsum("ij,njk->nik", ctx.initial, ctx.gripper_poses()[grasps])
+    hit = scene.gripper_hits(ctx.gripper, poses, ctx.candidates.width[grasps])[back]
+    return {f"scene:{name} at pick-up": int(n) for name, n in zip(scene.names, hit.sum(axis=0),
+                                                                   strict=True) if n}
+
+
 def _set_hits(exact: Decision, rules: list[CompiledRule], rows: np.ndarray,
-              names: tuple[str, ...]) -> str:
-    """What the collision rules of a blocking set hit on its rows: ``target (count)``."""
+              names: tuple[str, ...], ctx: PlanContext | None = None) -> str:
+    """What the collision rules of a blocking set hit on its rows: ``target (count)``; with
+    the plan's context ``ctx``, what is hit at pick-up is named by the scene's box
+    (``scene:shelf at pick-up``)."""
     tally: dict[str, int] = {}
     for c in rules:
         if c.rule.kind != "collision" or c.id not in exact.measured:
             continue
-        codes, counts = np.unique(exact.measured[c.id][rows], return_counts=True)
+        measured = exact.measured[c.id][rows]
+        codes, counts = np.unique(measured, return_counts=True)
         for code, count in zip(codes, counts, strict=True):
             for target in collision_targets(float(code), names):
+                if target == LABELS["scene"] and ctx is not None:
+                    continue
                 tally[target] = tally.get(target, 0) + int(count)
+        if ctx is not None:
+            bits = np.where(np.isfinite(measured), measured, 0).astype(np.int64)
+            picked = exact.gi[rows][(bits & COLLISION_BITS["scene"]) > 0]
+            for target, count in _pickup_hits(ctx, picked).items():
+                tally[target] = tally.get(target, 0) + count
     ranked = sorted(tally.items(), key=lambda kv: (-kv[1], kv[0]))
     return ", ".join(f"{t} ({n})" for t, n in ranked[:4])
 
@@ -140,7 +175,7 @@ def _geometric_causes(exact: Decision, judged_in: tuple | None, sets: list[tuple
     for rank, _, neg, ids, rules, rows in sets:
         if rank != 0:
             continue
-        hit = _set_hits(exact, rules, rows, names)
+        hit = _set_hits(exact, rules, rows, names, ctx)
         if hit.startswith("receiver_hand") and hands is not None and hands.sites:
             parts = hands.sites[0].part[exact.pk[rows]]
             parts = parts[parts >= 0]

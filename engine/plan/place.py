@@ -19,9 +19,12 @@ on the scene's table, within the receiver's reach, the way a careful person woul
    receiver takes it by (their predicted grasp site, on the handle where there is one) is
    within their arm's reach from the shoulder of their dominant hand (and within the
    culture's hard ``receiver_reach`` location rule), and the object's centre is within the
-   robot's reach. The soft location rules on ``receiver_reach`` and ``lateral`` choose among
-   them; the best positions are tested for the object hitting an obstacle or a body. The
-   ``location`` rules on these measures and on ``clear`` are then in the trace with the
+   robot's reach. A receiver leans forward to take it, as far as they must and no further
+   than :data:`MAX_LEAN_DEG` (:meth:`~handover.geometry.human.Landmarks.leaning_shoulder`):
+   a standing adult's shoulder is far above a table at their hip. The places that need the
+   least lean come first, and among them the soft location rules on ``receiver_reach`` and
+   ``lateral`` choose; the best positions are tested for the object hitting an obstacle or
+   a body. The ``location`` rules on these measures and on ``clear`` are then in the trace with the
    values where it is set down (``robot_reach``: of the object's centre); those on ``height``
    and ``front`` are not judged (a table's height is what it is).
 4. **The robot's grasp.** Every grasp candidate is judged in each placed pose by the rules
@@ -59,6 +62,7 @@ if TYPE_CHECKING:
     from handover.engine.load.loader import KB
     from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
     from handover.engine.plan.context import PlanContext
+    from handover.geometry.human import Landmarks
 
 __all__ = ["PlacementPlan", "plan_placement", "PLACE_KINDS"]
 
@@ -78,6 +82,12 @@ PLACE_KINDS = ("axis", "contact", "quality", "torque", "keep_out", "approach", "
 PLACE_MEASURES = ("receiver_reach", "robot_reach", "lateral")
 """Location measures judged for where the object is set down."""
 NOT_JUDGED = "not judged when the object is set down on the table"
+MAX_LEAN_DEG = 45.0
+"""deg: the furthest a receiver bends their trunk forward to take an object off a table.
+EN 1005-4:2005 (table 1) and ISO 11226:2000 (4.2.2) rate trunk flexion of 20 to 60 degrees
+acceptable for infrequent movements; taking one object off a table is one movement."""
+LEAN_STEPS = np.arange(0.0, MAX_LEAN_DEG + 1e-9, 5.0)
+"""deg: the leans tried, smallest first (the receiver leans no further than they must)."""
 
 @dataclass
 class PlacementPlan:
@@ -154,6 +164,25 @@ def _location_rules(cg: ConstraintGraph) -> tuple[list, list]:
     return [c for c in rules if c.rule.hard], [c for c in rules if not c.rule.hard]
 
 
+def _leaning_reach(lm: Landmarks, hand: str, points: np.ndarray, hard: list
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """How far the receiver reaches for each of ``points`` (..., 3) world, m, on a table:
+    (reach (...) as a fraction of their arm's reach from the shoulder of ``hand``, lean (...)
+    rad). They lean forward only as far as they must: the lean is the smallest of
+    :data:`LEAN_STEPS` at which the point is within the arm's reach and passes the ``hard``
+    compiled ``receiver_reach`` rules; where none does, the lean that brings it nearest."""
+    leans = np.radians(LEAN_STEPS)
+    shoulders = lm.leaning_shoulder(hand, leans)  # (L, 3)
+    ratio = np.linalg.norm(points[None] - shoulders.reshape((-1,) + (1,) * (points.ndim - 1)
+                                                             + (3,)), axis=-1) / lm.arm_reach
+    fits = ratio <= 1.0 + 1e-9
+    for c in hard:
+        fits &= c.rule.judge(ratio)[0]
+    pick = np.where(fits.any(axis=0), fits.argmax(axis=0), ratio.argmin(axis=0))
+    reach = np.take_along_axis(ratio, pick[None], axis=0)[0]
+    return reach, leans[pick]
+
+
 def _positions(ctx: PlanContext, cg: ConstraintGraph, rotations: np.ndarray,
                sites: np.ndarray, valid: np.ndarray, hull: np.ndarray, com: np.ndarray
                ) -> dict:
@@ -191,15 +220,16 @@ def _positions(ctx: PlanContext, cg: ConstraintGraph, rotations: np.ndarray,
     site_w = np.empty((m_count, len(grid), 3))
     site_w[:, :, :2] = grid[None] + (p_r - c_r)[:, None, :2]
     site_w[:, :, 2] = (z_lift + p_r[:, 2])[:, None]
-    shoulder = lm.shoulder(hand)
+    hard, soft = _location_rules(cg)
+    reach, lean = _leaning_reach(lm, hand, site_w,
+                                 [c for c in hard if c.rule.measure == "receiver_reach"])
     measures = {
-        "receiver_reach": np.linalg.norm(site_w - shoulder, axis=2) / lm.arm_reach,
+        "receiver_reach": reach,
         "lateral": (site_w - lm.position) @ lm.side(hand),
         "robot_reach": np.broadcast_to(
             np.linalg.norm(grid - robot_axis(s.robot), axis=1) / s.robot.reach,
             (m_count, len(grid))),
     }
-    hard, soft = _location_rules(cg)
     ok = on_top & (measures["receiver_reach"] <= 1.0 + 1e-9) \
         & (measures["robot_reach"] <= 1.0 + 1e-9)
     for c in hard:
@@ -213,8 +243,8 @@ def _positions(ctx: PlanContext, cg: ConstraintGraph, rotations: np.ndarray,
                                             dtype=bool))
     chosen = np.full(m_count, -1, dtype=np.int64)
     hits: list[tuple[str, ...]] = [() for _ in range(m_count)]
-    orders = [np.flatnonzero(ok[m])[np.lexsort((np.flatnonzero(ok[m]),
-                                                -score[m][ok[m]]))] for m in range(m_count)]
+    orders = [np.flatnonzero(ok[m])[np.lexsort((np.flatnonzero(ok[m]), -score[m][ok[m]],
+                                                lean[m][ok[m]]))] for m in range(m_count)]
 
     def pose_at(m: int, g: int) -> np.ndarray:
         pose = np.eye(4)
@@ -258,10 +288,12 @@ def _positions(ctx: PlanContext, cg: ConstraintGraph, rotations: np.ndarray,
             robot = measures["robot_reach"][m][on_top[m]].min()
             why.append(f"no place on the table top is within the receiver's and the robot's "
                        f"reach (the nearest for the receiver at {reach:.2f} of their arm's "
-                       f"reach from the shoulder, {reach * lm.arm_reach:.2f} m; for the robot "
+                       f"reach from the shoulder leaning up to {MAX_LEAN_DEG:g} deg, "
+                       f"{reach * lm.arm_reach:.2f} m; for the robot "
                        f"at {robot:.2f} of its reach)")
         else:
             why.append(f"wherever it fits within reach it hits {', '.join(hits[m])}")
+    measures["receiver_lean_deg"] = np.degrees(lean)
     picked = {name: v[np.arange(m_count), best] for name, v in measures.items()}
     return {"poses": poses, "found": found, "measured": picked, "why": why, "hits": hits}
 
@@ -331,9 +363,11 @@ def _chosen(cg: ConstraintGraph, judged: list[CompiledRule], because: list[Compi
         hand=rctx.situation.receiver.dominant_hand, position=site[0],
         position_world=pose[:3, :3] @ site[0] + pose[:3, 3], part=site[1])
     values = {name: float(v[k]) for name, v in phase.hands.measured.items() if name != "clear"}
+    lean = values.get("receiver_lean_deg", 0.0)
+    leaning = f" as they lean forward {lean:.0f} deg" if lean > 0 else ""
     why = (f"set down on the table (its rest tips over at {tip_deg:.0f} deg), the receiver's "
            f"grasp site at {values['receiver_reach']:.2f} of their arm's reach from the "
-           f"shoulder, the object at {values['robot_reach']:.2f} of the robot's reach; "
+           f"shoulder{leaning}, the object at {values['robot_reach']:.2f} of the robot's reach; "
            "oriented by the axis rules and held by the best grasp that passes every hard rule "
            "of the robot's grasp")
     record = {"object_pose": pose, "position": pose[:3, :3] @ com + pose[:3, 3],

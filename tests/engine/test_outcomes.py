@@ -59,6 +59,20 @@ axes:
 """
 SLUG_BOXES = {"body": ((0.0, 0.0, 0.0), (0.024, 0.024, 0.03))}
 
+TOY = """\
+id: toy_block
+name: Toy block
+mass: 0.1
+tags: [toy]
+geometry:
+  primitives:
+    - {shape: box, part: body, extents: [0.07, 0.07, 0.07]}
+parts:
+  body: {tags: []}
+axes:
+  up: [0, 0, 1]
+"""
+
 TODDLER = """\
 id: toddler
 name: Toddler
@@ -114,6 +128,22 @@ MIXED = (CAREFUL_PLACE.replace("id: careful_place", "id: mixed")
     applies: {object_tags_any: [edge], receiver_age_below: 5}
     why: Not even set down near a child under 5.
 """)
+# The default table with the receiver standing 1.6 m from the robot: 0.8 m beyond the
+# table's edge, out of reach even leaning forward.
+FAR_TABLE = """\
+id: far_table
+name: Receiver far from the table
+why: Where the receiver stands too far away to take anything off the table.
+support:
+  position: [0.55, 0.0, 0.75]
+  size: [0.5, 1.0]
+  thickness: 0.03
+receiver:
+  position: [1.6, 0.0, 0.0]
+  facing: [-1.0, 0.0, 0.0]
+object:
+  position: [0.33, 0.0]
+"""
 WEIGHTS = """\
 id: weights
 name: Weights with two hands or set down
@@ -132,10 +162,11 @@ def kb_dir(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("outcomes") / "kb"
     shutil.copytree(builtin_kb_dir(), root)
     files = {"objects/paring_knife.yaml": PARING_KNIFE, "objects/slug.yaml": SLUG,
+             "objects/toy_block.yaml": TOY,
              "receivers/toddler.yaml": TODDLER, "receivers/sitter.yaml": SITTER,
              "etiquette/careful.yaml": CAREFUL, "etiquette/careful_place.yaml": CAREFUL_PLACE,
              "etiquette/mixed.yaml": MIXED,
-             "etiquette/weights.yaml": WEIGHTS}
+             "etiquette/weights.yaml": WEIGHTS, "scenes/far_table.yaml": FAR_TABLE}
     for name, text in files.items():
         (root / name).write_text(text, encoding="utf-8")
     return root
@@ -335,10 +366,51 @@ def test_a_dense_slug_no_two_grippers_can_hold_is_set_down(kb_dir, planner):
     assert np.linalg.norm(pts.mean(axis=0) - shoulder) <= reach
 
 
-def test_when_the_fallback_cannot_be_placed_either_the_reason_says_both(planner):
-    """A standing adult 1 m from the robot cannot reach the table top with a straight arm:
-    the slug is neither handed over nor set down, and the reason says why each failed."""
+def _leaning_reach(stature: float, scene: dict, point: np.ndarray) -> float:
+    """The least distance (m) from ``point`` (world) to the right shoulder of a standing
+    receiver bending their trunk forward about the hip joints (0.530 H) by 0 to 45 degrees
+    (EN 1005-4 rates up to 60 degrees acceptable for an infrequent movement)."""
+    shoulder, _ = _shoulder_and_reach(stature, scene)
+    pos = np.asarray(scene["receiver"]["position"], dtype=float)
+    facing = np.asarray(scene["receiver"]["facing"], dtype=float)
+    pivot = pos + np.array([0.0, 0.0, 0.530 * stature])
+    arm = shoulder - pivot  # the shoulder's offset from the hip axis, upright
+    best = np.inf
+    for deg in np.linspace(0.0, 45.0, 91):
+        t = np.radians(deg)
+        fwd, up = arm @ facing, arm[2]
+        side = arm - fwd * facing - np.array([0.0, 0.0, up])
+        moved = pivot + side + (fwd * np.cos(t) + up * np.sin(t)) * facing \
+            + np.array([0.0, 0.0, up * np.cos(t) - fwd * np.sin(t)])
+        best = min(best, float(np.linalg.norm(point - moved)))
+    return best
+
+
+def test_a_standing_adult_gets_the_slug_set_down_where_they_reach_leaning_forward(
+        kb_dir, planner):
+    """The table top is at a standing adult's hip, far below the shoulder: they lean forward
+    to take the slug, and it lies where their arm reaches with a lean a person makes (at
+    most 45 degrees), within 90 % of the arm's reach (within_receiver_reach)."""
     plan = planner.plan("slug", receiver="adult", culture="weights")
+    assert plan.outcome == "place", plan.reason
+    scene = _scene(kb_dir)
+    pts = _corners(SLUG_BOXES, plan.object_pose)["body"]
+    assert abs(pts[:, 2].min() - scene["support"]["position"][2]) <= 0.002
+    _, reach = _shoulder_and_reach(1.7, scene)
+    top = pts[pts[:, 2] > pts[:, 2].max() - 1e-6].mean(axis=0)
+    assert _leaning_reach(1.7, scene, top) <= 0.9 * reach + 0.01
+    # upright it is out of reach: the lean is what makes it work, and the plan says so
+    shoulder, _ = _shoulder_and_reach(1.7, scene)
+    assert np.linalg.norm(top - shoulder) > reach
+    assert plan.placement["measured"]["receiver_lean_deg"] > 0
+    assert "lean forward" in plan.placement["why"]
+
+
+def test_when_the_fallback_cannot_be_placed_either_the_reason_says_both(planner):
+    """A standing adult 1.6 m from the robot cannot reach the table top even leaning
+    forward: the slug is neither handed over nor set down, and the reason says why each
+    failed."""
+    plan = planner.plan("slug", receiver="adult", culture="weights", scene="far_table")
     assert plan.outcome == "infeasible" and plan.placement is None
     assert "H2G1" in plan.reason and "dense_two_hands" in plan.reason
     assert "setting it down instead" in plan.reason and "reach" in plan.reason
@@ -417,3 +489,18 @@ def test_a_box_rests_on_its_largest_face_first_and_a_ball_nowhere():
     assert (np.diff(tips) <= 1e-9).all() and (tips >= MIN_TIP_DEG).all()
     ball = trimesh.creation.icosphere(subdivisions=3, radius=0.03)
     assert len(resting_rotations(ball.vertices, np.zeros(3))[0]) == 0
+
+
+def test_a_toddler_gets_a_toy_within_reach_set_down_or_handed_low(kb_dir, planner):
+    """A 0.95 m toddler, whose shoulder (0.78 m) is hardly above the 0.75 m table: the toy
+    is either set down where their arm reaches, or handed where their grasp site is within
+    their arm's reach and below their chin (0.870 H), never at their face."""
+    plan = planner.plan("toy_block", receiver="toddler")
+    assert plan.outcome in ("handover", "place"), plan.reason
+    scene = _scene(kb_dir)
+    shoulder, reach = _shoulder_and_reach(0.95, scene)
+    for hand in plan.to_dict()["human_grasps"]:
+        site = np.asarray(hand["position_world"], dtype=float)
+        assert np.linalg.norm(site - shoulder) <= reach
+        assert site[2] < 0.870 * 0.95
+    assert plan.to_dict()["human_grasps"]

@@ -121,3 +121,21 @@ def test_bad_input():
     _, lm = human_body(1.7)
     with pytest.raises(BodyError, match="hand"):
         lm.shoulder("middle")
+
+
+def test_leaning_forward_turns_the_shoulder_about_the_hip_joints():
+    """A 1.70 m person facing -x bends 30 degrees at the hips: each shoulder keeps its
+    distance from the hip axis (0.530 H high) and its side, moves toward where they face and
+    comes down; no lean is the upright shoulder; a lean out of [0, pi/2] is refused."""
+    h = 1.70
+    _, lm = human_body(h, position=(1.0, 0.0, 0.0), facing=(-1.0, 0.0, 0.0))
+    upright = lm.shoulder("right")
+    assert_allclose(lm.leaning_shoulder("right", [0.0])[0], upright, atol=1e-12)
+    bent = lm.leaning_shoulder("right", [np.radians(30.0)])[0]
+    rise = (0.818 - 0.530) * h  # shoulder above the hip joints, upright
+    assert_allclose(bent, [1.0 - rise * np.sin(np.radians(30.0)), upright[1],
+                           0.530 * h + rise * np.cos(np.radians(30.0))], atol=1e-9)
+    with pytest.raises(BodyError, match="lean"):
+        lm.leaning_shoulder("left", [-0.1])
+    with pytest.raises(BodyError, match="lean"):
+        lm.leaning_shoulder("left", [2.0])

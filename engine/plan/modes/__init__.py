@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from handover.engine.spec.kinds.mode import Bend
 
 __all__ = ["PLANNERS", "choose", "attempt_mode", "chosen_traces", "required_mode",
-           "closest_attempt", "progress"]
+           "closest_attempt", "speaking_attempt", "progress"]
 
 
 def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
@@ -125,6 +125,22 @@ def closest_attempt(tried: list[Attempt]) -> Attempt:
     return min(tried, key=key)
 
 
+def speaking_attempt(tried: list[Attempt], order: list[str]) -> Attempt:
+    """The attempt whose reason speaks for an infeasible plan: that of the mode the query's
+    rules ask for first (``order``: the modes in the order they were tried) among those that
+    judged rows, for that is where the query's own cause lies (a small key fails in H1G1 on
+    the table at pick-up; that two grippers then collide on it in H2G1 says nothing new).
+    When none of them judged a row, the one that got furthest (:func:`closest_attempt`)."""
+    judged: dict[str, Attempt] = {}
+    for a in tried:
+        if not a.notes.not_tried and progress(a)[0] != float("inf"):
+            judged.setdefault(a.mode, a)
+    for mode in order:
+        if mode in judged:
+            return judged[mode]
+    return closest_attempt(tried)
+
+
 def _reason_with_targets(ctx: PlanContext, attempt: Attempt) -> str | None:
     """An infeasible attempt's reason, with what its collision rules hit and, when nothing
     could be offered anywhere, why not."""
@@ -143,7 +159,11 @@ def _reason_with_targets(ctx: PlanContext, attempt: Attempt) -> str | None:
                 reason = f"{reason}; {rule_id} hit {listed}"
     where = location_reason(ctx, hands,
                             [c for c in attempt.graph.order if c.rule.kind == "location"])
-    if where:
+    head = f"{attempt.mode}: no candidate passes every hard rule"
+    if where and reason and reason.startswith(head):  # nowhere to offer it: that is the cause
+        rest = reason[len(head):].replace("; the cause: ", "; and: ", 1)
+        reason = f"{head}; the cause: nowhere to offer it: {where}{rest}"
+    elif where:
         reason = f"{reason}. Where to offer it: {where}"
     from handover.engine.plan.arms.solve import reach_reason
 
@@ -259,7 +279,8 @@ def choose(kb: KB, ctx: PlanContext, asked: str,
                     a.reason or "" for a in tried if not a.feasible and a.mode != mode)
             return attempt, tried, why
     tried.sort(key=lambda a: rank[a.mode])
-    return closest_attempt(tried), tried, "no mode is feasible"
+    order = [mode for mode, _ in _steps(required, preferred)]
+    return speaking_attempt(tried, order), tried, "no mode is feasible"
 
 
 def _said(c: CompiledRule) -> str:

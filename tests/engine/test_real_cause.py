@@ -1,0 +1,115 @@
+"""An infeasible plan's reason names the real cause in its first sentence: a cause is
+planted in a scene or an object written here (a shelf low over the object at pick-up, a
+receiver standing out of reach, an object hot all over), and the first sentence of the
+reason must name it; the reason speaks for the mode the query's rules ask for first."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from handover import Planner
+from handover.engine.store.kb import builtin_kb_dir
+
+TABLE = """\
+support:
+  position: [0.55, 0.0, 0.75]
+  size: [0.5, 1.0]
+  thickness: 0.03
+"""
+# A flat tile 1.5 cm thick on the table, and 1.5 cm above it a shelf over the whole table:
+# from above the shelf is in the way, from the side the fingers (2.2 cm wide) meet the table.
+UNDER_SHELF = "id: under_shelf\nname: Under a shelf\nwhy: A shelf low over the object.\n" \
+    + TABLE + """\
+obstacles:
+  - id: shelf
+    position: [0.55, 0.0, 0.78]
+    extents: [0.5, 1.0, 0.02]
+receiver:
+  position: [1.0, 0.0, 0.0]
+  facing: [-1.0, 0.0, 0.0]
+object:
+  position: [0.40, 0.0]
+"""
+# The receiver stands 2.5 m from the robot: nowhere they reach is within its 0.9 m.
+FAR = "id: far_receiver\nname: Receiver far away\nwhy: Far away.\n" + TABLE + """\
+receiver:
+  position: [2.5, 0.0, 0.0]
+  facing: [-1.0, 0.0, 0.0]
+object:
+  position: [0.40, 0.0]
+"""
+TILE = """\
+id: tile
+name: Tile
+mass: 0.05
+geometry:
+  primitives:
+    - {shape: box, part: body, extents: [0.06, 0.06, 0.015]}
+parts:
+  body: {tags: []}
+axes:
+  up: [0, 0, 1]
+"""
+HOT_BLOCK = """\
+id: hot_block
+name: Hot block
+mass: 0.3
+geometry:
+  primitives:
+    - {shape: box, part: body, extents: [0.05, 0.05, 0.12]}
+parts:
+  body: {tags: [hot]}
+axes:
+  up: [0, 0, 1]
+"""
+
+
+@pytest.fixture(scope="module")
+def planner(tmp_path_factory) -> Planner:
+    root = tmp_path_factory.mktemp("cause") / "kb"
+    shutil.copytree(builtin_kb_dir(), root)
+    for name, text in {"scenes/under_shelf.yaml": UNDER_SHELF, "scenes/far_receiver.yaml": FAR,
+                       "objects/tile.yaml": TILE, "objects/hot_block.yaml": HOT_BLOCK}.items():
+        (Path(root) / name).write_text(text, encoding="utf-8")
+    return Planner(root, db=False)
+
+
+def _first_sentence(reason: str) -> str:
+    return reason.split(". ")[0]
+
+
+def test_a_shelf_over_the_object_is_named_at_pick_up(planner):
+    plan = planner.plan("tile", scene="under_shelf")
+    assert plan.outcome == "infeasible"
+    first = _first_sentence(plan.reason)
+    cause = first.split("; smallest blocking")[0]
+    assert first.startswith("H1G1:")  # one hand is what the query tries first
+    assert "scene:shelf at pick-up" in cause and "collision_free" in cause
+
+
+def test_a_receiver_out_of_reach_is_the_cause_not_a_blocking_set(planner):
+    plan = planner.plan("mug", scene="far_receiver")
+    assert plan.outcome == "infeasible"
+    cause = _first_sentence(plan.reason).split("; smallest blocking")[0]
+    assert "nowhere to offer it" in cause and "within_robot_reach" in cause
+    assert "beyond its reach" in cause
+
+
+def test_a_part_hot_all_over_names_the_rule_that_keeps_the_receiver_off_it(planner):
+    plan = planner.plan("hot_block")
+    assert plan.outcome == "infeasible"
+    first = _first_sentence(plan.reason)
+    assert first.startswith("H1G1:") and "receiver_avoids_hot" in first
+
+
+def test_the_mode_tried_first_speaks_even_when_another_got_further(planner):
+    """The built-in book for a child: every mode fails; H1G1 is what the query asks first,
+    so its reason is the plan's, whichever mode's rows went further."""
+    plan = planner.plan("book", receiver="child")
+    assert plan.outcome == "infeasible"
+    tried = {t["mode"]: t for t in plan.to_dict()["modes_tried"]}
+    assert not any(t["feasible"] for t in tried.values())
+    assert plan.reason == tried["H1G1"]["reason"]
