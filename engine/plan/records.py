@@ -23,7 +23,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["DECIMALS", "to_jsonable", "dumps", "ArmJoints", "GraspSupport", "RobotGrasp",
+__all__ = ["DECIMALS", "to_jsonable", "dumps", "read_back", "stored_json", "robot_grasp_of",
+           "human_grasp_of", "ArmJoints", "GraspSupport", "RobotGrasp",
            "HandBox", "HumanGrasp", "PlacementSite"]
 
 DECIMALS = 6
@@ -50,6 +51,19 @@ def to_jsonable(value: Any) -> Any:
         r = round(f, DECIMALS)
         return 0.0 if r == 0 else r  # no "-0.0"
     return value
+
+
+def read_back(record: Any, data: dict) -> Any:
+    """``record`` (a record built from its own JSON ``data``, e.g. a plan the service sent)
+    whose ``to_dict()`` gives ``data`` back exactly (the JSON's rounded numbers, not those
+    recomputed from them)."""
+    object.__setattr__(record, "_json", to_jsonable(data))
+    return record
+
+
+def stored_json(record: Any) -> dict | None:
+    """The JSON a record was read back from (:func:`read_back`), None for one built here."""
+    return record.__dict__.get("_json")
 
 
 def dumps(data: Any) -> str:
@@ -164,6 +178,8 @@ class RobotGrasp:
         score, quality, roll_deg``, then ``arm, joints[, fingers_swapped]`` with an arm,
         then ``stage`` when staged; a supporting gripper names its ``stage`` after its
         ``id`` and ends with ``supports`` (the order the JSON has always had)."""
+        if stored_json(self) is not None:
+            return stored_json(self)
         out: dict[str, Any] = {"hand": self.gripper, "id": self.id}
         if self.supports is not None:
             out["stage"] = self.stage
@@ -207,6 +223,8 @@ class HumanGrasp:
 
     def to_dict(self) -> dict[str, Any]:
         """The ``human_grasps`` entry: ``hand, position, position_world, part, model``."""
+        if stored_json(self) is not None:
+            return stored_json(self)
         return to_jsonable({"hand": self.hand, "position": self.position,
                             "position_world": self.position_world, "part": self.part,
                             "model": [b.to_dict() for b in self.model]})
@@ -219,6 +237,40 @@ class PlacementSite(HumanGrasp):
     ``position_world`` last (``hand, position, part, model, position_world``)."""
 
     def to_dict(self) -> dict[str, Any]:
+        if stored_json(self) is not None:
+            return stored_json(self)
         return to_jsonable({"hand": self.hand, "position": self.position, "part": self.part,
                             "model": [b.to_dict() for b in self.model],
                             "position_world": self.position_world})
+
+
+def robot_grasp_of(data: dict) -> RobotGrasp:
+    """A ``robot_grasps`` entry of a result's JSON as its record (read back: its
+    ``to_dict()`` is ``data``)."""
+    arm = data.get("arm")
+    held = ArmJoints(arm, {s: dict(q) for s, q in data.get("joints", {}).items()},
+                     tuple(data.get("fingers_swapped", ()))) if arm else None
+    sup = data.get("supports")
+    supports = None if sup is None else GraspSupport(
+        sup["hand"], sup["grasp"], sup["at"], np.asarray(sup["point"], dtype=float),
+        np.asarray(sup["point_world"], dtype=float), tuple(sup.get("clear_of", ())))
+    record = RobotGrasp(
+        gripper=data["hand"], pose=np.asarray(data["pose"], dtype=float),
+        pose_world=np.asarray(data["pose_world"], dtype=float), width=data["width"],
+        contacts=np.asarray(data["contacts"], dtype=float).reshape(-1, 3),
+        parts=tuple(data["parts"]), score=data["score"], stage=data.get("stage", "handover"),
+        arm_joints=held, id=data.get("id"), quality=data.get("quality"),
+        roll_deg=data.get("roll_deg"), staged="stage" in data, supports=supports)
+    return read_back(record, data)
+
+
+def human_grasp_of(data: dict) -> HumanGrasp:
+    """A ``human_grasps`` entry (or a placement's receiver site, whose JSON lists
+    ``position_world`` last) as its record, read back."""
+    cls = PlacementSite if list(data)[-1:] == ["position_world"] else HumanGrasp
+    model = tuple(HandBox(b["name"], np.asarray(b["extents"], dtype=float),
+                          np.asarray(b["pose"], dtype=float)) for b in data.get("model", []))
+    record = cls(data["hand"], np.asarray(data["position"], dtype=float),
+                 np.asarray(data["position_world"], dtype=float), data["part"], model)
+    return read_back(record, data)
+

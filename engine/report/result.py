@@ -15,7 +15,17 @@ from typing import Any
 
 import numpy as np
 
-from handover.engine.plan.records import DECIMALS, HumanGrasp, RobotGrasp, dumps, to_jsonable
+from handover.engine.plan.records import (
+    DECIMALS,
+    HumanGrasp,
+    RobotGrasp,
+    dumps,
+    human_grasp_of,
+    read_back,
+    robot_grasp_of,
+    stored_json,
+    to_jsonable,
+)
 
 __all__ = ["PlanResult", "Regrasp", "to_jsonable", "dumps", "OUTCOMES", "DECIMALS"]
 
@@ -40,6 +50,8 @@ class Regrasp:
 
     def to_dict(self) -> dict[str, Any]:
         """``{"first": grasp + "pose_midair", "midair_pose", "second": grasp}``."""
+        if stored_json(self) is not None:
+            return stored_json(self)
         return to_jsonable({"first": self.first.to_dict() | {
             "pose_midair": to_jsonable(self.first_pose_midair)},
             "midair_pose": self.midair_pose, "second": self.second.to_dict()})
@@ -189,4 +201,13 @@ class PlanResult:
         missing = [name for name in required if name not in data]
         if missing:
             raise ValueError(f"a plan result needs {', '.join(missing)}")
+        data = dict(data)
+        data["robot_grasps"] = [robot_grasp_of(g) for g in data["robot_grasps"]]
+        data["human_grasps"] = [human_grasp_of(h) for h in data["human_grasps"]]
+        if data.get("regrasp") is not None:
+            r = data["regrasp"]
+            first = {k: v for k, v in r["first"].items() if k != "pose_midair"}
+            data["regrasp"] = read_back(Regrasp(robot_grasp_of(first),
+                                                np.asarray(r["midair_pose"], dtype=float),
+                                                robot_grasp_of(r["second"])), r)
         return cls(**data)
