@@ -630,7 +630,7 @@ def test_a_failed_write_keeps_the_old_file(capsys, tmp_path, monkeypatch):
     out.write_text("old json")
     rrd.write_bytes(b"old recording")
 
-    def half_written(result, ctx, decision, tmp):
+    def half_written(result, ctx, decision, tmp, physics=None):
         Path(tmp).write_bytes(b"half a recording")
         raise RuntimeError("the disk went away")
 
