@@ -53,9 +53,25 @@ def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
                                 note=FIRST_NOTE)
         else:
             entries = trace_row(cg, ctx, c.phase, c.grasp, c.presentation)
+        if c.phase.arm is None and ctx.arms is not None:
+            entries = [_unsolved(e) if e["kind"] == "reach" and e["status"] == "pass" else e
+                       for e in entries]
         trace.extend({"grasp": c.grasp, "hand": c.hand, "stage": c.stage, **e}
                      for e in entries)
     return trace
+
+
+UNSOLVED = ("no arm was solved for this grasp: only the arms' reachability maps screened it "
+            "(a map approximates the workspace; inverse kinematics decides)")
+"""Why a chosen grasp's ``reach`` entry is ``unknown`` when its mode gave it no arm."""
+
+
+def _unsolved(entry: dict) -> dict:
+    """A chosen grasp's ``reach`` entry that passed on the maps alone: unknown (a chosen
+    grasp of a robot with arms is held by an arm solved by inverse kinematics, or not at
+    all)."""
+    return entry | {"status": "unknown", "within": None, "measured": None, "note": UNSOLVED,
+                    "unknown_why": UNSOLVED}
 
 
 def attempt_mode(kb: KB, ctx: PlanContext, mode: str, quick: bool = False) -> Attempt:
@@ -286,32 +302,55 @@ def _with_support(ctx: PlanContext, base: Attempt, bend: Bend, rule: CompiledRul
     d = base.decision
     i, k = int(d.gi[support.row]), int(d.pk[support.row])
     pose_k = base.phase.hands.poses[k]
-    hand = hand_at(pose_k, ctx.candidates.centre[i], hands)
-    other = next(h for h in hands if h != hand)
-    chosen = replace(base, chosen=(Chosen(hand, i, k, base.phase),),
+    phase = base.phase if support.giving is None else base.phase.but(arm=support.giving.side)
+    hand = phase.arm or hand_at(pose_k, ctx.candidates.centre[i], hands)
+    other = support.arm.side if support.arm is not None else next(h for h in hands
+                                                                   if h != hand)
+    chosen = replace(base, chosen=(Chosen(hand, i, k, phase),),
                      score=float(d.score[support.row]))
     checked = _checked(ctx, chosen)
     if not checked.feasible:
         return replace(checked, reason=f"{label}: {checked.reason}")
+    clear_of = [n for n, ok in support.checked.items() if ok]
     record = {
         "hand": other, "id": None, "stage": "support", "pose": support.pose,
         "pose_world": pose_k @ support.pose, "width": support.width, "contacts": [],
         "parts": [], "score": None, "quality": None, "roll_deg": None,
         "supports": {"hand": hand, "grasp": i, "at": bend.support, "point": support.wrist,
                      "point_world": pose_k[:3, :3] @ support.wrist + pose_k[:3, 3],
-                     "clear_of": [n for n, ok in support.checked.items() if ok]},
+                     "clear_of": clear_of},
     }
     entry = {
         "grasp": None, "hand": other, "stage": "support", "rule": rule.id, "kind": "mode",
-        "hard": False, "status": "pass", "measured": None, "unit": "",
+        "hard": False, "status": "pass", "measured": 0.0, "unit": "targets hit",
         "threshold": f"collision-free at the giving {bend.support}", "score": None,
         "weight": rule.rule.weight, "within": True, "why": bend.why, "source": rule.source,
         "culture": rule.culture, "overrides": [], "safety": False,
         "note": (f"the {other} gripper supports the {hand} gripper's {bend.support}, clear of "
-                 + ", ".join(n for n, ok in support.checked.items() if ok)),
+                 + ", ".join(clear_of)),
     }
+    entries = [entry]
+    if support.arm is not None:  # its arm, solved at the handover like every other grasp
+        held = support.arm
+        joints = {"handover": ctx.arms.joints_dict(held.side, held.q)}
+        record |= {"arm": held.side, "joints": joints}
+        if held.swapped:
+            record["fingers_swapped"] = ["handover"]
+        reach = next(c for c in base.graph.hard if c.rule.kind == "reach")
+        links = (f"clear of {', '.join(held.against)} at the handover; of the {held.giving} "
+                 "arm's links at the handover")
+        entries.append({
+            "grasp": None, "hand": other, "stage": "support", "rule": reach.id,
+            "kind": "reach", "hard": True, "status": "pass", "measured": 1.0,
+            "unit": "fraction of stages",
+            "threshold": (f">= 1 (the {held.side} arm at the handover, inverse kinematics "
+                          f"within its joint limits, its links {links})"),
+            "score": 1.0, "weight": None, "within": True, "why": reach.rule.why,
+            "source": reach.source, "culture": reach.culture, "overrides": [],
+            "safety": reach.rule.safety, "note": None, "arm": held.side, "joints": joints,
+            "links": links, **({"fingers_swapped": ["handover"]} if held.swapped else {})})
     return replace(checked, extra=checked.extra | {
-        "support_grasps": [record], "trace": checked.extra["trace"] + [entry],
+        "support_grasps": [record], "trace": checked.extra["trace"] + entries,
         "support_poses_tried": support.tried})
 
 
