@@ -129,6 +129,9 @@ class PlanContext:
     part_tags : tags of each part index of ``part_mesh``.
     warnings : what the preparation found worth telling (units of a mesh file).
     kb_root : the KB folder (files the KB names, e.g. a robot's URDF, are relative to it).
+    declared_part_tags : every part the object's file declares -> its tags as ``part_tags``
+    has them (with the object's and what they imply), those the geometry has no face of
+    included (a rule about them cannot tell where they are).
     """
 
     situation: Situation
@@ -146,6 +149,7 @@ class PlanContext:
     collider: Any = None
     kb_root: Any = None
     warnings: list[str] = field(default_factory=list)
+    declared_part_tags: dict[str, set[str]] = field(default_factory=dict)
     memo: Memo = field(default_factory=Memo)
 
     @property

@@ -92,5 +92,8 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None) 
                         rules, families)
     ctx.collider = collider
     ctx.kb_root = kb.root
+    ctx.declared_part_tags = dict(zip(situation.obj.parts,
+                                      tags_of_parts(situation.obj, situation.obj.parts, families),
+                                      strict=True))
     ctx.warnings.extend(hints)
     return ctx
