@@ -26,7 +26,8 @@ after pick-up (as H2G1's second hand does), so it is not checked against the tab
 
 With arms, both grippers are held by arms solved by exact inverse kinematics, as every other
 grasp of a plan: the giving row by the arm a one-hand plan would give it
-(:func:`~handover.engine.plan.arms.solve.confirm_row`), the supporting gripper by the other arm
+(either arm, the nearer first: :func:`~handover.engine.plan.arms.solve.confirm`), the
+supporting gripper by the other arm
 at the handover (:func:`support_arm`: within its joint limits, in either finger order, its
 links clear of the table, obstacles and bodies, of the object and the receiver's hands, and
 of the giving arm's links). A row whose support no arm reaches is passed over; when none is
@@ -180,7 +181,7 @@ def find_support(ctx: PlanContext, attempt: Attempt) -> tuple[Support | None, st
     """The best row of a feasible one-hand ``attempt`` whose giving arm's wrist the other
     gripper can support, collision-free (with arms: both held by arms solved by inverse
     kinematics, :func:`support_arm`), and the support; or None and why not."""
-    from handover.engine.plan.arms.solve import confirm_row, reach_rule
+    from handover.engine.plan.arms.solve import confirm, preferred_sides, reach_rule
     from handover.engine.plan.features import handover_targets, receiver_hand_boxes
     from handover.geometry.collision import BoxWorld, grippers_collide
 
@@ -200,11 +201,17 @@ def find_support(ctx: PlanContext, attempt: Attempt) -> tuple[Support | None, st
     for r in ranking:
         i, k = int(d.gi[r]), int(d.pk[r])
         pose_k = hands.poses[k]
-        giving = None
-        if armed:  # the giving row held by an arm, as a one-hand plan would hold it
-            giving, met = confirm_row(ctx, attempt.phase, i, k)
-            if giving is None:
-                arm_failures += met[:1]
+        givers: list = [None]
+        if armed:  # the giving row held by an arm (either, the nearer first), then supported
+            givers = []
+            for side in preferred_sides(ctx, attempt.phase, i, k):
+                held_by = confirm(ctx, attempt.phase.but(arm=side), side, np.array([i]),
+                                  np.array([k]))[0]
+                if held_by.ok:
+                    givers.append(held_by)
+                else:
+                    arm_failures.append(f"grasp {i}: {held_by.failure()}")
+            if not givers:
                 continue
         up = pose_k[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # world up, object frame
         cand = support_poses(g, poses[i], up)
@@ -228,14 +235,15 @@ def find_support(ctx: PlanContext, attempt: Attempt) -> tuple[Support | None, st
             hits[targets.names[p]] = hits.get(targets.names[p], 0) + int(world[:, p].sum())
         free = np.flatnonzero(ok)
         if len(free) and armed:  # the other arm must hold one of them
-            held, j, met = support_arm(ctx, attempt.phase.but(arm=giving.side), giving,
-                                       pose_k @ cand[free], k)
-            arm_failures += met[:2]
-            if held is not None:
-                j = int(free[j])
-                return Support(int(r), cand[j], width, cand[j][:3, 3].copy(),
-                               {name: bool(v[j]) for name, v in clear.items()},
-                               tried + j, giving, held), ""
+            for giving in givers:
+                held, j, met = support_arm(ctx, attempt.phase.but(arm=giving.side), giving,
+                                           pose_k @ cand[free], k)
+                arm_failures += met[:2]
+                if held is not None:
+                    j = int(free[j])
+                    return Support(int(r), cand[j], width, cand[j][:3, 3].copy(),
+                                   {name: bool(v[j]) for name, v in clear.items()},
+                                   tried + j, giving, held), ""
         elif len(free):
             j = int(free[0])
             return Support(int(r), cand[j], width, cand[j][:3, 3].copy(),
