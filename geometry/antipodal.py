@@ -16,7 +16,8 @@ mug or a bottle has no large facets, so its grasps come from here:
    contact outside, one inside, pinching the wall. Where the line crosses a cavity or a gap
    and leaves the object again farther on (a cup's body, across both walls), the last exit
    gives a second pair, jaws closing on the object from outside: a ray cast back along the
-   line from beyond the whole object finds it.
+   line from beyond the whole object finds it; kept only when both contacts lie on one
+   connected piece of the mesh (two plates a gap apart are not squeezed together).
 4. Oblique pairs: from each point also cast ``oblique_rays`` rays at directions spread
    over the cone of ``oblique_fraction * atan(mu)`` about ``-n_p`` (:func:`cone_directions`,
    seeded), kept by the same tests, so a pair exists wherever a parallel-jaw grasp is
@@ -44,7 +45,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.geometry.frames import GENERIC_DIRECTION, perpendicular
-from handover.geometry.mesh import ray_first_hits
+from handover.geometry.mesh import face_components, ray_first_hits
 from handover.geometry.quality import ContactPairs, antipodal_quality, in_friction_cone
 
 if TYPE_CHECKING:
@@ -213,6 +214,9 @@ def _cast_pairs(
     first = _pairs(mesh, points, faces, q, hit, directions, min_opening, max_opening,
                    friction)
     far, far_hit = _envelope_exits(mesh, points, directions, hit, q, step)
+    if (far_hit >= 0).any():  # one rigid piece between them, not two parts a gap apart
+        piece = face_components(mesh)
+        far_hit = np.where(piece[np.maximum(far_hit, 0)] == piece[faces], far_hit, -1)
     envelope = _pairs(mesh, points, faces, far, far_hit, directions, min_opening,
                       max_opening, friction)
     return ContactPairs.concatenate([first, envelope])

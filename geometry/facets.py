@@ -33,8 +33,9 @@ normal; the overlap's centre is a grasp site. Here:
    meet the other facet first, at the expected distance: the material between the
    fingers is solid (no hole or cavity in between), and the rays name the contact faces;
    or, with a cavity or a gap between them (a cup's body, across both walls), rays cast
-   back from beyond the whole object must meet each contact first: nothing of the object
-   lies beyond either, and the jaws close on it from outside.
+   back from beyond the whole object must meet each contact first (nothing of the object
+   lies beyond either: the jaws close on it from outside) and both contacts must be on one
+   connected piece (two plates a gap apart are not squeezed together).
 
 The closing direction ``o`` is the common normal, from facet ``i`` to facet ``j`` (``i < j``).
 The reference approach (roll 0), perpendicular to ``o``, is the overlap's long axis for grid
@@ -49,7 +50,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.geometry.frames import perpendicular, unit
-from handover.geometry.mesh import ray_first_hits
+from handover.geometry.mesh import face_components, ray_first_hits
 from handover.geometry.quality import ContactPairs, in_friction_cone
 
 if TYPE_CHECKING:
@@ -594,6 +595,9 @@ def facet_sites(
     out0, e0 = ray_first_hits(mesh, c0 - far * uu, uu)
     around = ~ok & (out0 >= 0) & (out1 >= 0) & (np.abs(e1 - far) <= tol) \
         & (np.abs(e0 - far) <= tol)
+    if around.any():  # one rigid piece between them, not two plates a gap apart
+        piece = face_components(mesh)
+        around &= piece[np.maximum(out0, 0)] == piece[np.maximum(out1, 0)]
     face0, face1 = np.where(around, out0, face0), np.where(around, out1, face1)
     ok |= around
     owner, uu, fi, fj, c0, c1, face0, face1, approach2d = (

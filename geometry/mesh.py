@@ -26,6 +26,7 @@ if TYPE_CHECKING:
     import trimesh
 
 __all__ = [
+    "face_components",
     "MeshError",
     "MeshWarning",
     "MAX_FACES",
@@ -258,6 +259,16 @@ def ray_first_hits(
         dist = np.einsum("ij,ij->i", on_plane - origins[hit], normal) / denom
     distance[hit] = np.where(np.abs(denom) > 1e-12, dist, np.inf)
     return face, distance
+
+
+def face_components(mesh: trimesh.Trimesh) -> np.ndarray:
+    """(F,) int: the connected piece each face belongs to (faces sharing an edge are one
+    piece): jaws closing across a gap grip one rigid object only where both contacts are on
+    the same piece."""
+    import trimesh
+
+    return np.asarray(trimesh.graph.connected_component_labels(
+        mesh.face_adjacency, node_count=len(mesh.faces)), dtype=np.int64)
 
 
 def distance_to_faces(mesh: trimesh.Trimesh, points: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -132,6 +132,9 @@ class PlanContext:
     kb_root : the KB folder (files the KB names, e.g. a robot's URDF, are relative to it).
     arms_cache : where the robot's arms are kept between plans (a Planner's; None: this
     process's, :data:`handover.engine.assets.robot.PLAN_ARMS`).
+    declared_part_tags : every part the object's file declares -> its tags as ``part_tags``
+    has them (with the object's and what they imply), those the geometry has no face of
+    included (a rule about them cannot tell where they are).
     """
 
     situation: Situation
@@ -150,6 +153,7 @@ class PlanContext:
     kb_root: Any = None
     arms_cache: LRU | None = None
     warnings: list[str] = field(default_factory=list)
+    declared_part_tags: dict[str, set[str]] = field(default_factory=dict)
     memo: Memo = field(default_factory=Memo)
 
     @property

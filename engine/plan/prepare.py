@@ -97,5 +97,8 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
     ctx.collider = collider
     ctx.kb_root = kb.root
     ctx.arms_cache = arms_cache
+    ctx.declared_part_tags = dict(zip(situation.obj.parts,
+                                      tags_of_parts(situation.obj, situation.obj.parts, families),
+                                      strict=True))
     ctx.warnings.extend(hints)
     return ctx

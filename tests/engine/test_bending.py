@@ -174,10 +174,29 @@ def test_the_supporting_hand_is_at_the_giving_wrist_and_touches_nothing(planner)
     hands = BoxWorld([(b["name"], np.array(b["extents"]), np.array(b["pose"]))
                       for h in r["human_grasps"] for b in h["model"]])
     assert not hands.gripper_collides(gripper, held[None], support["width"])[0]
-    # The trace has the support's own entry; the facade lists it as a grasp of its stage.
-    (entry,) = [e for e in r["trace"] if e.get("stage") == "support"]
-    assert entry["rule"] == "two_hands_for_elders" and entry["status"] == "pass"
+    # The trace has the support's own entries (its collisions, its arm); the facade lists it
+    # as a grasp of its stage.
+    mode, reach = [e for e in r["trace"] if e.get("stage") == "support"]
+    assert mode["rule"] == "two_hands_for_elders" and mode["status"] == "pass"
+    assert reach["kind"] == "reach" and reach["status"] == "pass"
+    assert reach["arm"] == support["hand"] and reach["joints"] == support["joints"]
     assert {g.stage for g in plan.robot_grasps} == {"handover", "support"}
+
+
+def test_the_supporting_gripper_is_held_by_the_other_arm_solved_like_every_grasp(planner,
+                                                                                kb_root):
+    from tests.engine.test_robot_result import check_grasps_by_fk
+
+    r = planner.plan("lemon", receiver="elder", culture="korean").to_dict()
+    (giving,) = [g for g in r["robot_grasps"] if g.get("stage", "handover") == "handover"]
+    (support,) = [g for g in r["robot_grasps"] if g.get("stage") == "support"]
+    assert {giving["arm"], support["arm"]} == {"left", "right"}
+    assert set(support["joints"]) == {"handover"}  # it joins after pick-up
+    # yourdfpy's forward kinematics of the URDF put both grippers where the plan says
+    checked = check_grasps_by_fk(kb_root, r)
+    assert (support["arm"], "handover") in checked and (giving["arm"], "pickup") in checked
+    statuses = {e["status"] for e in r["trace"] if e["kind"] == "reach"}
+    assert statuses == {"pass"}
 
 
 def test_japanese_etiquette_bends_the_same_way_under_its_own_rule(planner):

@@ -133,18 +133,24 @@ def test_no_finger_of_the_gripper_or_the_hand_is_ever_in_the_tea(planner, name):
     assert statuses == {"pass"}
 
 
-def test_the_mug_turned_in_its_file_is_held_the_same_way(planner):
-    grips = {}
+@pytest.mark.parametrize("receiver", ["adult", "left_handed"])
+def test_the_mug_turned_in_its_file_is_held_and_offered_the_same_way(planner, receiver):
+    grips, handles = {}, {}
     for name, angles in TURNS.items():
-        result = planner.plan(name).to_dict()
-        back = rotation_from_euler_deg(np.array(angles)).T
+        result = planner.plan(name, receiver=receiver).to_dict()
+        assert result["outcome"] == "handover", result["reason"]
+        turn = rotation_from_euler_deg(np.array(angles))
         g = result["robot_grasps"][0]
-        grips[name] = (np.sort(np.linalg.norm((np.asarray(g["contacts"]) @ back.T)[:, :2],
+        grips[name] = (np.sort(np.linalg.norm((np.asarray(g["contacts"]) @ turn)[:, :2],
                                               axis=1)), g["parts"])
+        # the handle's direction in the world at the handover: the file's handle axis turned
+        handles[name] = np.asarray(result["object_pose"])[:3, :3] @ (turn @ [1.0, 0.0, 0.0])
     first = grips["mesh_mug"]
     for name, (radii, parts) in grips.items():
         assert parts == first[1], name
         np.testing.assert_allclose(radii, first[0], atol=2e-3, err_msg=name)
+        cos = np.clip(handles[name] @ handles["mesh_mug"], -1.0, 1.0)
+        assert np.degrees(np.arccos(cos)) <= 3.0, name
 
 
 def test_an_open_container_whose_opening_cannot_be_found_is_not_handed_over(planner):

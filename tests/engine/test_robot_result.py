@@ -373,3 +373,26 @@ def test_a_placement_no_arm_can_make_is_not_planned(capsys, tmp_path):
     assert r["outcome"] == "infeasible"
     handing, _, placing = r["reason"].partition("setting it down instead")
     assert "arm cannot reach" in handing and "arm_reaches" in placing, r["reason"]
+
+
+@pytest.mark.parametrize(("receiver", "culture"), [("adult", "common"), ("elder", "korean"),
+                                                   ("superior", "japanese")])
+def test_every_grasp_of_every_plan_with_the_shipped_robot_has_its_arm_and_joints(receiver,
+                                                                               culture):
+    """Each robot grasp of a handover with the shipped robot, a supporting gripper included,
+    is held by an arm solved by inverse kinematics: its arm, its joints at every stage it is
+    held, and yourdfpy's forward kinematics putting it where the plan says; no chosen grasp's
+    reach is left to the reachability maps alone."""
+    from handover.engine.planner import Planner
+
+    planner = Planner()
+    for obj in sorted(planner.kb.objects):
+        r = planner.plan(obj, receiver=receiver, culture=culture).to_dict()
+        if r["outcome"] != "handover":
+            continue
+        for g in r["robot_grasps"]:
+            assert g.get("arm") in ("left", "right"), (obj, g.get("stage"))
+            assert g.get("joints"), (obj, g.get("stage"))
+        assert check_grasps_by_fk(builtin_kb_dir(), r)
+        assert {e["status"] for e in r["trace"] if e["kind"] == "reach"} <= {
+            "pass", "not_applicable"}, obj

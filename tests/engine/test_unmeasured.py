@@ -165,3 +165,34 @@ def test_an_open_container_without_an_opening_is_unknown_not_passed(crate_ctx):
     out = judge.evaluate(rule, crate_ctx, phase, np.arange(5), np.zeros(5, int))
     assert out.unknown.all() and not out.passed.any()
     assert "no 'up' axis" in out.unknown_why  # the crate names none: nothing to look along
+
+
+def test_a_mesh_without_the_region_of_its_sharp_part_is_not_handed_over(make_kb):
+    """A knife from a mesh file whose blade has no region: no face is the blade, so no rule
+    about sharp parts could tell a hand on it; before, they were all 'not applicable' and
+    the receiver could be handed the blade."""
+    import trimesh
+
+    root = make_kb({"objects/mesh_knife.yaml": """\
+        id: mesh_knife
+        name: A mesh knife whose blade has no region
+        mass: 0.15
+        geometry:
+          mesh: {file: ../meshes/mesh_knife.stl, default_part: handle}
+        parts:
+          handle: {tags: [handle]}
+          blade: {tags: [sharp]}
+        axes:
+          tip: [1, 0, 0]
+        """})
+    handle = trimesh.creation.box((0.11, 0.02, 0.025))
+    handle.apply_translation([-0.055, 0, 0])
+    blade = trimesh.creation.box((0.15, 0.002, 0.03))
+    blade.apply_translation([0.075, 0, 0])
+    (root / "meshes").mkdir()
+    trimesh.boolean.union([handle, blade], engine="manifold").export(
+        root / "meshes" / "mesh_knife.stl")
+    plan = Planner(kb=root, db=False).plan("mesh_knife", robot="bot", mode="h1g1")
+    assert plan.outcome == "infeasible"
+    assert "not measured" in plan.reason and "no_sharp" in plan.reason
+    assert "part 'blade'" in plan.reason and "regions of its mesh" in plan.reason

@@ -7,20 +7,37 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.judge.base import Outcome, judges
+from handover.engine.plan.judge.base import Outcome, judges, unknown
 from handover.engine.spec.kinds.contact import ContactRule
 
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Phase
 
-__all__ = ["evaluate", "detail", "not_applicable"]
+__all__ = ["evaluate", "detail", "not_applicable", "missing_parts"]
 
 
 def not_applicable(rule: ContactRule, ctx: PlanContext) -> str | None:
-    if not rule.tags() & set().union(*ctx.part_tags):
+    """Not applicable when no part carries the rule's tags; judged (and ``unknown``, by
+    :func:`missing_parts`) when the object's file tags a part it names that its geometry
+    does not have (a mesh without the region that marks it)."""
+    if not rule.tags() & set().union(*ctx.part_tags) and not missing_parts(rule, ctx):
         return f"object has no part tagged {', '.join(sorted(rule.tags()))}"
     return None
+
+
+def missing_parts(rule: ContactRule, ctx: PlanContext) -> list[str]:
+    """The parts the object's file declares with one of the rule's tags (or a tag that
+    implies one) that its geometry has none of (no primitive, no mesh region: no face is that
+    part), when no part of the geometry carries the tags: the rule cannot tell where they
+    are."""
+    declared = getattr(ctx, "declared_part_tags", None)
+    mesh = getattr(ctx, "part_mesh", None)
+    if not declared or mesh is None or rule.tags() & set().union(*ctx.part_tags):
+        return []
+    present = set(mesh.part_names)
+    return [name for name, tags in declared.items()
+            if name not in present and rule.tags() & tags]
 
 
 def detail(rule: ContactRule, ctx: PlanContext, phase: Phase, grasp: int,
@@ -37,6 +54,19 @@ def detail(rule: ContactRule, ctx: PlanContext, phase: Phase, grasp: int,
 def evaluate(rule: ContactRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
              pk: np.ndarray) -> Outcome:
     from handover.engine.plan.features import tag_mask
+
+    missing = missing_parts(rule, ctx)
+    if missing:
+        tags = "/".join(sorted(rule.tags()))
+        where = "regions of its mesh" if not ctx.situation.obj.geometry.primitives \
+            else "primitives"
+        return unknown(len(gi), f"part{'s' if len(missing) > 1 else ''} "
+                       f"{', '.join(repr(m) for m in missing)} of '{ctx.situation.obj.id}' "
+                       f"{'are' if len(missing) > 1 else 'is'} tagged {tags} but no face of its "
+                       f"geometry belongs to {'them' if len(missing) > 1 else 'it'}, so whether "
+                       f"a hand is on it cannot be told: mark it among the {where} (a region's "
+                       "center and extents, or a primitive's part)", rule.threshold(),
+                       "contacts on forbidden parts" if rule.who == "giver" else "part index")
 
     forbid = tag_mask(ctx, rule.forbid_tags) if rule.forbid_tags else None
     require = tag_mask(ctx, rule.require_tags) if rule.require_tags else None

@@ -32,7 +32,8 @@ def not_applicable(rule: KeepOutRule, ctx: PlanContext) -> str | None:
 def opening_problem(rule: KeepOutRule, ctx: PlanContext) -> str:
     """Why no opening was found on an object the rule is about, and how to fix the KB."""
     obj = ctx.situation.obj
-    tagged = "/".join(rule.tags)
+    carried = set().union(*ctx.part_tags) | set(obj.tags) if ctx.part_tags else set(obj.tags)
+    tagged = "/".join(t for t in rule.tags if t in carried) or "/".join(rule.tags)
     if "up" not in obj.axes:
         return (f"object '{obj.id}' is tagged {tagged} but has no 'up' axis to find its "
                 "opening along: give it an 'up' axis (object frame), the way it stands "

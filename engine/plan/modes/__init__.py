@@ -30,7 +30,7 @@ from handover.engine.plan.evaluate import trace_row
 from handover.engine.plan.modes import h1g1, h2g1, h2g2  # noqa: F401  (register the planners)
 from handover.engine.plan.modes.common import HANDS_NEEDED, PLANNERS, gripper_at
 from handover.engine.plan.modes.h2g2 import FIRST_NOTE, first_rules
-from handover.engine.plan.records import GraspSupport, RobotGrasp
+from handover.engine.plan.records import ArmJoints, GraspSupport, RobotGrasp
 
 if TYPE_CHECKING:
     from handover.engine.load.loader import KB
@@ -54,9 +54,25 @@ def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
                                 note=FIRST_NOTE)
         else:
             entries = trace_row(cg, ctx, c.phase, c.grasp, c.presentation)
+        if c.phase.arm is None and ctx.arms is not None:
+            entries = [_unsolved(e) if e["kind"] == "reach" and e["status"] == "pass" else e
+                       for e in entries]
         trace.extend({"grasp": c.grasp, "hand": c.gripper, "stage": c.stage, **e}
                      for e in entries)
     return trace
+
+
+UNSOLVED = ("no arm was solved for this grasp: only the arms' reachability maps screened it "
+            "(a map approximates the workspace; inverse kinematics decides)")
+"""Why a chosen grasp's ``reach`` entry is ``unknown`` when its mode gave it no arm."""
+
+
+def _unsolved(entry: dict) -> dict:
+    """A chosen grasp's ``reach`` entry that passed on the maps alone: unknown (a chosen
+    grasp of a robot with arms is held by an arm solved by inverse kinematics, or not at
+    all)."""
+    return entry | {"status": "unknown", "within": None, "measured": None, "note": UNSOLVED,
+                    "unknown_why": UNSOLVED}
 
 
 def attempt_mode(kb: KB, ctx: PlanContext, mode: str, quick: bool = False) -> Attempt:
@@ -307,29 +323,52 @@ def _with_support(ctx: PlanContext, base: Attempt, bend: Bend, rule: CompiledRul
     d = base.decision
     i, k = int(d.gi[support.row]), int(d.pk[support.row])
     pose_k = base.phase.hands.poses[k]
-    gripper = gripper_at(pose_k, ctx.candidates.centre[i], hands)
-    other = next(h for h in hands if h != gripper)
-    chosen = replace(base, chosen=(Chosen(gripper, i, k, base.phase),),
+    phase = base.phase if support.giving is None else base.phase.but(arm=support.giving.side)
+    gripper = phase.arm or gripper_at(pose_k, ctx.candidates.centre[i], hands)
+    other = support.arm.side if support.arm is not None else next(h for h in hands
+                                                                   if h != gripper)
+    chosen = replace(base, chosen=(Chosen(gripper, i, k, phase),),
                      score=float(d.score[support.row]))
     checked = _checked(ctx, chosen)
     if not checked.feasible:
         return replace(checked, reason=f"{label}: {checked.reason}")
+    held = support.arm
+    arm_joints = None
+    if held is not None:  # its arm, solved at the handover like every other grasp
+        arm_joints = ArmJoints(held.side, {"handover": ctx.arms.joints_dict(held.side, held.q)},
+                               ("handover",) if held.swapped else ())
     record = RobotGrasp(
         gripper=other, pose=support.pose, pose_world=pose_k @ support.pose, width=support.width,
         contacts=np.zeros((0, 3)), parts=(), score=None, stage="support", staged=True,
+        arm_joints=arm_joints,
         supports=GraspSupport(gripper=gripper, grasp=i, at=bend.support, point=support.wrist,
                               point_world=pose_k[:3, :3] @ support.wrist + pose_k[:3, 3],
                               clear_of=tuple(n for n, ok in support.checked.items() if ok)))
     entry = {
         "grasp": None, "hand": other, "stage": "support", "rule": rule.id, "kind": "mode",
-        "hard": False, "status": "pass", "measured": None, "unit": "",
+        "hard": False, "status": "pass", "measured": 0.0, "unit": "targets hit",
         "threshold": f"collision-free at the giving {bend.support}", "score": None,
         "weight": rule.rule.weight, "within": True, "why": bend.why, "source": rule.source,
         "culture": rule.culture, "overrides": [], "safety": False,
         "note": (f"the {other} gripper supports the {gripper} gripper's {bend.support}, clear of "
                  + ", ".join(record.supports.clear_of)),
     }
-    return replace(checked, trace=(*checked.trace, entry)).noted(
+    entries = [entry]
+    if held is not None:
+        reach = next(c for c in base.graph.hard if c.rule.kind == "reach")
+        links = (f"clear of {', '.join(held.against)} at the handover; of the {held.giving} "
+                 "arm's links at the handover")
+        entries.append({
+            "grasp": None, "hand": other, "stage": "support", "rule": reach.id,
+            "kind": "reach", "hard": True, "status": "pass", "measured": 1.0,
+            "unit": "fraction of stages",
+            "threshold": (f">= 1 (the {held.side} arm at the handover, inverse kinematics "
+                          f"within its joint limits, its links {links})"),
+            "score": 1.0, "weight": None, "within": True, "why": reach.rule.why,
+            "source": reach.source, "culture": reach.culture, "overrides": [],
+            "safety": reach.rule.safety, "note": None, **arm_joints.to_dict(),
+            "links": links})
+    return replace(checked, trace=(*checked.trace, *entries)).noted(
         support=Support(record, support.tried))
 
 

@@ -23,27 +23,54 @@ object, nor the table, obstacles and bodies at the handover
 (:func:`~handover.engine.plan.features.handover_targets`), nor the receiver's hands
 (:func:`~handover.engine.plan.features.receiver_hand_boxes`), nor the giving gripper. It joins
 after pick-up (as H2G1's second hand does), so it is not checked against the table there.
+
+With arms, both grippers are held by arms solved by exact inverse kinematics, as every other
+grasp of a plan: the giving row by the arm a one-hand plan would give it
+(either arm, the nearer first: :func:`~handover.engine.plan.arms.solve.confirm`), the
+supporting gripper by the other arm
+at the handover (:func:`support_arm`: within its joint limits, in either finger order, its
+links clear of the table, obstacles and bodies, of the object and the receiver's hands, and
+of the giving arm's links). A row whose support no arm reaches is passed over; when none is
+left the bend is not offered, and the reason says what the arms could not do.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 if TYPE_CHECKING:
     from handover.engine.plan.attempt import Attempt
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
     from handover.geometry.gripper import Gripper
 
-__all__ = ["SUPPORT_DIRECTIONS", "SUPPORT_POOL", "Support", "wrist_point", "support_poses",
-           "find_support"]
+__all__ = ["SUPPORT_DIRECTIONS", "SUPPORT_POOL", "Support", "SupportArm", "wrist_point",
+           "support_poses", "support_arm", "find_support"]
 
 SUPPORT_DIRECTIONS = 8
 """Approach directions of the supporting gripper tried around the wrist."""
 SUPPORT_POOL = 64
 """How many of the best one-hand rows are tried for a support, best first."""
+
+
+@dataclass(frozen=True)
+class SupportArm:
+    """The arm that holds the supporting gripper at the handover.
+
+    side : the arm. q : (dof,) its joint values (rad; m for a prismatic joint). swapped :
+    held turned half a turn about its approach (the fingers swapped). against : what its
+    links were found clear of (``scene:table``, ``body:robot``, ``object:<id>``, ...).
+    giving : the side of the giving arm, whose links it was found clear of too.
+    """
+
+    side: str
+    q: np.ndarray
+    swapped: bool
+    against: tuple[str, ...]
+    giving: str
 
 
 @dataclass(frozen=True)
@@ -53,7 +80,9 @@ class Support:
     row : the giving row of the H1G1 decision. pose : (4, 4) the supporting gripper's grasp
     pose, object frame. width : m, the wrist's thickness it closes around. wrist : (3,) m,
     object frame, the point it holds. checked : what it was checked against, each ``True`` =
-    clear. tried : rows and directions tried before it.
+    clear. tried : rows and directions tried before it. giving : the giving row's arm
+    check (:class:`~handover.engine.plan.arms.stages.ArmCheck`) and arm : the supporting
+    arm (:class:`SupportArm`), with arms; None for a robot without arms.
     """
 
     row: int
@@ -62,6 +91,8 @@ class Support:
     wrist: np.ndarray
     checked: dict
     tried: int
+    giving: Any = None
+    arm: SupportArm | None = None
 
 
 def wrist_point(gripper: Gripper, grasp: np.ndarray) -> np.ndarray:
@@ -96,9 +127,61 @@ def support_poses(gripper: Gripper, grasp: np.ndarray, up: np.ndarray,
     return poses
 
 
+def support_arm(ctx: PlanContext, phase: Phase, giving: Any, poses: np.ndarray,
+                presentation: int) -> tuple[SupportArm | None, int, list[str]]:
+    """The first of the supporting gripper's world poses ``poses`` (D, 4, 4) at the handover
+    that the arm other than ``giving``'s (an :class:`~handover.engine.plan.arms.stages.
+    ArmCheck` of the giving row in ``phase``) holds: exact inverse kinematics within its
+    joint limits (the finger order nearer its seed poses first, then the other), its links
+    clear of the world at the handover (:func:`~handover.engine.plan.arms.links.link_targets`,
+    both arms working), of the object and the receiver's hands
+    (:func:`~handover.engine.plan.arms.links.held_contacts`) and of the giving arm's links at
+    its handover configuration. Returns (the arm or None, the index into ``poses``, the
+    failures met)."""
+    from handover.engine.assets.robot import IK_RESTARTS
+    from handover.engine.plan.arms.links import held_contacts, link_targets, target_groups
+    from handover.engine.plan.arms.stages import canonical_first, hit_words, pose_words
+
+    arms = ctx.arms
+    give = giving.side
+    others = [s for s in arms.sides if s != give]
+    if not others:
+        return None, -1, [f"the robot has no arm besides the {give} one to support it"]
+    side = others[0]
+    q_give = giving.q[giving.stages.index("handover")]
+    working = phase.but(mode="H2G1", arm=side)  # both arms at work: neither waits at rest
+    body = link_targets(ctx, working, side, "handover")
+    against = target_groups((*body.names, f"object:{ctx.situation.obj.id}",
+                             *(f"body:receiver:{h}_hand" for h in phase.hands.receiving)))
+    tries, turned = canonical_first(poses, arms.seed_distance, side)
+    failures: list[str] = []
+    for j in range(len(poses)):
+        for second in (False, True):
+            sol = arms.solve(side, tries[int(second)][j:j + 1], restarts=IK_RESTARTS)
+            if not sol.ok[0]:
+                if second:
+                    failures.append(f"the {side} arm cannot reach {pose_words(poses[j])} at "
+                                    "the giving wrist within its joint limits")
+                continue
+            q = sol.q[0]
+            found = arms.contacts(side, q[None], bodies=[body], own_body=False,
+                                  other=(give, q_give))[0]
+            found += list(held_contacts(ctx, working, side, "handover", q[None],
+                                        np.array([presentation]))[0])
+            if found:
+                named = [(link, target if target.startswith(("scene:", "body:", "object:"))
+                          else f"other_arm:{target}") for link, target in found]
+                failures.append(f"the {side} arm's {hit_words(named)} at the giving wrist")
+                continue
+            return SupportArm(side, q, bool(turned[j] != second), against, give), j, failures
+    return None, -1, failures
+
+
 def find_support(ctx: PlanContext, attempt: Attempt) -> tuple[Support | None, str]:
     """The best row of a feasible one-hand ``attempt`` whose giving arm's wrist the other
-    gripper can support, collision-free, and the support; or None and why not."""
+    gripper can support, collision-free (with arms: both held by arms solved by inverse
+    kinematics, :func:`support_arm`), and the support; or None and why not."""
+    from handover.engine.plan.arms.solve import confirm, preferred_sides, reach_rule
     from handover.engine.plan.features import handover_targets, receiver_hand_boxes
     from handover.geometry.collision import BoxWorld, grippers_collide
 
@@ -112,10 +195,24 @@ def find_support(ctx: PlanContext, attempt: Attempt) -> tuple[Support | None, st
     poses = ctx.gripper_poses()
     targets = handover_targets(ctx, hands)
     hits: dict[str, int] = {}
+    armed = attempt.graph is not None and reach_rule(attempt.graph, ctx) is not None
+    arm_failures: list[str] = []
     tried = 0
     for r in ranking:
         i, k = int(d.gi[r]), int(d.pk[r])
         pose_k = hands.poses[k]
+        givers: list = [None]
+        if armed:  # the giving row held by an arm (either, the nearer first), then supported
+            givers = []
+            for side in preferred_sides(ctx, attempt.phase, i, k):
+                held_by = confirm(ctx, attempt.phase.but(arm=side), side, np.array([i]),
+                                  np.array([k]))[0]
+                if held_by.ok:
+                    givers.append(held_by)
+                else:
+                    arm_failures.append(f"grasp {i}: {held_by.failure()}")
+            if not givers:
+                continue
         up = pose_k[:3, :3].T @ np.array([0.0, 0.0, 1.0])  # world up, object frame
         cand = support_poses(g, poses[i], up)
         posed = g.posed_boxes(cand, width)
@@ -136,12 +233,26 @@ def find_support(ctx: PlanContext, attempt: Attempt) -> tuple[Support | None, st
             hits[name] = hits.get(name, 0) + int((~free).sum())
         for p in np.flatnonzero(world.any(axis=0)):
             hits[targets.names[p]] = hits.get(targets.names[p], 0) + int(world[:, p].sum())
-        if ok.any():
-            j = int(np.argmax(ok))
+        free = np.flatnonzero(ok)
+        if len(free) and armed:  # the other arm must hold one of them
+            for giving in givers:
+                held, j, met = support_arm(ctx, attempt.phase.but(arm=giving.side), giving,
+                                           pose_k @ cand[free], k)
+                arm_failures += met[:2]
+                if held is not None:
+                    j = int(free[j])
+                    return Support(int(r), cand[j], width, cand[j][:3, 3].copy(),
+                                   {name: bool(v[j]) for name, v in clear.items()},
+                                   tried + j, giving, held), ""
+        elif len(free):
+            j = int(free[0])
             return Support(int(r), cand[j], width, cand[j][:3, 3].copy(),
                            {name: bool(v[j]) for name, v in clear.items()},
                            tried + j), ""
         tried += len(cand)
     said = ", ".join(f"{n} ({c})" for n, c in hits.items() if c)
-    return None, (f"no collision-free support at the giving wrist for the best {len(ranking)} "
-                  f"one-hand grasps ({tried} support poses hit: {said})")
+    arms_said = ("; the arms: " + "; ".join(dict.fromkeys(arm_failures[:4]))
+                 if arm_failures else "")
+    return None, (f"no support at the giving wrist for the best {len(ranking)} one-hand "
+                  f"grasps that is collision-free and that the arms hold ({tried} support "
+                  f"poses hit: {said or 'nothing'}{arms_said})")
