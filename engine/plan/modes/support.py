@@ -132,7 +132,7 @@ def support_arm(ctx: PlanContext, phase: Phase, giving: Any, poses: np.ndarray,
     """The first of the supporting gripper's world poses ``poses`` (D, 4, 4) at the handover
     that the arm other than ``giving``'s (an :class:`~handover.engine.plan.arms.stages.
     ArmCheck` of the giving row in ``phase``) holds: exact inverse kinematics within its
-    joint limits (the finger order nearer its seed poses first, then the other), its links
+    joint limits (the finger order nearer its start library first, then the other), its links
     clear of the world at the handover (:func:`~handover.engine.plan.arms.links.link_targets`,
     both arms working), of the object and the receiver's hands
     (:func:`~handover.engine.plan.arms.links.held_contacts`) and of the giving arm's links at
@@ -153,7 +153,7 @@ def support_arm(ctx: PlanContext, phase: Phase, giving: Any, poses: np.ndarray,
     body = link_targets(ctx, working, side, "handover")
     against = target_groups((*body.names, f"object:{ctx.situation.obj.id}",
                              *(f"body:receiver:{h}_hand" for h in phase.hands.receiving)))
-    tries, turned = canonical_first(poses, arms.seed_distance, side)
+    tries, turned = canonical_first(poses, arms.start_distance, side)
     failures: list[str] = []
     for j in range(len(poses)):
         for second in (False, True):
