@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
     from handover.geometry.collision import ObjectCollider
 
-__all__ = ["mesh_hits", "mesh_clearances"]
+__all__ = ["mesh_hits", "mesh_clearances", "box_clearances"]
 
 
 def mesh_hits(
@@ -150,6 +150,30 @@ def mesh_clearances(
         prim.setTransform(fcl.Transform(inv[:3, :3] @ prim_r[j], inv[:3, :3] @ prim_t[j]
                                         + inv[:3, 3]))  # fmt: skip
         out[j] = max(0.0, fcl.distance(prim, target, request, fcl.DistanceResult()))
+    return out
+
+
+def box_clearances(body: Body, centres: np.ndarray, rotations: np.ndarray,
+                   extents: np.ndarray) -> np.ndarray:
+    """(r, P) float, m: the distance from each of r oriented boxes (``centres`` (r, 3),
+    ``rotations`` (r, 3, 3), full ``extents`` (r, 3)) to each primitive of ``body``
+    (python-fcl ``distance``; 0 where they touch or cross). For the few boxes of chosen
+    poses, not for screening many."""
+    import fcl
+
+    c = _finite(centres, (None, 3), "centres")
+    r = _finite(rotations, (len(c), 3, 3), "rotations")
+    e = _finite(extents, (len(c), 3), "extents")
+    prims, prim_r, prim_t = _fcl_primitives(body, 0.0)
+    for obj, rot, shift in zip(prims, prim_r, prim_t, strict=True):
+        obj.setTransform(fcl.Transform(rot, shift))
+    out = np.empty((len(c), len(prims)))
+    request = fcl.DistanceRequest()
+    for i in range(len(c)):
+        box = fcl.CollisionObject(fcl.Box(*(float(v) for v in e[i])),
+                                  fcl.Transform(r[i], c[i]))
+        for j, prim in enumerate(prims):
+            out[i, j] = max(0.0, fcl.distance(box, prim, request, fcl.DistanceResult()))
     return out
 
 

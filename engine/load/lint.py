@@ -22,7 +22,8 @@ Errors:
     rule, or document the tag in a vocabulary (the hazard tags of ``common``);
   - an ``axis`` rule naming an axis no object defines and no vocabulary documents, a rule's
     ``applies.tasks`` naming a task no object has;
-  - a receiver's ``hand`` or a robot's (or an arm's) ``gripper`` that does not exist; two
+  - a receiver's ``hand`` or a robot's (or an arm's) ``gripper`` that does not exist (or a
+    grasp a receiver uses, or a ``receiver_grasp`` rule names, that no hand has); two
     obstacles with one id in a scene;
   - a robot's ``urdf`` that is missing, outside the KB, xacro, or does not parse (the URDF's
     file:line in the message); an arm naming a link the URDF lacks; an arm's chain with mimic,
@@ -281,6 +282,8 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                         "tasks",
                         k,
                     )
+            if rule.kind == "receiver_grasp" and "hands" not in failed:
+                yield from _lint_grasp_names(kb, rule)
             if rule.kind == "axis" and rule.axis is not None:
                 if rule.axis not in used_axes and rule.axis not in documented:
                     yield kb.issue(
@@ -301,6 +304,21 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                         )
 
 
+def _lint_grasp_names(kb: KB, rule: RuleBase) -> Iterator[KBIssue]:
+    """A ``receiver_grasp`` rule naming a grasp no hand of the KB has (a misspelt grasp
+    silently disables the rule)."""
+    known = {g.name for hand in kb.hands.values() for g in hand.repertoire()}
+    for k, name in enumerate(rule.grasps):
+        if name not in known:
+            yield kb.issue(
+                rule,
+                f"rule '{rule.id}' names grasp '{name}', which no hand has (grasps: "
+                f"{', '.join(sorted(known)) or 'none'})",
+                "grasps",
+                k,
+            )
+
+
 # ---------------------------------------------------------------- references
 
 
@@ -315,6 +333,17 @@ def lint_references(kb: KB, failed: set[str], urdf: bool = True) -> Iterator[KBI
                     f"exist (hands: {', '.join(sorted(kb.hands)) or 'none'})",
                     "hand",
                 )
+            elif receiver.grasps is not None:
+                known = [g.name for g in kb.hands[receiver.hand].repertoire()]
+                for k, name in enumerate(receiver.grasps):
+                    if name not in known:
+                        yield kb.issue(
+                            receiver,
+                            f"receiver '{receiver.id}' uses grasp '{name}', which hand "
+                            f"'{receiver.hand}' does not have (grasps: {', '.join(known)})",
+                            "grasps",
+                            k,
+                        )
     if "grippers" not in failed:
         for gripper in kb.grippers.values():
             if gripper.meshes is not None:

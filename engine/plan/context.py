@@ -21,6 +21,7 @@ from handover.engine.spec.applies import Facts
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
+    from handover.engine.assets.hands import Repertoire
     from handover.engine.assets.robot import RobotArms
     from handover.engine.plan.phase import Hands
     from handover.engine.plan.world import Locations
@@ -75,7 +76,7 @@ class Memo:
     # plan.hands / plan.offer
     hands: dict[tuple, Hands] = field(default_factory=dict)
     locations: dict[str, Locations] = field(default_factory=dict)  # by receiving hand
-    # plan.features
+    # plan.features, plan.hand_features, plan.receiver_grasps
     collision_scene: np.ndarray | None = None  # (N,) int8, -1 not judged yet
     collision_handover: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N*K,) int64
     collision_receiver_hand: dict[tuple, np.ndarray] = field(default_factory=dict)
@@ -83,7 +84,10 @@ class Memo:
     gripper_spheres: tuple[np.ndarray, float] | None = None
     interior: dict[tuple[str, ...], Any] = field(default_factory=dict)  # by tags: Interior
     keep_out_gripper: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N,) int64
-    hand_fit: dict[tuple, Any] = field(default_factory=dict)  # features.HandFit
+    hand_fit: dict[tuple, Any] = field(default_factory=dict)  # hand_features.HandFit
+    surface_samples: Any = None  # geometry.penetration.SurfaceSamples of the object
+    forbidden_samples: dict[tuple, Any] = field(default_factory=dict)  # by tags
+    receiver_choice: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N*K, H) int64
     # plan.arms
     arm_shoulders: dict[str, np.ndarray] = field(default_factory=dict)
     arm_checks: dict[tuple, Any] = field(default_factory=dict)  # arms.stages.ArmCheck
@@ -116,6 +120,8 @@ class PlanContext:
     rotations : (K, 3, 3) object -> world at the handover (where each is offered depends on
     the mode's rules: :meth:`hands`). initial : (4, 4) object -> world at pick-up.
     part_tags : tags of each part index of ``part_mesh``.
+    repertoire : the receiver's grasps (:mod:`handover.engine.assets.hands`; None: the wrap of
+    ``hand`` alone).
     warnings : what the preparation found worth telling (units of a mesh file).
     kb_root : the KB folder (files the KB names, e.g. a robot's URDF, are relative to it).
     """
@@ -134,6 +140,7 @@ class PlanContext:
     facts: ObjectFacts
     collider: Any = None
     kb_root: Any = None
+    repertoire: Repertoire | None = None
     warnings: list[str] = field(default_factory=list)
     memo: Memo = field(default_factory=Memo)
 
@@ -249,6 +256,7 @@ def build_context(
     gripper: Gripper,
     hand: HumanHand,
     rules: Sequence[RuleBase] = (),
+    repertoire: Repertoire | None = None,
 ) -> PlanContext:
     """Compute presentations, initial pose, scene and the object's facts for one query.
     Where the receiver's hands go depends on the rules of each mode: see
@@ -288,6 +296,7 @@ def build_context(
         scene=BoxWorld(boxes),
         scene_box_list=boxes,
         facts=facts,
+        repertoire=repertoire,
     )
 
 

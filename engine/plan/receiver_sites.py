@@ -1,5 +1,7 @@
 """Where the receiver will hold the object in each presentation: the region of the parts they
-may hold, and their predicted grasp site (one hand or two).
+may hold, and their predicted grasp site (one hand or two). Longer than 500 lines: a wrapping
+hand's site (where along the part, the section it closes round, the turn that fits it, moved
+to another place along the part) is one algorithm whose steps share their helpers.
 
 The receiver's grasp site (the seed's C, section 3.1) lies on the part the task or etiquette
 gives the receiver. Along the robot->receiver direction, the receiver takes the middle of the
@@ -11,16 +13,18 @@ half of the object near itself (a ``giver_side`` rule). The presentations themse
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from handover.engine.plan.presentation import ISOTROPY
+from handover.geometry.sections import section_pieces
 
 if TYPE_CHECKING:
     import trimesh
 
     from handover.geometry.hand import HumanHand
+    from handover.geometry.penetration import SurfaceSamples
 
 # A compact object's receiver hand stops this far (m) short of the object's middle.
 COMPACT_GAP = 0.005
@@ -28,6 +32,10 @@ MIN_SECTION = 0.002
 """m: the thinnest section a hand is modelled round (a wire is held like a 2 mm rod)."""
 BAND_TOL = 1e-9
 """m: samples this close outside a hand's band still count (rounding, not geometry)."""
+BAND_REACH = 0.02
+"""m: a band sample belongs to a piece of the part's cross-section within half this (the
+band is a grip wide along the axis, so its samples lie off the cutting plane, and a part's
+section changes little over it)."""
 
 __all__ = [
     "ReceiverRegion",
@@ -37,6 +45,8 @@ __all__ = [
     "hand_approach",
     "predict_receiver_sites",
     "predict_two_hand_sites",
+    "wraps_at",
+    "axis_wraps",
 ]
 
 
@@ -151,6 +161,11 @@ class ReceiverSites:
     cupped : the hand cups a compact object (no part to close round).
     approach : (K, 3) unit, object frame, or None (then :func:`hand_approach`). The
         direction the hand moves in, turned where it would not fit as it comes.
+    options : the grasps of the receiver's repertoire this hand may take in each
+        presentation, best first (a :class:`~handover.engine.plan.receiver_grasps.
+        GraspOptions`); None for sites predicted without a repertoire (the wrap alone, its
+        boxes :class:`~handover.geometry.hand.HumanHand`'s). The fields above are then the
+        best option's (or, where none fits, the wrap's as predicted).
     """
 
     site: np.ndarray
@@ -161,6 +176,7 @@ class ReceiverSites:
     depth: np.ndarray | None = None
     cupped: bool = False
     approach: np.ndarray | None = None
+    options: Any = None
 
 
 def predict_receiver_sites(
@@ -172,6 +188,7 @@ def predict_receiver_sites(
     finger_thickness: float = 0.02,
     hand: HumanHand | None = None,
     mesh: trimesh.Trimesh | None = None,
+    samples: SurfaceSamples | None = None,
 ) -> ReceiverSites:
     """The seed's C for every presentation.
 
@@ -191,7 +208,9 @@ def predict_receiver_sites(
 
     rotations : (K, 3, 3) object -> world. grip_width : m, the hand's width along the part.
     hand : the receiver's hand model; mesh : the object (object frame, m). Without both, the
-        hand never turns.
+        hand never turns. samples : the object's surface samples, which measure how deep the
+        hand's boxes reach into it (default: a lattice over each box,
+        :func:`~handover.geometry.penetration.box_depths`).
     """
     k = len(rotations)
     site = np.full((k, 3), np.nan)
@@ -248,7 +267,7 @@ def predict_receiver_sites(
             # the hand turns about the part's axis
             approach = np.einsum("kij,kj->ki", _spin(axes, turn), default)
             return _wrapped(region, band_site, part, axes, approach, band, grip_width, mesh)
-    return _fitted(measure, hand, mesh)
+    return _fitted(measure, hand, mesh, samples)
 
 
 APPROACH_TURNS_DEG = (0.0, 45.0, -45.0, 90.0, -90.0)
@@ -275,24 +294,34 @@ def _spin(axes: np.ndarray, deg: float) -> np.ndarray:
     return rotation_about_axis(axes, np.full(len(axes), np.radians(deg)))
 
 
-def _fitted(measure, hand, mesh) -> ReceiverSites:
+def _fitted(measure, hand, mesh, samples=None) -> ReceiverSites:
     """The receiver's sites with each presentation's hand turned (``APPROACH_TURNS_DEG``,
     ``measure(turn)`` giving the sites of every presentation at that turn) to the first turn
     at which its boxes reach at most ``HAND_GIVE`` into ``mesh`` (the least deep where none
-    does). Without a hand model or a mesh: the untouched first turn."""
+    does), measured with ``samples`` when given, else a lattice over each box. Without a hand
+    model or a mesh: the untouched first turn."""
     first = measure(APPROACH_TURNS_DEG[0])
     if hand is None or mesh is None or not first.valid.any():
         return first
-    from handover.geometry.penetration import box_depths
+    if samples is not None:
+        def depths(centres, rots, halves):
+            return samples.box_depths(centres, rots, halves)
+    else:
+        from handover.geometry.penetration import box_depths
+
+        def depths(centres, rots, halves):
+            # a 3-point lattice (a subset of the rule's 5-point one): it never finds a box
+            # deeper than the rule does, so the hand turns only where it must
+            return box_depths(mesh, centres, rots, halves, lattice=FIT_LATTICE)
 
     chosen = first
-    best = _box_depths(first, hand, mesh, np.flatnonzero(first.valid), box_depths)
+    best = _box_depths(first, hand, np.flatnonzero(first.valid), depths)
     todo = np.flatnonzero(first.valid)[best[first.valid] > HAND_GIVE]
     for turn in APPROACH_TURNS_DEG[1:]:
         if not len(todo):
             break
         other = measure(turn)
-        depth = _box_depths(other, hand, mesh, todo, box_depths)
+        depth = _box_depths(other, hand, todo, depths)
         better = todo[depth[todo] < best[todo]]
         if len(better):
             chosen = _take(chosen, other, better)
@@ -301,9 +330,9 @@ def _fitted(measure, hand, mesh) -> ReceiverSites:
     return chosen
 
 
-def _box_depths(sites: ReceiverSites, hand, mesh, ks: np.ndarray, box_depths) -> np.ndarray:
-    """(K,) m: how deep the hand's deepest box reaches into ``mesh`` in presentations ``ks``
-    (object frame; inf elsewhere)."""
+def _box_depths(sites: ReceiverSites, hand, ks: np.ndarray, depths) -> np.ndarray:
+    """(K,) m: how deep the hand's deepest box reaches into the object in presentations
+    ``ks`` (``depths(centres, rotations, halves)``; inf elsewhere)."""
     out = np.full(len(sites.site), np.inf)
     centres, rots, halves, owner = [], [], [], []
     for k in ks:
@@ -315,10 +344,7 @@ def _box_depths(sites: ReceiverSites, hand, mesh, ks: np.ndarray, box_depths) ->
             halves.append(ext / 2.0)
             owner.append(k)
     if owner:
-        # a 3-point lattice (a subset of the rule's 5-point one): it never finds a box
-        # deeper than the rule does, so the hand turns only where it must
-        depth = box_depths(mesh, np.array(centres), np.array(rots), np.array(halves),
-                           lattice=FIT_LATTICE)
+        depth = depths(np.array(centres), np.array(rots), np.array(halves))
         out[ks] = 0.0
         np.maximum.at(out, np.array(owner), depth)
     return out
@@ -335,7 +361,8 @@ def _take(into: ReceiverSites, other: ReceiverSites, ks: np.ndarray) -> Receiver
     return ReceiverSites(mix(into.site, other.site), mix(into.part, other.part),
                          mix(into.thickness, other.thickness), mix(into.valid, other.valid),
                          axis=mix(into.axis, other.axis), depth=mix(into.depth, other.depth),
-                         cupped=into.cupped, approach=mix(into.approach, other.approach))
+                         cupped=into.cupped, approach=mix(into.approach, other.approach),
+                         options=into.options)
 
 
 def _cupped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, approach: np.ndarray,
@@ -395,8 +422,13 @@ def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: n
         section = np.abs(solid @ axes[col] - along[col]) <= grip_width / 2.0 + BAND_TOL
         pts = solid[section] if section.any() else region.points[band[:, col]]
         if mesh is not None:
-            cut = trimesh.intersections.mesh_plane(mesh, axes[col], along[col] * axes[col])
-            pts = np.concatenate([pts, np.asarray(cut, dtype=float).reshape(-1, 3)])
+            cut = np.asarray(trimesh.intersections.mesh_plane(
+                mesh, axes[col], along[col] * axes[col]), dtype=float).reshape(-1, 2, 3)
+            frame = np.stack([across[col], approach[col]], axis=1)  # (3, 2)
+            own = region.points[band[:, col]] if band[:, col].any() else region.points
+            near, on = section_pieces(cut @ frame, pts @ frame, own @ frame,
+                                      near=0.5 * BAND_REACH)
+            pts = np.concatenate([pts[near], cut.reshape(-1, 3)[on]])
         y, z = pts @ across[col], pts @ approach[col]
         thickness[col] = max(float(np.ptp(y)), MIN_SECTION)
         depth[col] = max(float(np.ptp(z)), MIN_SECTION)
@@ -404,6 +436,48 @@ def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: n
                      + 0.5 * (z.min() + z.max()) * approach[col])  # fmt: skip
     return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=axes,
                          depth=depth, approach=approach)
+
+
+def wraps_at(region: ReceiverRegion, sites: ReceiverSites, along: np.ndarray,
+             grip_width: float, mesh: trimesh.Trimesh | None = None) -> ReceiverSites:
+    """``sites`` (wrapping hands, with ``axis`` and ``approach``) moved along their parts' axes
+    to ``along`` (K,) m (the site's coordinate along the axis, object frame; NaN: not moved,
+    and not valid), their sections measured there as :func:`predict_receiver_sites` does, the
+    part the one most region samples within half a grip of it belong to."""
+    axes = np.asarray(sites.axis, dtype=float)
+    k = len(axes)
+    along = np.asarray(along, dtype=float)
+    moved = np.isfinite(along)
+    target = np.where(moved, along, np.einsum("ki,ki->k", sites.site, axes))
+    site = sites.site + (target - np.einsum("ki,ki->k", sites.site, axes))[:, None] * axes
+    band = np.abs(region.points @ axes.T - target[None, :]) <= grip_width / 2.0 + BAND_TOL
+    nearest = np.argmin(np.abs(region.points @ axes.T - target[None, :]), axis=0)
+    band[nearest, np.arange(k)] |= ~band.any(axis=0)
+    n_parts = int(region.parts.max()) + 1 if len(region.parts) else 1
+    part = np.array([int(np.bincount(region.parts[band[:, col]], minlength=n_parts).argmax())
+                     for col in range(k)], dtype=np.int64)
+    out = _wrapped(region, site, part, axes, sites.approach, band, grip_width, mesh)
+    out.valid = out.valid & moved & np.asarray(sites.valid, dtype=bool)
+    return out
+
+
+def axis_wraps(region: ReceiverRegion, rotations: np.ndarray, toward: np.ndarray,
+               grip_width: float, mesh: trimesh.Trimesh | None = None) -> ReceiverSites:
+    """The hand wrapping a region round its long axis (``region.axis``) at the middle of its
+    length, coming from the receiver (:func:`hand_approach`): a compact region's wrap where
+    :func:`predict_receiver_sites` cups it (a glass, which a hand also holds round its axis).
+    Not valid for an isotropic region (no long axis)."""
+    k = len(rotations)
+    axes = np.broadcast_to(np.asarray(region.axis, dtype=float), (k, 3)).copy()
+    d_obj = np.einsum("kji,j->ki", rotations, toward)
+    approach = hand_approach(axes, d_obj, rotations[:, 2, :])
+    middle = 0.5 * (region.points @ region.axis).min() + 0.5 * (region.points @ region.axis).max()
+    centre = region.points.mean(axis=0)
+    site = np.broadcast_to(centre + (middle - centre @ region.axis) * region.axis, (k, 3))
+    base = ReceiverSites(site=site.copy(), part=np.zeros(k, dtype=np.int64),
+                         thickness=np.zeros(k), valid=np.full(k, not region.isotropic),
+                         axis=axes, approach=approach)
+    return wraps_at(region, base, np.full(k, middle), grip_width, mesh)
 
 
 def hand_approach(axis: np.ndarray, toward: np.ndarray, up: np.ndarray) -> np.ndarray:

@@ -12,6 +12,7 @@ from handover.engine.errors import UsageError
 from handover.engine.plan.blocking import blocking_sets
 from handover.engine.plan.evaluate import trace_row
 from handover.engine.plan.features import handover_targets
+from handover.engine.plan.hand_features import joint_choice
 from handover.engine.report.result import PlanResult
 
 if TYPE_CHECKING:
@@ -112,23 +113,69 @@ def grasp_record(ctx: PlanContext, hand: str, i: int, pose_k: np.ndarray,
 
 
 def human_record(ctx: PlanContext, k: int, hand: str, hands: Hands,
-                 sites: ReceiverSites) -> dict | None:
+                 sites: ReceiverSites, option: int | None = None) -> dict | None:
     """A receiver's predicted grasp (seed's C) in presentation ``k``: one hand's ``sites`` of
-    ``hands``."""
+    ``hands``, in grasp option ``option`` (the one it takes with the robot's grippers where
+    they are, :func:`~handover.engine.plan.features.joint_choice`; default its best usable
+    one): where, on which part, its boxes (``model``, world), the ``grasp`` (its name and
+    family, how it holds, its boxes, why; and why each other grasp is not the one) and the
+    reaching ``arm`` (shoulder, elbow, wrist, world, and the radii of upper arm and forearm)."""
     if not sites.valid[k]:
         return None
-    site = sites.site[k]
-    from handover.engine.plan.features import hand_model
+    from handover.engine.plan.hand_features import hand_model, primary_options
 
     pose = hands.poses[k]
-    return {
+    opts = sites.options
+    j = int(primary_options(sites)[k]) if option is None or option < 0 else int(option)
+    if opts is None or j < 0:
+        site, part = sites.site[k], int(sites.part[k])
+    else:
+        site, part = opts.site[k, j], int(opts.part[k, j])
+    model = [{"name": name, "extents": ext, "pose": box}
+             for name, ext, box in hand_model(ctx, hands.region, sites, k, pose,
+                                              None if opts is None or j < 0 else j)]
+    out = {
         "hand": hand,
         "position": site,
         "position_world": pose[:3, :3] @ site + pose[:3, 3],
-        "part": ctx.part_mesh.part_names[int(sites.part[k])],
-        "model": [{"name": name, "extents": ext, "pose": pose}
-                  for name, ext, pose in hand_model(ctx, hands.region, sites, k, pose)],
+        "part": ctx.part_mesh.part_names[part],
+        "model": model,
     }
+    if opts is not None and j >= 0:
+        out["grasp"] = _grasp_record(ctx, sites, k, j, model)
+        out["arm"] = _arm_record(ctx, hands, sites, k, j, hand)
+    return out
+
+
+def _grasp_record(ctx: PlanContext, sites: ReceiverSites, k: int, j: int, model: list) -> dict:
+    """``human_grasps[i].grasp``: the grasp taken (:func:`~handover.engine.plan.
+    receiver_grasps.option_record`), its boxes (world), where its entry is and why it is a
+    grasp of the hand, and why each other grasp is not the one."""
+    from handover.engine.plan.receiver_grasps import not_taken, option_record
+
+    rec = option_record(ctx, sites, k, j)
+    spec = ctx.repertoire.specs[int(sites.options.grasp[k, j])]
+    rec.update({"type": rec["name"], "boxes": model, "source": str(spec.source),
+                "why": (spec.why or "").strip() or None,
+                "not_taken": not_taken(ctx, sites, k, j)})
+    return rec
+
+
+def _arm_record(ctx: PlanContext, hands: Hands, sites: ReceiverSites, k: int, j: int,
+                hand: str) -> dict:
+    """``human_grasps[i].arm``: the receiver's arm reaching for option ``j`` of presentation
+    ``k`` (:func:`~handover.engine.plan.offer.reaching_arms`), world."""
+    from handover.engine.plan.offer import reaching_arms
+
+    pose = hands.poses[k]
+    shoulder = ctx.world.receiver.shoulder(hand)
+    wrists = np.einsum("ij,wj->wi", pose[:3, :3], sites.options.wrists[k, j]) + pose[:3, 3]
+    wrist, elbow, hits = reaching_arms(ctx, wrists[None], shoulder, hand,
+                                       ctx.world.arm_obstacles())
+    names = ctx.world.arm_obstacles().names
+    return {"shoulder": shoulder, "elbow": elbow[0], "wrist": wrist[0],
+            "radius": list(ctx.world.arm_radii(hand)),
+            "hits": [names[p] for p in np.flatnonzero(hits[0])]}
 
 
 def _presentation(ctx: PlanContext, k: int) -> dict:
@@ -247,8 +294,10 @@ def build_result(
                        "midair_pose": midair, "second": second}
         hands = attempt.phase.hands
         names = [s.receiver.dominant_hand] if len(hands.sites) == 1 else ["right", "left"]
-        for sites_h, hand_name in zip(hands.sites, names, strict=True):
-            rec = human_record(ctx, k, hand_name, hands, sites_h)
+        held = tuple(c.grasp for c in attempt.chosen if c.stage != "pick")
+        options = joint_choice(sctx, hands, held, k) if held else [None] * len(hands.sites)
+        for sites_h, hand_name, j in zip(hands.sites, names, options, strict=True):
+            rec = human_record(sctx, k, hand_name, hands, sites_h, j)
             if rec is not None:
                 human.append(rec)
         trace = attempt.extra["trace"]

@@ -246,8 +246,6 @@ def test_a_hot_object_is_taken_by_a_cool_part_and_kept_level(planner, obj, hot):
     assert trace_status(result, "hot_kept_level") == {"pass"}
 
 
-@pytest.mark.xfail(strict=True, reason="refused today, as people do not: the receiver's hand has "
-                   "one shape (a wrap round the whole glass) that the gripper leaves no room for")
 def test_a_glass_of_water_stays_upright_with_no_finger_in_the_water(planner):
     plan = planner.plan("water_glass")
     result = plan.to_dict()
@@ -270,8 +268,6 @@ def test_a_glass_of_water_stays_upright_with_no_finger_in_the_water(planner):
     assert trace_status(result, "out_of_the_opening") == {"pass"}
 
 
-@pytest.mark.xfail(strict=True, reason="refused today: no pick-up grasp both clear of the water "
-                   "and within the arms' reach; a glass is handed over by people every day")
 def test_a_midair_regrasp_never_puts_a_finger_in_the_water_either(planner):
     """The pick-up grasp of a regrasp is judged by the opening rule too: no finger of either
     grasp is in the water (this glass has no solid base: every grasp pinches its wall)."""

@@ -41,7 +41,9 @@ Entities (see ``ENTITY_*``)::
                                       Capsules3D, Boxes3D: the bodies, static
     world/handover/locations          Points3D: candidate handover locations, the chosen one
                                       large (stage 0)
-    world/receiver/hands              Boxes3D: the receiver's hand model(s), shown presentation
+    world/receiver/hands              Boxes3D: the receiver's hand model(s), shown presentation,
+                                      each box labelled with its hand and grasp
+    world/receiver/arms               LineStrips3D: their reaching arms (shoulder, elbow, wrist)
     world/receiver/sites              Points3D: the receiver's predicted grasp (stage 4)
     world/initial                     Transform3D: object -> world at pick-up
     world/initial/object              Mesh3D, faces coloured by part
@@ -79,7 +81,7 @@ import numpy as np
 
 from handover.engine.errors import UsageError
 from handover.engine.files import atomic_path, write_error
-from handover.engine.plan.features import receiver_hand_boxes
+from handover.engine.plan.hand_features import receiver_hand_boxes
 from handover.engine.report.rerun.bodies import (
     ROBOT_BODY_COLOUR,
     boxes_arrays,
@@ -204,6 +206,23 @@ def _mesh_arrays(ctx: PlanContext) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
 
 
 # ---------------------------------------------------------------- writing
+
+
+def _receiver_hands(result: PlanResult, ctx: PlanContext, phase, k: int
+                    ) -> tuple[list, list[str]]:
+    """The receiver's hand boxes to draw and their labels: those of the result's
+    ``human_grasps`` (the grasp each hand takes, named), else, for a plan with none (an
+    infeasible one), each hand's best grasp in the shown presentation."""
+    boxes, labels = [], []
+    for h in result.human_grasps:
+        grasp = (h.get("grasp") or {}).get("name")
+        for box in h.get("model") or []:
+            boxes.append((box["name"], box["extents"], box["pose"]))
+            labels.append(f"receiver {h['hand']} {grasp + ': ' if grasp else ''}{box['name']}")
+    if boxes or phase is None:
+        return boxes, labels
+    boxes = receiver_hand_boxes(ctx, phase.hands, k)
+    return boxes, [f"receiver {b[0]}" for b in boxes]
 
 
 def camera(initial: np.ndarray, handover: np.ndarray, size: float) -> tuple[np.ndarray, ...]:
@@ -345,12 +364,19 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
             labels=list(axes), colors=[AXIS_COLOURS.get(a, OTHER_AXIS_COLOUR) for a in axes]),
             static=True)  # fmt: skip
     phase = attempt.phase if attempt is not None else None
-    hand_boxes = receiver_hand_boxes(ctx, phase.hands, k) if phase is not None else []
+    hand_boxes, labels = _receiver_hands(result, ctx, phase, k)
     names, centres, half, quats = boxes_arrays(hand_boxes)
     if names:
         rec.log("world/receiver/hands", rr.Boxes3D(
             centers=centres, half_sizes=half, quaternions=quats, colors=RECEIVER_HAND_COLOUR,
-            labels=[f"receiver {nm}" for nm in names], fill_mode="solid"), static=True)  # fmt: skip
+            labels=labels, fill_mode="solid"), static=True)  # fmt: skip
+    arms = [h["arm"] for h in result.human_grasps if h.get("arm")]
+    if arms:
+        rec.log("world/receiver/arms", rr.LineStrips3D(
+            [np.array([a["shoulder"], a["elbow"], a["wrist"]], dtype=float) for a in arms],
+            radii=[float(np.mean(a["radius"])) for a in arms], colors=RECEIVER_HAND_COLOUR,
+            labels=[f"receiver's {h['hand']} arm" for h in result.human_grasps if h.get("arm")]),
+            static=True)  # fmt: skip
     rec.set_time(TIMELINE, sequence=0)
     _log_locations(rec, phase, k)
     rec.log(ENTITY_CANDIDATES, rr.AnnotationContext(
