@@ -42,7 +42,10 @@ def body_record(body: Body) -> list[dict]:
 
 def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
     """Where the object is offered (the receiver's grasp site, world) and why there: the
-    chosen location's measures against the location rules, and what else was considered."""
+    chosen location's measures against the location rules, and what else was considered.
+    ``site_of``: the grasp of each receiving hand whose site the location places (its best
+    grasp there; the one it takes with the robot's gripper, ``human_grasps``, may be
+    another)."""
     if attempt.phase is None:
         return None
     hands = attempt.phase.hands
@@ -64,9 +67,12 @@ def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
                  f"where every hard location rule passes and nothing is hit, after "
                  f"{moved['locations_tried']} better one(s) where {attempt.mode} found no plan "
                  f"({moved['why']}): ")
+    site_of = [f"{s.options.name(k, 0)} ({s.options.label[k, 0]})"
+               for s in hands.sites if s.options is not None and s.options.grasp[k, 0] >= 0]
     return {
         "position": point,
         "presentation": k,
+        "site_of": site_of,
         "located": bool(hands.located[k]),
         "measured": measured,
         "hits": list(hands.hits[k]),
