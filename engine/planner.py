@@ -240,12 +240,15 @@ class Robot:
 @dataclass(frozen=True)
 class HumanGrasp:
     """The receiver's predicted grasp (the seed's C). position : (3,) m, object frame;
-    position_world : (3,) m at the handover; part : the part under it."""
+    position_world : (3,) m at the handover; part : the part under it; grasp : which grasp
+    of the receiver's repertoire (``wrap``, ``pinch``, ...; the JSON's ``grasp.name``), None
+    for a hand without one (where the receiver will take an object set down)."""
 
     hand: str
     position: np.ndarray
     position_world: np.ndarray
     part: str
+    grasp: str | None = None
 
 
 class Plan:
@@ -316,7 +319,7 @@ class Plan:
     def human_grasps(self) -> list[HumanGrasp]:
         return [HumanGrasp(hand=h["hand"], position=np.asarray(h["position"], dtype=float),
                            position_world=np.asarray(h["position_world"], dtype=float),
-                           part=h["part"])
+                           part=h["part"], grasp=(h.get("grasp") or {}).get("name"))
                 for h in self.result.human_grasps]
 
     @property

@@ -34,6 +34,8 @@ def section_pieces(segments: np.ndarray, samples: np.ndarray, own: np.ndarray,
     samples = np.asarray(samples, dtype=float).reshape(-1, 2)
     own = np.asarray(own, dtype=float).reshape(-1, 2)
     ends = segments.reshape(-1, 2)
+    if not len(own) or _within(ends, own):  # nothing beside the part: one piece
+        return np.ones(len(samples), dtype=bool), np.ones(len(ends), dtype=bool)
     pieces = (list(polygonize(shapely.union_all(shapely.MultiLineString(
         [seg for seg in np.round(segments, 9)])))) if len(segments) else [])  # fmt: skip
     if len(pieces) < 2:
@@ -46,3 +48,12 @@ def section_pieces(segments: np.ndarray, samples: np.ndarray, own: np.ndarray,
                   if len(samples) else np.zeros(0, dtype=bool))
     on_ends = shapely.distance(chosen, shapely.points(ends)) <= PIECE_TOL
     return np.asarray(on_samples, dtype=bool), np.asarray(on_ends, dtype=bool)
+
+
+def _within(ends: np.ndarray, own: np.ndarray) -> bool:
+    """Whether every section point lies within the part's own samples' bounding box, grown by
+    a tenth of its size and 5 mm (then the section holds nothing but the part: a fast path
+    that skips building polygons)."""
+    lo, hi = own.min(axis=0), own.max(axis=0)
+    grow = 0.1 * (hi - lo).max() + 0.005
+    return bool(((ends >= lo - grow) & (ends <= hi + grow)).all())

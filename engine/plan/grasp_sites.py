@@ -116,10 +116,13 @@ def with_approach(sites: ReceiverSites, rotations: np.ndarray, toward: np.ndarra
 
 def around_variants(region: ReceiverRegion, rotations: np.ndarray, toward: np.ndarray,
                     shape: GraspShape, grasp: int, mesh, main: ReceiverSites | None,
-                    finger_thickness: float, two: bool) -> list[Variant]:
+                    finger_thickness: float, two: bool, cuts: dict | None = None
+                    ) -> list[Variant]:
     """The variants of a grasp that closes round a section (wrap, tripod, hook). ``main``:
     the wrap as predicted and turned to fit (its first variant, for the wrap). Slid to the
-    part's ends (wrap, one hand): the end nearer the receiver first, the lower on a tie."""
+    part's ends (wrap, one hand): the end nearer the receiver first, the lower on a tie.
+    cuts : sections already measured (:func:`~handover.engine.plan.receiver_sites.
+    predict_receiver_sites`)."""
     if shape.family == "wrap":
         if main is None:
             return []
@@ -129,7 +132,7 @@ def around_variants(region: ReceiverRegion, rotations: np.ndarray, toward: np.nd
             return out
         cupped = out
         if main.cupped:  # a compact part is held round its axis too (a glass)
-            first = axis_wraps(region, rotations, toward, shape.width, mesh)
+            first = axis_wraps(region, rotations, toward, shape.width, mesh, cuts)
             out = [Variant.from_sites(grasp, "round its axis", first, region)]
             length = float(np.ptp(region.points @ region.axis))
             if region.tags or length < shape.width:  # a short handle: cupped first (a mug's)
@@ -148,7 +151,8 @@ def around_variants(region: ReceiverRegion, rotations: np.ndarray, toward: np.nd
         near = np.where(rank >= 0, hi, lo)
         far = np.where(rank >= 0, lo, hi)
         for label, along in (("slid to the receiver's end", near), ("slid to the far end", far)):
-            moved = wraps_at(region, first, np.where(room, along, np.nan), shape.width, mesh)
+            moved = wraps_at(region, first, np.where(room, along, np.nan), shape.width, mesh,
+                             cuts)
             out.append(Variant.from_sites(grasp, label, moved, region))
         return out + cupped  # an untagged compact part (a glass): held round its axis first
     if two:
@@ -156,7 +160,7 @@ def around_variants(region: ReceiverRegion, rotations: np.ndarray, toward: np.nd
     where = "far_end" if shape.family == "tripod" else "middle"
     sites = predict_receiver_sites(region, rotations, toward, grip_width=shape.width,
                                    where=where, finger_thickness=finger_thickness, hand=None,
-                                   mesh=mesh)
+                                   mesh=mesh, cuts=cuts)
     if sites.cupped:  # nothing to close round: a ball, a short box
         return []
     sites = with_approach(sites, rotations, toward, region)
@@ -207,30 +211,40 @@ def edge_variants(region: ReceiverRegion, rotations: np.ndarray, toward: np.ndar
     out = []
     for label, a_world in approaches:
         a = np.einsum("kji,j->ki", rotations, a_world)  # (K, 3) object frame
+        front = _front(region, a, mask)
         x_world = np.cross(up, a_world) if abs(a_world[2]) < 0.9 else lateral
         x_world = x_world / np.linalg.norm(x_world)
         for roll, x_w in (("", x_world), (", turned", np.cross(a_world, x_world))):
             x = np.einsum("kji,j->ki", rotations, x_w)
-            out.append(_edge(region, a, x, shape, grasp, part_mesh, mask, label + roll))
+            out.append(_edge(region, a, x, shape, grasp, part_mesh, front, label + roll))
     return out
 
 
-def _edge(region: ReceiverRegion, a: np.ndarray, x: np.ndarray, shape: GraspShape, grasp: int,
-          part_mesh: PartMesh, mask: np.ndarray, label: str) -> Variant:
-    """One edge variant: approach ``a``, edge tangent ``x`` (K, 3) unit, object frame."""
-    mesh = part_mesh.mesh
-    k = len(a)
-    y = np.cross(a, x)
-    s = np.where(mask, region.points @ (-a).T, -np.inf)  # (M, K)
+def _front(region: ReceiverRegion, a: np.ndarray, mask: np.ndarray
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where a hand coming along ``a`` (K, 3) meets the region (its samples ``mask``
+    allows): (K,) bool whether it does, (K, 3) the mean of the samples within
+    :data:`EDGE_BAND` of the extreme one, (K, 3) the one of those nearest their mean (a point
+    of the part, not the air between two rims)."""
+    pts = region.points
+    s = np.where(mask, pts @ (-a).T, -np.inf)  # (M, K)
     s_max = s.max(axis=0)
     front = (s >= s_max[None, :] - EDGE_BAND) & mask
     count = front.sum(axis=0)
-    ok = count > 0
-    mean = (front.T.astype(float) @ region.points) / np.maximum(count, 1)[:, None]
-    # the front sample nearest their mean (a point of the part, not the air between two rims)
-    pts = region.points
+    mean = (front.T.astype(float) @ pts) / np.maximum(count, 1)[:, None]
     gap = (pts * pts).sum(axis=1)[:, None] - 2.0 * pts @ mean.T  # (M, K), + |mean|^2 per k
-    e0 = pts[np.argmin(np.where(front, gap, np.inf), axis=0)]
+    nearest = pts[np.argmin(np.where(front, gap, np.inf), axis=0)]
+    return count > 0, mean, nearest
+
+
+def _edge(region: ReceiverRegion, a: np.ndarray, x: np.ndarray, shape: GraspShape, grasp: int,
+          part_mesh: PartMesh, front: tuple, label: str) -> Variant:
+    """One edge variant: approach ``a``, edge tangent ``x`` (K, 3) unit, object frame, the
+    edge :func:`_front` found."""
+    mesh = part_mesh.mesh
+    k = len(a)
+    y = np.cross(a, x)
+    ok, mean, e0 = (np.array(v, copy=True) for v in front)
     e0 = e0 + np.einsum("ki,ki->k", mean - e0, y)[:, None] * y  # the edge's middle, across
     # into the part along the approach: where it enters, and how deep it is there
     start = e0 - 0.01 * a
@@ -261,9 +275,7 @@ def _edge(region: ReceiverRegion, a: np.ndarray, x: np.ndarray, shape: GraspShap
     leave_e[out_e] = np.einsum("ij,ij->i", mesh.face_normals[f_e[out_e]], -a[out_e]) > 0
     ok &= leave_e & np.isfinite(d_e)
     site = centre - np.where(np.isfinite(d_e), d_e, 0.0)[:, None] * a
-    part = np.full(k, -1, dtype=np.int64)
-    if ok.any():
-        part[ok] = part_mesh.part_at(site[ok], faces=f_e[ok])
+    part = np.where(ok, part_mesh.face_part[np.maximum(f_e, 0)], -1)  # the face at the site
     ok &= np.isin(part, np.unique(region.parts))
     return Variant(grasp, label, site, x, a, thickness, np.full(k, shape.reach), part, ok,
                    surrounded=False)
@@ -306,11 +318,7 @@ def below_variants(region: ReceiverRegion, rotations: np.ndarray, toward: np.nda
     height = np.where(ok, dist[lowest, cols] - size, 0.0)  # the contact's height above centre
     site = centre + height[:, None] * up
     low_face = face[lowest, cols]
-    touch = origins.reshape(len(offsets), k, 3)[lowest, cols] + np.where(
-        ok, dist[lowest, cols], 0.0)[:, None] * up  # where the palm first meets the object
-    part = np.full(k, -1, dtype=np.int64)
-    if ok.any():
-        part[ok] = part_mesh.part_at(touch[ok], faces=low_face[ok])
+    part = np.where(ok, part_mesh.face_part[np.maximum(low_face, 0)], -1)  # where it touches
     ok &= np.isin(part, np.unique(region.parts))
     extent = np.ptp(mesh.vertices @ up.T, axis=0)
     return [Variant(grasp, "under the centre of mass" if side is None else "under its side",
@@ -342,6 +350,11 @@ def forbidden_samples(ctx: PlanContext, tags: frozenset[str]):
     return memo[key]
 
 
+DENSE_MAX = 5000
+"""The most samples of a region where grasps look for an edge or an underside (every n-th of
+the object's surface samples beyond it)."""
+
+
 def dense_region(ctx: PlanContext, region: ReceiverRegion) -> ReceiverRegion:
     """``region`` sampled densely (the object's surface samples on the region's parts, a few
     millimetres apart, where the region has a point per face): where an edge grasp finds an
@@ -350,5 +363,6 @@ def dense_region(ctx: PlanContext, region: ReceiverRegion) -> ReceiverRegion:
 
     samples = surface_samples(ctx)
     parts = ctx.part_mesh.face_part[samples.faces]
-    keep = np.isin(parts, np.unique(region.parts))
+    keep = np.flatnonzero(np.isin(parts, np.unique(region.parts)))
+    keep = keep[::max(1, int(np.ceil(len(keep) / DENSE_MAX)))]
     return replace(region, points=samples.points[keep], parts=parts[keep])

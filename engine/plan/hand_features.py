@@ -139,23 +139,33 @@ def receiver_hand_boxes(ctx: PlanContext, hands: Hands, k: int,
     return memo[hands.key][k]
 
 
-def receiver_free(ctx: PlanContext, hands: Hands, gi: np.ndarray,
-                  pk: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def receiver_free(ctx: PlanContext, hands: Hands, gi: np.ndarray, pk: np.ndarray,
+                  full: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(R, H, J) bool twice: which grasp options of each of the H receiving hands the gripper
     at grasp ``gi`` leaves free on row (``gi``, ``pk``) (usable, and its boxes untouched), and
     which of those are also at least :func:`hands_apart` from the grasp. For sites without
-    options, slot 0 is their wrap. Memoised per row."""
+    options, slot 0 is their wrap. Memoised per row and option; without ``full``, a row's
+    options are judged in order only until one is free and far (the later ones read
+    False: :func:`receiver_choice` needs no more)."""
     h_all, j_all = len(hands.sites), _slots(hands)
     memo = ctx.memo.receiver_choice
     known = memo.get(hands.key)
     if known is None:
         known = memo[hands.key] = np.full((ctx.n * ctx.k, h_all, j_all), -1, dtype=np.int8)
-    idx = np.asarray(gi, dtype=np.int64) * ctx.k + np.asarray(pk, dtype=np.int64)
-    todo = np.unique(idx[(known[idx] < 0).any(axis=(1, 2))])
-    if len(todo):
-        free, far = _receiver_free(ctx, hands, todo // ctx.k, todo % ctx.k, j_all)
-        known[todo] = free.astype(np.int8) + far.astype(np.int8)
-    got = known[idx]
+    idx = np.unique(np.asarray(gi, dtype=np.int64) * ctx.k + np.asarray(pk, dtype=np.int64))
+    apart = hands_apart(hands)
+    for h, sites in enumerate(hands.sites):
+        slots = 1 if sites.options is None else sites.options.slots
+        for j in range(slots):
+            got = known[idx, h]
+            settled = (got[:, :j] == 2).any(axis=1) if not full else np.zeros(len(idx), bool)
+            rows = idx[(got[:, j] < 0) & ~settled]
+            if len(rows):
+                known[rows, h, j] = _slot(ctx, hands, h, j, rows // ctx.k, rows % ctx.k, apart)
+        if slots < j_all:
+            known[idx, h, slots:] = 0
+    rows = np.asarray(gi, dtype=np.int64) * ctx.k + np.asarray(pk, dtype=np.int64)
+    got = known[rows]
     return got >= 1, got >= 2
 
 
@@ -163,30 +173,26 @@ def _slots(hands: Hands) -> int:
     return max([s.options.slots for s in hands.sites if s.options is not None] or [1])
 
 
-def _receiver_free(ctx: PlanContext, hands: Hands, gi: np.ndarray, pk: np.ndarray,
-                   j_all: int) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`receiver_free`, computed."""
-    free = np.zeros((len(gi), len(hands.sites), j_all), dtype=bool)
-    far = np.zeros_like(free)
-    apart = hands_apart(hands)
-    for h, sites in enumerate(hands.sites):
-        if sites.options is None:
-            hit = _gripper_hits_boxes(ctx, gi, pk, lambda k, sites=sites: [
-                (e, p) for _, e, p in hand_model(ctx, hands.region, sites, int(k), np.eye(4))])
-            free[:, h, 0] = ~hit
-            far[:, h, 0] = ~hit
-            continue
-        opts = sites.options
-        usable = opts.usable()[pk]  # (R, J)
-        for j in range(opts.slots):
-            rows = np.flatnonzero(usable[:, j])
-            if len(rows):
-                hit = _gripper_hits_boxes(ctx, gi[rows], pk[rows], lambda k, j=j, o=opts: [
-                    (e, p) for _, e, p in o.boxes(int(k), j)])
-                free[rows, h, j] = ~hit
-        dist = np.linalg.norm(ctx.candidates.centre[gi][:, None, :] - opts.site[pk], axis=2)
-        far[:, h, :opts.slots] = free[:, h, :opts.slots] & (dist >= apart - 1e-9)
-    return free, far
+def _slot(ctx: PlanContext, hands: Hands, h: int, j: int, gi: np.ndarray, pk: np.ndarray,
+          apart: float) -> np.ndarray:
+    """(R,) int8 of :func:`receiver_free`'s memo for hand ``h``'s option ``j`` on rows
+    (``gi``, ``pk``): 0 not free (not usable, or the gripper touches it), 1 free, 2 free and
+    at least ``apart`` from the grasp."""
+    sites = hands.sites[h]
+    if sites.options is None:
+        hit = _gripper_hits_boxes(ctx, gi, pk, lambda k: [
+            (e, p) for _, e, p in hand_model(ctx, hands.region, sites, int(k), np.eye(4))])
+        return np.where(hit, 0, 2).astype(np.int8)
+    opts = sites.options
+    out = np.zeros(len(gi), dtype=np.int8)
+    usable = opts.usable()[pk, j]
+    rows = np.flatnonzero(usable)
+    if len(rows):
+        hit = _gripper_hits_boxes(ctx, gi[rows], pk[rows], lambda k: [
+            (e, p) for _, e, p in opts.boxes(int(k), j)])
+        dist = np.linalg.norm(ctx.candidates.centre[gi[rows]] - opts.site[pk[rows], j], axis=1)
+        out[rows] = np.where(hit, 0, np.where(dist >= apart - 1e-9, 2, 1))
+    return out
 
 
 def _pick(free: np.ndarray, far: np.ndarray) -> np.ndarray:
@@ -203,7 +209,7 @@ def receiver_choice(ctx: PlanContext, hands: Hands, gi: np.ndarray,
     rules' distance) from the grasp, else the first the gripper does not touch; -1 where the
     gripper touches every one (for sites without options: 0 where the gripper clears the
     wrap, else -1)."""
-    free, far = receiver_free(ctx, hands, gi, pk)
+    free, far = receiver_free(ctx, hands, gi, pk, full=False)
     return _pick(free, far).astype(np.int64)
 
 

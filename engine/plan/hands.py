@@ -113,6 +113,7 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
     region = receiver_region(centroids, face_part, ctx.part_tags, set(roles.want),
                              set(roles.receiver_forbid))
     s = ctx.situation
+    cuts: dict = {}  # the region's sections, measured once for every grasp that needs one
     if count == 2:
         wraps = tuple(predict_two_hand_sites(region, ctx.rotations, s.toward,
                                              s.hand.grip_width))
@@ -121,10 +122,10 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
             region, ctx.rotations, s.toward, grip_width=s.hand.grip_width,
             where=s.task.receiver_site if s.task is not None else "middle",
             finger_thickness=s.hand.finger_thickness, hand=ctx.hand, mesh=mesh,
-            samples=_samples(ctx)),)
+            samples=_samples(ctx), cuts=cuts),)
     sites = wraps
     if ctx.repertoire is not None and not region.empty:
-        sites = tuple(_with_options(ctx, region, w, grasps, count, h)
+        sites = tuple(_with_options(ctx, region, w, grasps, count, h, cuts)
                       for h, w in enumerate(wraps))
     receiving = (s.receiver.dominant_hand,) if count == 1 else (
         s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")
@@ -141,8 +142,9 @@ def _samples(ctx: PlanContext):
     return surface_samples(ctx)
 
 
-def _with_options(ctx: PlanContext, region, wrap, grasps: GraspRules, count: int, h: int):
+def _with_options(ctx: PlanContext, region, wrap, grasps: GraspRules, count: int, h: int,
+                  cuts: dict):
     """One receiving hand's sites with its grasp options (hand ``h`` of ``count``)."""
     main = with_approach(wrap, ctx.rotations, ctx.situation.toward, region)
-    options = grasp_options(ctx, region, main, grasps, count, None if count == 1 else h)
+    options = grasp_options(ctx, region, main, grasps, count, None if count == 1 else h, cuts)
     return primary_sites(options, main)

@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
 
 __all__ = ["candidate_locations", "locations", "Placement", "site_points", "place",
-           "location_reason", "LOCATION_BATCHES", "reach_hits", "scene_clearances",
+           "location_reason", "LOCATION_BATCHES", "reach_hits", "scene_clearance",
            "MEASURED_AT", "CLEARANCE_CAP", "reaching_arms", "shoulders"]
 
 
@@ -159,9 +159,12 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
         out[:, :3, 3] = locs.points[l_idx] - np.einsum("nij,nj->ni", rot[k_idx], anchor[k_idx])
         return out
 
-    def hits_at(k_idx: np.ndarray, l_idx: np.ndarray) -> tuple[np.ndarray, list]:
+    def hits_at(k_idx: np.ndarray, l_idx: np.ndarray, every: bool = False
+                ) -> tuple[np.ndarray, list]:
         """(n, P) bool: what the object and the receiver's hands at (k, l) hit; and per hand
-        (n, J) bool, the options clear there (None for a hand without options)."""
+        (n, J) bool, the options clear there (None for a hand without options): every one
+        with ``every``, else the arm checked only until one option is clear (a location is
+        clear when one is)."""
         poses = poses_at(k_idx, l_idx)
         hit = mesh_hits(targets, ctx.collider, poses)
         if near_scene is not None:
@@ -177,10 +180,12 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
                     np.logical_or.at(hit, owner, hand_hit)
                 clear_opts.append(None)
                 continue
-            opt_hit = reach_hits(ctx, s.options, k_idx, poses, targets, scene, near_scene,
-                                 margin, arm_targets, arm_from[h], _arm_side(sites, hands, h))
+            opt_hit, checked = reach_hits(ctx, s.options, k_idx, poses, targets, scene,
+                                          near_scene, margin, arm_targets, arm_from[h],
+                                          _arm_side(sites, hands, h), every,
+                                          skip=None if every else hit.any(axis=1))
             exists = s.options.grasp[k_idx] >= 0
-            free = exists & ~opt_hit.any(axis=2)
+            free = exists & checked & ~opt_hit.any(axis=2)
             clear_opts.append(free)
             stuck = ~free.any(axis=1)  # no option clear: what the best one hits, named
             first = np.argmax(exists, axis=1)
@@ -214,11 +219,6 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
             found = clear.any(axis=1)
             first = np.argmax(clear, axis=1)
             chosen[pending[found]] = chunk[first[found]]
-            for h, free in enumerate(opts):
-                if free is not None:
-                    free = free.reshape(len(pending), len(chunk), -1)
-                    rows = np.flatnonzero(found)
-                    chosen_clear[h][pending[rows]] = free[rows, first[rows]]
             for j in np.flatnonzero(~found):  # what the best one hit, for the reason
                 if chosen[pending[j]] < 0 and rnd == 0:
                     hit_names[pending[j]] = tuple(
@@ -239,13 +239,20 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
         poses[:, :3, :3] = rot
         poses[:, :3, 3] = point - np.einsum("kij,kj->ki", rot, anchor)
         hit_names = [("no location within the receiver's reach",)] * K
+    if (chosen >= 0).any():  # every option's clearance where each presentation is offered
+        ks = np.flatnonzero(chosen >= 0)
+        _, opts = hits_at(ks, chosen[ks], every=True)
+        for h, free in enumerate(opts):
+            if free is not None:
+                chosen_clear[h][ks] = free
     placed = tuple(s if s.options is None or chosen_clear[h] is None
                    else replace(s, options=s.options.with_clear(
                        np.where((chosen >= 0)[:, None], chosen_clear[h], True)))
                    for h, s in enumerate(sites))
     placed = tuple(_primary(s) for s in placed)
-    if any(c.rule.measure == "clearance" for c in rules):
-        measured["clearance"] = scene_clearances(ctx, region, placed, poses, targets, scene)
+    # the clearance kept: at least the margin the location was tested with where one was
+    # found (the exact distance, for a trace, is scene_clearance's); 0 where none was
+    measured["clearance"] = np.where(chosen >= 0, margin, 0.0)
     return Placement(poses=poses, location=location, located=located, measured=measured,
                      hits=tuple(hit_names), sites=placed)
 
@@ -253,7 +260,7 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
 MEASURED_AT = ("clear", "clearance")
 """Location measures of a presentation at its location (not of a location alone)."""
 CLEARANCE_CAP = 0.1
-"""m: beyond this, the ``clearance`` measure says only "at least this far"."""
+"""m: the most :func:`scene_clearance` says (farther is as clear)."""
 
 
 def _primary(sites):
@@ -289,21 +296,28 @@ def _boxes_hit(targets, poses: np.ndarray, extents: np.ndarray, scene: np.ndarra
 
 def reach_hits(ctx: PlanContext, options, k_idx: np.ndarray, poses: np.ndarray, targets,
                scene: np.ndarray, near_scene, margin: float, arm_targets, shoulder: np.ndarray,
-               hand: str) -> np.ndarray:
+               hand: str, every: bool = True, skip: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
     """(n, J, P) bool: what each grasp option's boxes (against ``targets``, the scene grown by
     ``margin``) and reaching arm (against ``arm_targets``: the scene and the robot) hit, the
-    object of row i at ``poses[i]`` in presentation ``k_idx[i]``. The arm reaches from the
-    ``shoulder`` to the option's wrist (the nearer of its two), its elbow at the first swivel
-    (:data:`~handover.geometry.human.ELBOW_SWIVELS`) at which neither segment hits anything;
-    an arm that hits at every swivel hits what the first one does (:func:`reaching_arms`).
-    Arm hits are reported in the columns of ``targets`` with the same names."""
+    object of row i at ``poses[i]`` in presentation ``k_idx[i]``; and (n, J) bool, the options
+    judged. The arm reaches from the ``shoulder`` to the option's wrist (the nearer of its
+    two), its elbow at the first swivel (:data:`~handover.geometry.human.ELBOW_SWIVELS`) at
+    which neither segment hits anything; an arm that hits at every swivel hits what the first
+    one does (:func:`reaching_arms`). Arm hits are reported in the columns of ``targets``
+    with the same names. Without ``every``, a row's arms are judged option by option only
+    until one option is clear (the later ones are not judged). ``skip`` (n,) bool: rows
+    already blocked (the object hits something there), whose options are not judged."""
     n, j_all = len(k_idx), options.slots
     out = np.zeros((n, j_all, len(targets)), dtype=bool)
     exists = options.grasp[k_idx] >= 0  # (n, J)
+    if skip is not None:
+        exists &= ~np.asarray(skip, dtype=bool)[:, None]
+    judged = exists.copy()
     rot, shift = poses[:, :3, :3], poses[:, :3, 3]
     rows, slots = np.nonzero(exists)
     if not len(rows):
-        return out
+        return out, judged
     ext = options.extents[k_idx[rows], slots]  # (m, B, 3)
     local = options.poses[k_idx[rows], slots]  # (m, B, 4, 4)
     valid = options.valid[k_idx[rows], slots]
@@ -313,14 +327,25 @@ def reach_hits(ctx: PlanContext, options, k_idx: np.ndarray, poses: np.ndarray, 
                      margin)
     per = np.zeros((len(rows), len(targets)), dtype=bool)
     np.logical_or.at(per, owner, hit)
-    # the reaching arm
-    wrists = (np.einsum("mij,mwj->mwi", rot[rows], options.wrists[k_idx[rows], slots])
-              + shift[rows][:, None, :])
-    if len(arm_targets):
-        _, _, arm_hit = reaching_arms(ctx, wrists, shoulder, hand, arm_targets)
-        per[:, _columns(targets.names, arm_targets.names)] |= arm_hit
     out[rows, slots] = per
-    return out
+    if not len(arm_targets):
+        return out, judged
+    # the reaching arm, slot by slot (every slot, or until each row has a clear option)
+    cols = _columns(targets.names, arm_targets.names)
+    settled = np.zeros(n, dtype=bool)
+    judged[:] = False
+    for j in range(j_all):
+        todo = np.flatnonzero(exists[:, j] & ~out[:, j].any(axis=1) & (every | ~settled))
+        judged[todo, j] = True
+        judged[np.flatnonzero(exists[:, j] & out[:, j].any(axis=1)), j] = True
+        if not len(todo):
+            continue
+        wrists = (np.einsum("mij,mwj->mwi", rot[todo], options.wrists[k_idx[todo], j])
+                  + shift[todo][:, None, :])
+        _, _, arm_hit = reaching_arms(ctx, wrists, shoulder, hand, arm_targets)
+        out[todo[:, None], j, cols[None, :]] |= arm_hit
+        settled[todo] |= ~arm_hit.any(axis=1)
+    return out, judged
 
 
 def reaching_arms(ctx: PlanContext, wrists: np.ndarray, shoulder: np.ndarray, hand: str,
@@ -340,17 +365,25 @@ def reaching_arms(ctx: PlanContext, wrists: np.ndarray, shoulder: np.ndarray, ha
     radii = ctx.world.arm_radii(hand)
     elbows = reaching_elbows(np.broadcast_to(shoulder, wrist.shape), wrist, lm.upper_arm,
                              lm.forearm, lm.side(hand), ELBOW_SWIVELS)  # (m, S, 3)
-    s_all = len(ELBOW_SWIVELS)
     if not len(arm_targets) or not m:
         return wrist, elbows[:, 0], np.zeros((m, len(arm_targets)), dtype=bool)
-    sh = np.broadcast_to(shoulder, (m * s_all, 3))
-    el = elbows.reshape(-1, 3)
-    wr = np.repeat(wrist, s_all, axis=0)
-    arm = (arm_targets.capsules_hit(sh, el, radii[0])
-           | arm_targets.capsules_hit(el, wr, radii[1])).reshape(m, s_all, -1)
-    free = ~arm.any(axis=2)
-    pick = np.where(free.any(axis=1), np.argmax(free, axis=1), 0)
-    return wrist, elbows[np.arange(m), pick], arm[np.arange(m), pick]
+    pick = np.zeros(m, dtype=np.int64)
+    hits = np.zeros((m, len(arm_targets)), dtype=bool)
+    todo = np.arange(m)
+    for j in range(len(ELBOW_SWIVELS)):  # the next swivel only where the last one hit
+        el = elbows[todo, j]
+        sh = np.broadcast_to(shoulder, el.shape)
+        arm = (arm_targets.capsules_hit(sh, el, radii[0])
+               | arm_targets.capsules_hit(el, wrist[todo], radii[1]))
+        clear = ~arm.any(axis=1)
+        if j == 0:
+            hits[todo] = arm
+        pick[todo[clear]] = j
+        hits[todo[clear]] = False
+        todo = todo[~clear]
+        if not len(todo):
+            break
+    return wrist, elbows[np.arange(m), pick], hits
 
 
 def _columns(names: tuple[str, ...], of: tuple[str, ...]) -> np.ndarray:
@@ -359,61 +392,29 @@ def _columns(names: tuple[str, ...], of: tuple[str, ...]) -> np.ndarray:
     return np.array([where[n] for n in of], dtype=np.int64)
 
 
-def scene_clearances(ctx: PlanContext, region, sites: tuple, poses: np.ndarray, targets,
-                     scene: np.ndarray) -> np.ndarray:
-    """(K,) m: how far the object and each receiving hand's best clear option stay from the
-    scene's table and obstacles, in every presentation at its location (python-fcl
-    distances; at least :data:`CLEARANCE_CAP` beyond it)."""
-    from handover.geometry.body_mesh import box_clearances, mesh_clearances
-
-    k_all = len(poses)
-    out = np.full(k_all, CLEARANCE_CAP)
-    if not scene.any():
-        return out
-    body = targets.subset(scene)
-    mid, rad = body.spheres()
-    verts = np.asarray(ctx.part_mesh.mesh.vertices, dtype=float)
-    centre = 0.5 * (verts.min(axis=0) + verts.max(axis=0))
-    obj_r = float(np.linalg.norm(verts - centre, axis=1).max())
-    for k in range(k_all):
-        c = poses[k, :3, :3] @ centre + poses[k, :3, 3]
-        gap = np.linalg.norm(mid - c, axis=1) - rad - obj_r
-        near = gap < CLEARANCE_CAP
-        if near.any():
-            out[k] = min(out[k], float(mesh_clearances(body.subset(near), ctx.collider,
-                                                       poses[k]).min()))
-        for s in sites:
-            j = _best_clear(s, k)
-            if j is None:
-                boxes = [(e, p) for _, e, p in hand_model_local(ctx, region, s, k)]
-            else:
-                boxes = [(e, p) for _, e, p in s.options.boxes(k, j)]
-            if not boxes:
-                continue
-            ext = np.array([b[0] for b in boxes])
-            pw = np.einsum("ij,bjk->bik", poses[k], np.array([b[1] for b in boxes]))
-            reach = np.linalg.norm(pw[:, :3, 3][:, None] - mid[None], axis=2) - rad[None] \
-                - 0.5 * np.linalg.norm(ext, axis=1)[:, None]
-            close = (reach < CLEARANCE_CAP).any(axis=0)
-            if close.any():
-                d = box_clearances(body.subset(close), pw[:, :3, 3], pw[:, :3, :3], ext)
-                out[k] = min(out[k], float(d.min()))
-    return out
-
-
-def _best_clear(sites, k: int) -> int | None:
-    """The first option of presentation ``k`` clear where it is offered (None: none)."""
-    if sites.options is None:
-        return None
-    usable = sites.options.usable()[k]
-    return int(np.argmax(usable)) if usable.any() else None
-
-
-def hand_model_local(ctx: PlanContext, region, sites, k: int) -> list:
-    """One hand's boxes in presentation ``k``, object frame (the wrap as predicted)."""
+def scene_clearance(ctx: PlanContext, hands, k: int, options: list[int]) -> float:
+    """m: how far the object and the receiving hands (in grasp ``options``, one per hand)
+    stay from the scene's table and obstacles in presentation ``k`` where it is offered
+    (python-fcl distances; :data:`CLEARANCE_CAP` at most)."""
     from handover.engine.plan.hand_features import hand_model
+    from handover.geometry.body_mesh import box_clearances, mesh_clearances_many
 
-    return hand_model(ctx, region, sites, k, np.eye(4))
+    targets = ctx.world.without_receiving_arms(hands.receiving)
+    scene = np.array([n.startswith("scene:") for n in targets.names], dtype=bool)
+    if not scene.any():
+        return CLEARANCE_CAP
+    body = targets.subset(scene)
+    pose = hands.poses[k]
+    out = min(CLEARANCE_CAP, float(mesh_clearances_many(body, ctx.collider, pose[None]).min()))
+    for sites, j in zip(hands.sites, options, strict=True):
+        boxes = hand_model(ctx, hands.region, sites, k, pose,
+                           None if sites.options is None or j < 0 else j)
+        if boxes:
+            dist = box_clearances(body, np.array([b[2][:3, 3] for b in boxes]),
+                                  np.array([b[2][:3, :3] for b in boxes]),
+                                  np.array([b[1] for b in boxes]))
+            out = min(out, float(dist.min()))
+    return out
 
 
 def location_reason(ctx: PlanContext, hands, rules: list) -> str | None:

@@ -54,18 +54,21 @@ if TYPE_CHECKING:
 __all__ = ["GraspRules", "GraspOptions", "grasp_options", "primary_sites", "MAX_OPTIONS",
            "REASONS", "reason_text", "PALM_BOXES", "option_record", "not_taken"]
 
-MAX_OPTIONS = 6
+MAX_OPTIONS = 5
 """The most options kept per presentation and hand (the best, in rank order)."""
-PER_GRASP = 2
-"""The most options of one grasp kept per presentation and hand (its best variants), so the
-options hold different grasps: a wrap in three places is no better than a wrap and a pinch
-when the robot's gripper needs the room."""
+PER_GRASP = (2, 1)
+"""The most options of one grasp kept per presentation and hand: of the best-ranked grasp
+(its best ways of holding: a glass held in the middle or near its base), of every other one;
+so the options hold different grasps: a wrap in three places is no better than a wrap, a
+pinch and a lateral pinch when the robot's gripper needs the room."""
 PALM_BOXES = frozenset({"palm", "hand", "fist"})
 """Boxes counted as the palm in a hand's fit (the others are fingers)."""
 
-# Why a variant is not an option: codes in the order of the checks, a larger one got further.
+# Why a variant is not an option: codes in the order of the checks, a larger one got further
+# (0: its geometry was not checked: enough better-ranked variants fit).
 NO_SITE, RULE, UNSUITED, LOAD, SECTION, FORBIDDEN, OPENING, GAP, DEPTH, FITS = range(1, 11)
-REASONS = {RULE: "not allowed by {rule}", UNSUITED: "unsuited to a part tagged {tag}",
+REASONS = {0: "not needed: enough better-ranked grasps fit",
+           RULE: "not allowed by {rule}", UNSUITED: "unsuited to a part tagged {tag}",
            LOAD: "holds {limit:g} kg, not {value:.3g} kg", NO_SITE: "nothing to hold there",
            SECTION: "a section {value:.3f} m across, outside [{lo:g}, {hi:g}] m",
            FORBIDDEN: "would touch a part the receiver may not hold",
@@ -246,23 +249,32 @@ def not_taken(ctx: PlanContext, sites: ReceiverSites, k: int, taken: int | None)
 
 
 def grasp_options(ctx: PlanContext, region: ReceiverRegion, main: ReceiverSites,
-                  rules: GraspRules, count: int = 1, side: int | None = None) -> GraspOptions:
+                  rules: GraspRules, count: int = 1, side: int | None = None,
+                  cuts: dict | None = None) -> GraspOptions:
     """The options of one receiving hand in every presentation of ``ctx`` (see the module
     docstring). main : the wrap as predicted (and turned to fit) for this hand; count : the
     receiving hands (the load is shared); side : which of two hands (0: the receiver's right,
-    1: their left; None: one hand)."""
+    1: their left; None: one hand); cuts : the region's sections already measured
+    (:func:`~handover.engine.plan.receiver_sites.predict_receiver_sites`)."""
     rep: Repertoire = ctx.repertoire
     s = ctx.situation
     k_all = ctx.k
     mesh, part_mesh = ctx.part_mesh.mesh, ctx.part_mesh
     variants: list[Variant] = []
     dense = dense_region(ctx, region)
+    obj_tags = set(s.obj.tags)
+    load = float(s.obj.mass) / max(count, 1)
+    skipped: dict[int, tuple[int, float, str]] = {}
     for g, shape in enumerate(rep.shapes):
+        why = _excluded(ctx, region, rules, shape, rep.unsuited[g], obj_tags, load)
+        if why is not None:  # no part of the region takes this grasp: no site to look for
+            skipped[g] = why
+            continue
         model = shape.site_model
         if model == "around":
             variants += around_variants(region, ctx.rotations, s.toward, shape, g, mesh,
                                         main if shape.family == "wrap" else None,
-                                        ctx.hand.finger_thickness, count == 2)
+                                        ctx.hand.finger_thickness, count == 2, cuts)
         elif model == "edge":
             variants += edge_variants(dense, ctx.rotations, s.toward, shape, g, part_mesh,
                                       side, s.receiver.dominant_hand)
@@ -270,8 +282,6 @@ def grasp_options(ctx: PlanContext, region: ReceiverRegion, main: ReceiverSites,
             variants += below_variants(dense, ctx.rotations, s.toward, shape, g, part_mesh,
                                        ctx.part_mesh.mass_centre, side)
     n_var = len(variants)
-    obj_tags = set(s.obj.tags)
-    load = float(s.obj.mass) / max(count, 1)
     code = np.zeros((n_var, k_all), dtype=np.int64)
     value = np.zeros((n_var, k_all))
     detail = np.full((n_var, k_all), "", dtype=object)
@@ -297,11 +307,73 @@ def grasp_options(ctx: PlanContext, region: ReceiverRegion, main: ReceiverSites,
                 code[v, k], value[v, k] = LOAD, load
             elif not shape.takes(np.array([var.thickness[k]]))[0]:
                 code[v, k], value[v, k] = SECTION, float(var.thickness[k])
-    todo = np.argwhere(code == 0)  # (n, 2): variant, presentation
-    boxes = _boxes(ctx, variants, todo)
-    fit_depth, fit_gap = _fit(ctx, variants, todo, boxes, rules, code, value)
+    # 6-9, the geometry, in rank order: in rounds, until each presentation has its options
+    ranked = [sorted(np.flatnonzero(code[:, k] == 0),
+                     key=lambda v, k=k: (-pref[v, k], variants[v].grasp, v))
+              for k in range(k_all)]
+    done = np.zeros(k_all, dtype=np.int64)
+    parts: list = []
+    while True:
+        batch = [(v, k) for k in range(k_all)
+                 if _enough(variants, ranked[k][:done[k]], code[:, k]) < MAX_OPTIONS
+                 for v in ranked[k][done[k]:done[k] + ROUND]]
+        if not batch:
+            break
+        todo = np.array(batch, dtype=np.int64)
+        boxes = _boxes(ctx, variants, todo)
+        depth, gap = _fit(ctx, variants, todo, boxes, rules, code, value)
+        parts.append((todo, boxes, depth, gap))
+        for k in np.unique(todo[:, 1]):
+            done[k] += int((todo[:, 1] == k).sum())
+    if parts:
+        todo = np.concatenate([t for t, _, _, _ in parts])
+        boxes = tuple(np.concatenate([b[i] for _, b, _, _ in parts]) for i in range(4))
+        fit_depth = np.concatenate([d for _, _, d, _ in parts])
+        fit_gap = np.concatenate([g for _, _, _, g in parts])
+    else:
+        todo = np.zeros((0, 2), dtype=np.int64)
+        boxes = _boxes(ctx, variants, todo)
+        fit_depth, fit_gap = np.zeros((0, boxes[2].shape[1])), np.zeros(0)
     return _ranked(ctx, variants, todo, boxes, fit_depth, fit_gap, code, value, detail, pref,
-                   rules.apart)
+                   rules.apart, skipped)
+
+
+ROUND = MAX_OPTIONS
+"""Variants of a presentation whose geometry is checked at a time (best-ranked first)."""
+
+
+def _enough(variants: list[Variant], tried: list, codes: np.ndarray) -> int:
+    """How many options the variants ``tried`` (in rank order) give (:data:`PER_GRASP`)."""
+    kept: dict[int, int] = {}
+    first = None
+    for v in tried:
+        if codes[v] == FITS:
+            g = variants[v].grasp
+            first = g if first is None else first
+            kept[g] = min(kept.get(g, 0) + 1, PER_GRASP[0] if g == first else PER_GRASP[1])
+    return sum(kept.values())
+
+
+def _excluded(ctx: PlanContext, region: ReceiverRegion, rules: GraspRules, shape,
+              unsuited: frozenset[str], obj_tags: set[str], load: float
+              ) -> tuple[int, float, str] | None:
+    """Why no variant of a grasp can be an option, whatever its site: too heavy for it, or
+    every part of the region forbidden to it by a hard rule or unsuited to it (the reason,
+    as in :data:`REASONS`); None when some part may take it."""
+    first = None
+    for part in np.unique(region.parts):
+        tags = (set(ctx.part_tags[int(part)]) if 0 <= part < len(ctx.part_tags) else set()
+                ) | obj_tags
+        rule, _ = rules.verdict(shape.name, tags)
+        bad = sorted(tags & unsuited)
+        if rule is None and not bad:
+            first = None
+            break
+        if first is None:
+            first = (RULE, 0.0, rule) if rule is not None else (UNSUITED, 0.0, bad[0])
+    if first is None and load > shape.max_load + 1e-12:
+        return LOAD, load, ""
+    return first
 
 
 def _boxes(ctx: PlanContext, variants: list[Variant], todo: np.ndarray):
@@ -392,7 +464,8 @@ def _fit(ctx: PlanContext, variants: list[Variant], todo: np.ndarray, boxes, rul
 
 
 def _ranked(ctx: PlanContext, variants: list[Variant], todo: np.ndarray, boxes, box_depth,
-            gap, code, value, detail, pref, apart: float) -> GraspOptions:
+            gap, code, value, detail, pref, apart: float,
+            skipped: dict[int, tuple[int, float, str]]) -> GraspOptions:
     """The fitting rows ranked per presentation into :class:`GraspOptions`."""
     from handover.geometry.grasps import MAX_BOXES
 
@@ -419,7 +492,8 @@ def _ranked(ctx: PlanContext, variants: list[Variant], todo: np.ndarray, boxes, 
         fits.sort(key=lambda v: (-pref[v, k], variants[v].grasp, v))
         kept: list[int] = []
         for v in fits:
-            if sum(variants[u].grasp == variants[v].grasp for u in kept) < PER_GRASP:
+            limit = PER_GRASP[0] if variants[v].grasp == variants[fits[0]].grasp else PER_GRASP[1]
+            if sum(variants[u].grasp == variants[v].grasp for u in kept) < limit:
                 kept.append(v)
         for j, v in enumerate(kept[:j_max]):
             var, r = variants[v], row_of[(v, k)]
@@ -435,7 +509,7 @@ def _ranked(ctx: PlanContext, variants: list[Variant], todo: np.ndarray, boxes, 
         for g in range(len(rep)):
             mine = [v for v in range(len(variants)) if variants[v].grasp == g]
             if not mine:
-                per_grasp.append((NO_SITE, 0.0, ""))
+                per_grasp.append(skipped.get(g, (NO_SITE, 0.0, "")))
                 continue
             best = max(mine, key=lambda v: (code[v, k], -v))
             per_grasp.append((int(code[best, k]), float(value[best, k]), str(detail[best, k])))

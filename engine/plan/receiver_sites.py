@@ -189,6 +189,7 @@ def predict_receiver_sites(
     hand: HumanHand | None = None,
     mesh: trimesh.Trimesh | None = None,
     samples: SurfaceSamples | None = None,
+    cuts: dict | None = None,
 ) -> ReceiverSites:
     """The seed's C for every presentation.
 
@@ -210,7 +211,9 @@ def predict_receiver_sites(
     hand : the receiver's hand model; mesh : the object (object frame, m). Without both, the
         hand never turns. samples : the object's surface samples, which measure how deep the
         hand's boxes reach into it (default: a lattice over each box,
-        :func:`~handover.geometry.penetration.box_depths`).
+        :func:`~handover.geometry.penetration.box_depths`). cuts : a dict to keep the
+        sections measured in (one per region and mesh: presentations and turns that cut the
+        part at the same place measure it once).
     """
     k = len(rotations)
     site = np.full((k, 3), np.nan)
@@ -266,7 +269,8 @@ def predict_receiver_sites(
         def measure(turn: float) -> ReceiverSites:
             # the hand turns about the part's axis
             approach = np.einsum("kij,kj->ki", _spin(axes, turn), default)
-            return _wrapped(region, band_site, part, axes, approach, band, grip_width, mesh)
+            return _wrapped(region, band_site, part, axes, approach, band, grip_width, mesh,
+                            cuts)
     return _fitted(measure, hand, mesh, samples)
 
 
@@ -397,7 +401,7 @@ def _cupped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, approach
 
 def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: np.ndarray,
              approach: np.ndarray, band: np.ndarray, grip_width: float,
-             mesh: trimesh.Trimesh | None = None) -> ReceiverSites:
+             mesh: trimesh.Trimesh | None = None, cuts: dict | None = None) -> ReceiverSites:
     """The hand closing round the region's whole section at the band's place along the axis
     (every sample within half a grip of it, all round, not only the receiver's half), coming
     along ``approach`` (K, 3): the site is the centre of that section's extent across the
@@ -418,17 +422,14 @@ def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: n
         ext = region.points @ axes.T  # (M, K)
         lo, hi = ext.min(axis=0) + OVERHANG * grip_width, ext.max(axis=0) - OVERHANG * grip_width
         along = np.where(lo <= hi, np.clip(along, lo, np.maximum(lo, hi)), along)
+    known: dict = {} if cuts is None else cuts  # presentations often cut the part at one place
     for col in range(k):  # K presentations (tens), not candidates
-        section = np.abs(solid @ axes[col] - along[col]) <= grip_width / 2.0 + BAND_TOL
-        pts = solid[section] if section.any() else region.points[band[:, col]]
-        if mesh is not None:
-            cut = np.asarray(trimesh.intersections.mesh_plane(
-                mesh, axes[col], along[col] * axes[col]), dtype=float).reshape(-1, 2, 3)
-            frame = np.stack([across[col], approach[col]], axis=1)  # (3, 2)
-            own = region.points[band[:, col]] if band[:, col].any() else region.points
-            near, on = section_pieces(cut @ frame, pts @ frame, own @ frame,
-                                      near=0.5 * BAND_REACH)
-            pts = np.concatenate([pts[near], cut.reshape(-1, 3)[on]])
+        key = (tuple(np.round(axes[col], 12)), round(float(along[col]), 12),
+               hash(band[:, col].tobytes()), round(float(grip_width), 12), mesh is None)
+        if key not in known:
+            known[key] = _section(region, solid, band[:, col], axes[col], along[col],
+                                  grip_width, mesh, trimesh)
+        pts = known[key]
         y, z = pts @ across[col], pts @ approach[col]
         thickness[col] = max(float(np.ptp(y)), MIN_SECTION)
         depth[col] = max(float(np.ptp(z)), MIN_SECTION)
@@ -438,8 +439,30 @@ def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: n
                          depth=depth, approach=approach)
 
 
+def _section(region: ReceiverRegion, solid: np.ndarray, band: np.ndarray, axis: np.ndarray,
+             along: float, grip_width: float, mesh, trimesh) -> np.ndarray:
+    """(n, 3) m: the points of the section a hand closes round, ``along`` m on ``axis`` (the
+    solid's samples within half a grip of the plane, and the mesh's cut there, both kept to
+    the pieces of the cut that hold the region's samples ``band`` (M,) bool: see
+    :func:`handover.geometry.sections.section_pieces`)."""
+    section = np.abs(solid @ axis - along) <= grip_width / 2.0 + BAND_TOL
+    pts = solid[section] if section.any() else region.points[band]
+    if mesh is None:
+        return pts
+    cut = np.asarray(trimesh.intersections.mesh_plane(mesh, axis, along * axis),
+                     dtype=float).reshape(-1, 2, 3)
+    u = np.cross(axis, [1.0, 0.0, 0.0])
+    u = u if np.linalg.norm(u) > 0.1 else np.cross(axis, [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    frame = np.stack([u, np.cross(axis, u)], axis=1)  # (3, 2): the plane's coordinates
+    own = region.points[band] if band.any() else region.points
+    near, on = section_pieces(cut @ frame, pts @ frame, own @ frame, near=0.5 * BAND_REACH)
+    return np.concatenate([pts[near], cut.reshape(-1, 3)[on]])
+
+
 def wraps_at(region: ReceiverRegion, sites: ReceiverSites, along: np.ndarray,
-             grip_width: float, mesh: trimesh.Trimesh | None = None) -> ReceiverSites:
+             grip_width: float, mesh: trimesh.Trimesh | None = None,
+             cuts: dict | None = None) -> ReceiverSites:
     """``sites`` (wrapping hands, with ``axis`` and ``approach``) moved along their parts' axes
     to ``along`` (K,) m (the site's coordinate along the axis, object frame; NaN: not moved,
     and not valid), their sections measured there as :func:`predict_receiver_sites` does, the
@@ -456,13 +479,14 @@ def wraps_at(region: ReceiverRegion, sites: ReceiverSites, along: np.ndarray,
     n_parts = int(region.parts.max()) + 1 if len(region.parts) else 1
     part = np.array([int(np.bincount(region.parts[band[:, col]], minlength=n_parts).argmax())
                      for col in range(k)], dtype=np.int64)
-    out = _wrapped(region, site, part, axes, sites.approach, band, grip_width, mesh)
+    out = _wrapped(region, site, part, axes, sites.approach, band, grip_width, mesh, cuts)
     out.valid = out.valid & moved & np.asarray(sites.valid, dtype=bool)
     return out
 
 
 def axis_wraps(region: ReceiverRegion, rotations: np.ndarray, toward: np.ndarray,
-               grip_width: float, mesh: trimesh.Trimesh | None = None) -> ReceiverSites:
+               grip_width: float, mesh: trimesh.Trimesh | None = None,
+               cuts: dict | None = None) -> ReceiverSites:
     """The hand wrapping a region round its long axis (``region.axis``) at the middle of its
     length, coming from the receiver (:func:`hand_approach`): a compact region's wrap where
     :func:`predict_receiver_sites` cups it (a glass, which a hand also holds round its axis).
@@ -477,7 +501,7 @@ def axis_wraps(region: ReceiverRegion, rotations: np.ndarray, toward: np.ndarray
     base = ReceiverSites(site=site.copy(), part=np.zeros(k, dtype=np.int64),
                          thickness=np.zeros(k), valid=np.full(k, not region.isotropic),
                          axis=axes, approach=approach)
-    return wraps_at(region, base, np.full(k, middle), grip_width, mesh)
+    return wraps_at(region, base, np.full(k, middle), grip_width, mesh, cuts)
 
 
 def hand_approach(axis: np.ndarray, toward: np.ndarray, up: np.ndarray) -> np.ndarray:

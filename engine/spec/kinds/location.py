@@ -33,8 +33,9 @@ LOCATION_MEASURES = {
               "location hit nothing (table, obstacles, bodies; the arm: the scene and the "
               "robot), else 0"),
     "clearance": ("m", "how far the object and the receiver's hands stay from the scene's "
-                  "table and obstacles at this location (a hard rule's min is kept while the "
-                  "location is chosen; measured up to 0.1 m)"),
+                  "table and obstacles at this location, at least: the hard clearance rules' "
+                  "largest min where a location clear by that much was found (the trace "
+                  "gives the distance measured), 0 where none was"),
 }
 """Measures a ``location`` rule may judge: name -> (unit, meaning)."""
 
