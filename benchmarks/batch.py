@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from handover.engine.tools import batch
 from handover.engine.load.loader import load_kb
+from handover.engine.tools import batch
 
 
 def make_meshes(folder: Path, count: int, seed: int = 0) -> None:

@@ -116,7 +116,7 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
     cuts: dict = {}  # the region's sections, measured once for every grasp that needs one
     if count == 2:
         wraps = tuple(predict_two_hand_sites(region, ctx.rotations, s.toward,
-                                             s.hand.grip_width))
+                                             s.hand.grip_width, mesh))
     else:
         wraps = (predict_receiver_sites(
             region, ctx.rotations, s.toward, grip_width=s.hand.grip_width,

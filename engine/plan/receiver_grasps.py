@@ -22,8 +22,8 @@ A variant (:mod:`handover.engine.plan.grasp_sites`) becomes an option when, in o
 Options are ranked by the soft ``receiver_grasp`` rules (their weights summed), then by the
 hand's own order of its grasps, then by the variant's order (the wrap in the middle before a
 wrap slid to an end); the first :data:`MAX_OPTIONS` are kept. Why each grasp of the
-repertoire is not an option is kept too (the furthest any of its variants got: the trace says
-it).
+repertoire is not an option is kept too (the furthest any of its variants got; in words:
+:mod:`handover.engine.plan.grasp_record`).
 """
 
 from __future__ import annotations
@@ -52,7 +52,8 @@ if TYPE_CHECKING:
     from handover.geometry.interior import Interior
 
 __all__ = ["GraspRules", "GraspOptions", "grasp_options", "primary_sites", "MAX_OPTIONS",
-           "REASONS", "reason_text", "PALM_BOXES", "option_record", "not_taken"]
+           "PER_GRASP", "REASONS", "PALM_BOXES", "NO_SITE", "RULE", "UNSUITED", "LOAD",
+           "SECTION", "FORBIDDEN", "OPENING", "GAP", "DEPTH", "FITS"]
 
 MAX_OPTIONS = 5
 """The most options kept per presentation and hand (the best, in rank order)."""
@@ -194,60 +195,6 @@ class GraspOptions:
                 for b in range(len(names)) if self.valid[k, j, b]]
 
 
-def reason_text(code: int, value: float, detail: str, limits: tuple[float, float] = (0, 0)
-                ) -> str:
-    """The sentence of a :data:`REASONS` code (``limits``: the grasp's load limit for
-    ``LOAD``, its [min, max] thickness for ``SECTION``)."""
-    lo, hi = limits
-    return REASONS[code].format(rule=detail, tag=detail, limit=lo, value=value, lo=lo, hi=hi)
-
-
-def option_record(ctx: PlanContext, sites: ReceiverSites, k: int, j: int) -> dict:
-    """What option ``j`` of presentation ``k`` is: its grasp (name, family), how it holds
-    (the variant), the part, the section (m), how deep its palm and fingers press (m), its
-    site's gap (m), the load it holds and may hold (kg)."""
-    opts = sites.options
-    g = int(opts.grasp[k, j])
-    shape = ctx.repertoire.shapes[g]
-    names = opts.box_names[g]
-    depth = opts.box_depth[k, j, :len(names)]
-    is_palm = np.array([n in PALM_BOXES for n in names])
-    return {"name": opts.names[g], "family": opts.families[g], "how": str(opts.label[k, j]),
-            "part": ctx.part_mesh.part_names[int(opts.part[k, j])],
-            "thickness": round(float(opts.thickness[k, j]), 6),
-            "palm_depth": round(float(depth[is_palm].max(initial=0.0)), 6),
-            "finger_depth": round(float(depth[~is_palm].max(initial=0.0)), 6),
-            "site_gap": round(float(opts.gap[k, j]), 6),
-            "max_load_kg": round(float(shape.max_load), 6)}
-
-
-def not_taken(ctx: PlanContext, sites: ReceiverSites, k: int, taken: int | None) -> dict:
-    """Why each other grasp of the repertoire is not the one taken in presentation ``k``
-    (``taken``: the option index taken, or None): ``fits`` (another option was taken before
-    it: better ranked, or the gripper left it no room), else the reason it does not fit."""
-    opts = sites.options
-    rep = ctx.repertoire
-    out = {}
-    for g, (code, value, detail) in enumerate(opts.tried[k]):
-        if taken is not None and taken >= 0 and int(opts.grasp[k, taken]) == g:
-            continue
-        shape = rep.shapes[g]
-        limits = ((shape.max_load, 0.0) if code == LOAD
-                  else (shape.min_thickness, shape.max_thickness))
-        said = reason_text(code, value, detail, limits)
-        if code == FITS:
-            rows = np.flatnonzero(opts.grasp[k] == g)
-            if not len(rows):
-                said = f"fits, ranked below the {opts.slots} grasps kept"
-            elif opts.clear[k, rows].any():
-                said = "fits; a better-ranked grasp was taken, or the robot's gripper is in its way"
-            else:
-                said = ("fits, but where the object is offered it, or the arm reaching for "
-                        "it, would hit something")
-        out[opts.names[g]] = said
-    return out
-
-
 def grasp_options(ctx: PlanContext, region: ReceiverRegion, main: ReceiverSites,
                   rules: GraspRules, count: int = 1, side: int | None = None,
                   cuts: dict | None = None) -> GraspOptions:
@@ -286,7 +233,7 @@ def grasp_options(ctx: PlanContext, region: ReceiverRegion, main: ReceiverSites,
     value = np.zeros((n_var, k_all))
     detail = np.full((n_var, k_all), "", dtype=object)
     pref = np.zeros((n_var, k_all))
-    # 1-5: rules, suitability, load, a site, the section: cheap, per variant and presentation
+    # 1-5: a site, the rules, suitability, load, the section: cheap, per variant and presentation
     for v, var in enumerate(variants):
         shape = rep.shapes[var.grasp]
         unsuited = rep.unsuited[var.grasp]

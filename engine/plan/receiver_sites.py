@@ -521,6 +521,7 @@ def predict_two_hand_sites(
     rotations: np.ndarray,
     toward: np.ndarray,
     grip_width: float,
+    mesh: trimesh.Trimesh | None = None,
 ) -> list[ReceiverSites]:
     """Sites of the receiver's two hands for a large object (seed 3.3, four hands): on the
     receiver's edge of the region (s* = s_max - grip_width / 2 along robot->receiver), one
@@ -528,8 +529,12 @@ def predict_two_hand_sites(
 
     The receiver faces the robot, so their right hand is on the robot's left,
     ``up x toward``. Each site is the mean of the region samples within half a grip width
-    of (s*, t*) in the horizontal plane; the hand wraps around the lateral direction.
+    of (s*, t*) in the horizontal plane; the hand wraps around the lateral direction. With the
+    ``mesh``, the section it closes round is the mesh's cross-section there (the piece that
+    holds the part, as :func:`predict_receiver_sites` measures it), not only the samples'.
     """
+    import trimesh as _trimesh
+
     k = len(rotations)
     empty = ReceiverSites(np.full((k, 3), np.nan), np.full(k, -1, dtype=np.int64),
                           np.zeros(k), np.zeros(k, dtype=bool))
@@ -559,12 +564,19 @@ def predict_two_hand_sites(
         part = np.zeros(k, dtype=np.int64)
         thickness = np.zeros(k)
         depth = np.zeros(k)
+        solid = region.points if region.solid is None else region.solid
         for col in range(k):  # K presentations (tens), not candidates
             parts = np.bincount(region.parts[band[:, col]], minlength=n_parts)
             part[col] = int(parts.argmax())
             # the hand closes round the edge it holds: the site is the middle of that
             # section, across (h) and along the approach (s), so the palm rests on its face
             hs, ss = h[band[:, col], col], s[band[:, col], col]
+            if mesh is not None:
+                pts = _section(region, solid, band[:, col], l_obj[col],
+                               float(site[col] @ l_obj[col]), grip_width, mesh, _trimesh)
+                near = np.abs(pts @ d_obj[col] - s_target[col]) <= grip_width / 2.0 + BAND_TOL
+                if near.any():  # the section's part within the hand's reach of its edge
+                    hs, ss = pts[near] @ h_obj[col], pts[near] @ d_obj[col]
             thickness[col] = max(float(np.ptp(hs)), MIN_SECTION)
             depth[col] = max(float(np.ptp(ss)), MIN_SECTION)
             site[col] += ((0.5 * (hs.min() + hs.max()) - site[col] @ h_obj[col]) * h_obj[col]

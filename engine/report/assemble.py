@@ -157,7 +157,7 @@ def _grasp_record(ctx: PlanContext, sites: ReceiverSites, k: int, j: int, model:
     """``human_grasps[i].grasp``: the grasp taken (:func:`~handover.engine.plan.
     receiver_grasps.option_record`), its boxes (world), where its entry is and why it is a
     grasp of the hand, and why each other grasp is not the one."""
-    from handover.engine.plan.receiver_grasps import not_taken, option_record
+    from handover.engine.plan.grasp_record import not_taken, option_record
 
     rec = option_record(ctx, sites, k, j)
     spec = ctx.repertoire.specs[int(sites.options.grasp[k, j])]

@@ -439,13 +439,13 @@ def test_a_weaker_grip_takes_a_plate_on_the_palm_and_a_receiver_uses_only_their_
         tmp_path):
     root = _write(tmp_path / "kb")
     (root / "receivers" / "weak.yaml").write_text(
-        "id: weak\nname: A weak grip\nrole: elder\ngrip_strength: 0.5\n")
+        "id: weak\nname: A weak grip\nrole: elder\ngrip_strength: 0.35\n")
     (root / "receivers" / "whole_hand.yaml").write_text(
         "id: whole_hand\nname: Takes everything in the whole hand\ngrasps: [wrap]\n")
     p = Planner(kb=root)
     weak = p.plan("plate", receiver="weak").to_dict()
     assert weak["outcome"] == "handover", weak["reason"]
-    # a pinch holds half of its 1 kg: not a 0.6 kg plate; the palm under it does
+    # a pinch holds 35 % of its 1.5 kg: not a 0.6 kg plate; the palm under it does
     assert [h["grasp"]["name"] for h in weak["human_grasps"]] == ["support"]
     assert "0.6" in weak["human_grasps"][0]["grasp"]["not_taken"]["pinch"]
     # who takes everything in the whole hand holds the plate's rim in it, fingers under it

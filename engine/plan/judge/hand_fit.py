@@ -45,8 +45,8 @@ def detail(rule: HandFitRule, ctx: PlanContext, phase: Phase, grasp: int,
     hand's grip (its grasp's name: wrap, pinch, ...; none where no grasp fits), and per hand
     the grasp it takes on this row (``grasps``: what it is, how it fits) with why each other
     grasp of the repertoire is not the one (``not_taken``)."""
+    from handover.engine.plan.grasp_record import not_taken, option_record
     from handover.engine.plan.hand_features import primary_options, receiver_choice
-    from handover.engine.plan.receiver_grasps import not_taken, option_record
 
     if phase is None or not phase.receiver_present:
         return {}
