@@ -62,7 +62,9 @@ class Variant:
     m, the section across and along the approach. part : (K,) int, the part at the site.
     ok : (K,) bool, a site was found. cupped : a wrap cupping a compact part. surrounded :
     the site is the centre of a section the hand closes round (its gap is checked by rays
-    across it); else the site lies on the surface by construction (a ray hit).
+    across it); else the site lies on the surface by construction (a ray hit). rank : (K,)
+    the order of the grasp's variants in each presentation, lower first (None: the order
+    they are listed in).
     """
 
     grasp: int
@@ -76,6 +78,7 @@ class Variant:
     ok: np.ndarray
     cupped: bool = False
     surrounded: bool = True
+    rank: np.ndarray | None = None
 
     @classmethod
     def from_sites(cls, grasp: int, label: str, sites: ReceiverSites,
@@ -130,16 +133,17 @@ def around_variants(region: ReceiverRegion, rotations: np.ndarray, toward: np.nd
         out = [Variant.from_sites(grasp, "cupped" if main.cupped else "middle", first, region)]
         if two or region.isotropic:  # no long axis to slide along (a ball, a plate)
             return out
-        cupped = out
+        cupped: list[Variant] = []
+        upright = np.zeros(len(rotations), dtype=bool)
         if main.cupped:  # a compact part is held round its axis too (a glass)
             first = axis_wraps(region, rotations, toward, shape.width, mesh, cuts)
-            out = [Variant.from_sites(grasp, "round its axis", first, region)]
             length = float(np.ptp(region.points @ region.axis))
-            if region.tags or length < shape.width:  # a short handle: cupped first (a mug's)
-                out = cupped + out
-                cupped = []
-        else:
-            cupped = []
+            if not region.tags and length >= shape.width:  # not a short handle (a mug's)
+                # standing upright, it is held round (a glass, a can); lying, cupped
+                upright = np.abs(rotations[:, 2, :] @ region.axis) >= np.cos(np.radians(30))
+                cupped, out = out, []
+                cupped[0].rank = np.where(upright, 3.0, 0.0)
+            out.append(Variant.from_sites(grasp, "round its axis", first, region))
         axes = first.axis
         ext = region.points @ axes.T  # (M, K)
         lo, hi = ext.min(axis=0) + shape.width / 2.0, ext.max(axis=0) - shape.width / 2.0
@@ -154,7 +158,10 @@ def around_variants(region: ReceiverRegion, rotations: np.ndarray, toward: np.nd
             moved = wraps_at(region, first, np.where(room, along, np.nan), shape.width, mesh,
                              cuts)
             out.append(Variant.from_sites(grasp, label, moved, region))
-        return out + cupped  # an untagged compact part (a glass): held round its axis first
+        if cupped:  # round its axis before cupped where it stands upright, after where it lies
+            for i, var in enumerate(out):
+                var.rank = np.where(upright, float(i), 1.0 + i)
+        return cupped + out
     if two:
         return []
     where = "far_end" if shape.family == "tripod" else "middle"

@@ -34,8 +34,9 @@ def receiver_roles(cg: ConstraintGraph, ctx: PlanContext) -> Roles:
 def grasp_rules(cg: ConstraintGraph, ctx: PlanContext, roles: Roles) -> GraspRules:
     """What ``cg``'s active rules say of the receiver's grasps: its ``receiver_grasp`` rules,
     the tags the receiver never holds (``roles``), the openings its ``keep_out`` rules keep the
-    receiver's hand out of, its hard ``hand_fit`` rule's thresholds (the strictest) and the
-    distance its ``clearance`` rules keep between the hands (the largest)."""
+    receiver's hand out of, its hard ``hand_fit`` rule's thresholds (the strictest; without
+    one, a grasp need not fit: a plan with the rule lifted, to explain what it blocks) and
+    the distance its ``clearance`` rules keep between the hands (the largest)."""
     from handover.engine.plan.features import open_interior
 
     hard, soft, opening_tags = [], [], set()
@@ -51,16 +52,14 @@ def grasp_rules(cg: ConstraintGraph, ctx: PlanContext, roles: Roles) -> GraspRul
         elif r.kind == "hand_fit" and r.hard:
             gap = r.max_site_gap_m if gap is None else min(gap, r.max_site_gap_m)
             depth = r.max_depth_m if depth is None else min(depth, r.max_depth_m)
-    defaults = GraspRules()
     opening = open_interior(ctx, tuple(sorted(opening_tags))) if opening_tags else None
     key = (tuple(c.rule.model_dump_json() for c in cg.order
                  if c.rule.kind in ("receiver_grasp", "keep_out", "hand_fit", "clearance")),
            tuple(sorted(roles.receiver_forbid)))
     return GraspRules(hard=tuple(hard), soft=tuple(soft), forbid=roles.receiver_forbid,
                       opening=opening,
-                      max_gap=defaults.max_gap if gap is None else gap,
-                      max_depth=defaults.max_depth if depth is None else depth, apart=apart,
-                      key=key)
+                      max_gap=np.inf if gap is None else gap,
+                      max_depth=np.inf if depth is None else depth, apart=apart, key=key)
 
 
 def hands_for(cg: ConstraintGraph, ctx: PlanContext, count: int = 1,

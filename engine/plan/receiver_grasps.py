@@ -256,7 +256,8 @@ def grasp_options(ctx: PlanContext, region: ReceiverRegion, main: ReceiverSites,
                 code[v, k], value[v, k] = SECTION, float(var.thickness[k])
     # 6-9, the geometry, in rank order: in rounds, until each presentation has its options
     ranked = [sorted(np.flatnonzero(code[:, k] == 0),
-                     key=lambda v, k=k: (-pref[v, k], variants[v].grasp, v))
+                     key=lambda v, k=k: (-pref[v, k], variants[v].grasp,
+                                         _rank(variants[v], k, v), v))
               for k in range(k_all)]
     done = np.zeros(k_all, dtype=np.int64)
     parts: list = []
@@ -283,6 +284,12 @@ def grasp_options(ctx: PlanContext, region: ReceiverRegion, main: ReceiverSites,
         fit_depth, fit_gap = np.zeros((0, boxes[2].shape[1])), np.zeros(0)
     return _ranked(ctx, variants, todo, boxes, fit_depth, fit_gap, code, value, detail, pref,
                    rules.apart, skipped)
+
+
+def _rank(var: Variant, k: int, v: int) -> float:
+    """Where variant ``v`` comes among its grasp's in presentation ``k`` (its ``rank``, else
+    its place in the list)."""
+    return float(var.rank[k]) if var.rank is not None else float(v)
 
 
 ROUND = MAX_OPTIONS
@@ -436,7 +443,7 @@ def _ranked(ctx: PlanContext, variants: list[Variant], todo: np.ndarray, boxes, 
     tried = []
     for k in range(k_all):
         fits = [v for v in range(len(variants)) if code[v, k] == FITS]
-        fits.sort(key=lambda v: (-pref[v, k], variants[v].grasp, v))
+        fits.sort(key=lambda v: (-pref[v, k], variants[v].grasp, _rank(variants[v], k, v), v))
         kept: list[int] = []
         for v in fits:
             limit = PER_GRASP[0] if variants[v].grasp == variants[fits[0]].grasp else PER_GRASP[1]
