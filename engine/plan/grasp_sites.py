@@ -10,13 +10,15 @@ Site models (:data:`handover.geometry.grasps.SITE_MODELS`):
 - ``around`` (wrap, tripod, hook): the section's centre on the part's axis, as
   :func:`~handover.engine.plan.receiver_sites.predict_receiver_sites` predicts it (a wrap as
   the receiver's hand has always been predicted, turned to fit; slid to either end of the part,
-  leaving the rest to the robot: a glass held near its base; a tripod at the part's end near
-  the receiver; a hook in the middle of the receiver's half).
-- ``edge`` (pinch, lateral): the hand comes along an approach (from the receiver, or from
-  above) and meets the region's extreme edge; the section is measured by rays across the part
-  half a reach in from the edge, the site is where a ray from the section's middle leaves the
-  part towards the hand. Two rolls about the approach (the edge's thickness up-down, or
-  sideways) are two variants.
+  leaving the rest to the robot: a glass held near its base; round its axis where the
+  prediction cups a compact part, first where it stands upright; a tripod at the part's end
+  near the receiver; a hook in the middle of the receiver's half).
+- ``edge`` (pinch, lateral): the hand comes along an approach (from the receiver, from the
+  side of the hand that takes it, or from above) and meets the region's extreme edge (among
+  the object's surface samples on the region's parts); the section is measured by rays
+  across the part half a reach (at most half the part's depth there) in from the edge, the
+  site is where a ray from the section's middle leaves the part towards the hand. Two rolls
+  about the approach (the edge's thickness up-down, or sideways) are two variants.
 - ``below`` (support): the palm comes up under the centre of mass (or, for one of two hands,
   under the receiver's edge at that hand's side), the site the lowest point of the object over
   the palm's footprint (rays cast up from it).
