@@ -35,6 +35,12 @@ mug or a bottle has no large facets, so its grasps come from here:
 Sites keep the order of their samples, the normal ones first, then the oblique ones. The
 reference approach (roll 0) is a deterministic perpendicular to the closing direction
 (:func:`geometry.frames.perpendicular`).
+
+:func:`enclosing_sites` adds the grasps that close round a hollow part (a glass held round,
+not pinched across its wall): from points sampled over every face, the ray along the inward
+normal leaves the material, crosses a cavity, enters and leaves again; the pair is the first
+point and the last exit within the opening, both normals in the friction cone. A solid part
+gives none (its ray leaves once), so they add to what the steps above find and replace none.
 """
 
 from __future__ import annotations
@@ -60,7 +66,12 @@ __all__ = [
     "cone_directions",
     "OBLIQUE_RAYS",
     "OBLIQUE_FRACTION",
+    "enclosing_sites",
+    "MAX_CROSSINGS",
 ]
+
+MAX_CROSSINGS = 3
+"""The most cavities a ray of :func:`enclosing_sites` crosses (a glass: one)."""
 
 MAX_SAMPLES = 20_000
 """Most surface samples drawn; beyond it the spacing is widened to fit (see stats)."""
@@ -352,3 +363,79 @@ def antipodal_sites(
 
 def _quality(sites: ContactPairs, friction: float) -> np.ndarray:
     return antipodal_quality(sites.normals, sites.axis, friction) if len(sites) else np.zeros(0)
+
+
+def enclosing_sites(
+    mesh: trimesh.Trimesh,
+    *,
+    spacing: float,
+    min_opening: float,
+    max_opening: float,
+    friction: float,
+    seed: int = 0,
+    max_samples: int = MAX_SAMPLES,
+    exclude: ContactPairs | None = None,
+) -> ContactPairs:
+    """Antipodal pairs that enclose a cavity (see the module docstring), deduplicated as
+    :func:`antipodal_sites`'s (radius half the spacing), none near-identical to a pair of
+    ``exclude``; in the canonical orientation, in sample order. Arguments as
+    :func:`antipodal_sites`; every face is sampled (seed ``seed + 1``)."""
+    from handover.geometry.candidates import SOURCE_ANTIPODAL
+
+    points, faces, used = sample_surface(mesh, spacing, seed + 1, None, max_samples)
+    if not len(points):
+        return ContactPairs.empty()
+    n_p = mesh.face_normals[faces]
+    d = -n_p
+    step = 1e-5 * float(mesh.scale)
+    travelled = np.zeros(len(points))
+    origin = points - step * n_p
+    crossed = np.zeros(len(points), dtype=int)
+    last = np.full(len(points), -1, dtype=np.int64)
+    last_at = np.full(len(points), np.inf)
+    alive = np.ones(len(points), dtype=bool)
+    for _ in range(MAX_CROSSINGS + 1):
+        rows = np.flatnonzero(alive)
+        if not len(rows):
+            break
+        hit, dist = ray_first_hits(mesh, origin[rows], d[rows])
+        ok = (hit >= 0) & (travelled[rows] + dist <= max_opening)
+        leaving = np.zeros(len(rows), dtype=bool)
+        leaving[ok] = np.einsum("ij,ij->i", mesh.face_normals[hit[ok]], d[rows][ok]) > 0
+        # an exit within the opening: the pair's far contact so far (a cavity crossed first)
+        take = ok & leaving & (crossed[rows] > 0)
+        last[rows[take]] = hit[take]
+        last_at[rows[take]] = travelled[rows][take] + dist[take]
+        # every hit moves the ray on; an entry counts a crossed cavity
+        crossed[rows[ok & ~leaving]] += 1
+        travelled[rows[ok]] += dist[ok] + step
+        origin[rows[ok]] = origin[rows[ok]] + (dist[ok] + step)[:, None] * d[rows[ok]]
+        alive[rows[~ok]] = False
+        alive &= crossed <= MAX_CROSSINGS
+    found = np.flatnonzero(last >= 0)
+    q = points[found] + last_at[found][:, None] * d[found]
+    width = np.linalg.norm(q - points[found], axis=1)
+    keep = width >= max(min_opening, 1e-9)
+    found, q, width = found[keep], q[keep], width[keep]
+    o = (q - points[found]) / np.maximum(width, 1e-12)[:, None]
+    normals = np.stack([n_p[found], mesh.face_normals[last[found]]], axis=1)
+    cone = in_friction_cone(normals, o, friction)
+    found, q, o, normals = found[cone], q[cone], o[cone], normals[cone]
+    contacts = np.stack([points[found], q], axis=1)
+    face_pairs = np.stack([faces[found], last[found]], axis=1)
+    swap = o @ GENERIC_DIRECTION < 0
+    contacts[swap] = contacts[swap][:, ::-1]
+    normals[swap] = normals[swap][:, ::-1]
+    face_pairs[swap] = face_pairs[swap][:, ::-1]
+    o[swap] = -o[swap]
+    pairs = ContactPairs(
+        contacts=contacts, normals=normals, faces=face_pairs,
+        approach=perpendicular(o) if len(o) else np.zeros((0, 3)),
+        overlap_area=np.zeros(len(o)),
+        source=np.full(len(o), SOURCE_ANTIPODAL, dtype=np.int8))  # fmt: skip
+    if not len(pairs):
+        return pairs
+    pairs = pairs.take(deduplicate(pairs, _quality(pairs, friction), used / 2.0))
+    if exclude is not None and len(exclude):
+        pairs = pairs.take(~_near_any(pairs, exclude, used / 2.0))
+    return pairs

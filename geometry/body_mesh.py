@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
     from handover.geometry.collision import ObjectCollider
 
-__all__ = ["mesh_hits", "mesh_clearances"]
+__all__ = ["mesh_hits", "mesh_clearances", "mesh_clearances_many", "box_clearances"]
 
 
 def mesh_hits(
@@ -135,21 +135,58 @@ def mesh_clearances(
 ) -> np.ndarray:
     """(P,) float, m: the distance from the mesh at ``pose`` (4, 4) to each primitive
     (python-fcl ``distance``; 0 where they touch or cross). For the trace of one chosen
-    pose, not for screening many."""
+    pose, not for screening many (:func:`mesh_clearances_many` for a few poses)."""
+    pose = _rigid(_finite(pose, (4, 4), "pose")[None], "pose")[0]
+    return mesh_clearances_many(body, mesh, pose[None])[0]
+
+
+def mesh_clearances_many(
+    body: Body, mesh: trimesh.Trimesh | ObjectCollider, poses: np.ndarray,
+    pairs: np.ndarray | None = None,
+) -> np.ndarray:
+    """(K, P) float, m: :func:`mesh_clearances` at each of K ``poses`` (K, 4, 4), the
+    primitives' fcl objects built once; ``pairs`` (K, P) bool, which to measure (the others
+    are inf)."""
     import fcl
 
     from handover.geometry.frames import invert_transform
 
     _, _, _, target = _mesh_target(mesh, "mesh_clearances")
-    pose = _rigid(_finite(pose, (4, 4), "pose")[None], "pose")[0]
-    inv = invert_transform(pose)
+    ps = _rigid(_finite(poses, (None, 4, 4), "poses"), "poses")
     prims, prim_r, prim_t = _fcl_primitives(body, 0.0)
-    out = np.empty(len(body))
+    out = np.full((len(ps), len(body)), np.inf)
+    want = np.ones(out.shape, dtype=bool) if pairs is None else np.asarray(pairs, dtype=bool)
     request = fcl.DistanceRequest()
-    for j, prim in enumerate(prims):
-        prim.setTransform(fcl.Transform(inv[:3, :3] @ prim_r[j], inv[:3, :3] @ prim_t[j]
-                                        + inv[:3, 3]))  # fmt: skip
-        out[j] = max(0.0, fcl.distance(prim, target, request, fcl.DistanceResult()))
+    for k, pose in enumerate(ps):
+        inv = invert_transform(pose)
+        for j in np.flatnonzero(want[k]):
+            prims[j].setTransform(fcl.Transform(inv[:3, :3] @ prim_r[j], inv[:3, :3]
+                                                @ prim_t[j] + inv[:3, 3]))  # fmt: skip
+            out[k, j] = max(0.0, fcl.distance(prims[j], target, request, fcl.DistanceResult()))
+    return out
+
+
+def box_clearances(body: Body, centres: np.ndarray, rotations: np.ndarray,
+                   extents: np.ndarray) -> np.ndarray:
+    """(r, P) float, m: the distance from each of r oriented boxes (``centres`` (r, 3),
+    ``rotations`` (r, 3, 3), full ``extents`` (r, 3)) to each primitive of ``body``
+    (python-fcl ``distance``; 0 where they touch or cross). For the few boxes of chosen
+    poses, not for screening many."""
+    import fcl
+
+    c = _finite(centres, (None, 3), "centres")
+    r = _finite(rotations, (len(c), 3, 3), "rotations")
+    e = _finite(extents, (len(c), 3), "extents")
+    prims, prim_r, prim_t = _fcl_primitives(body, 0.0)
+    for obj, rot, shift in zip(prims, prim_r, prim_t, strict=True):
+        obj.setTransform(fcl.Transform(rot, shift))
+    out = np.empty((len(c), len(prims)))
+    request = fcl.DistanceRequest()
+    for i in range(len(c)):
+        box = fcl.CollisionObject(fcl.Box(*(float(v) for v in e[i])),
+                                  fcl.Transform(r[i], c[i]))
+        for j, prim in enumerate(prims):
+            out[i, j] = max(0.0, fcl.distance(box, prim, request, fcl.DistanceResult()))
     return out
 
 

@@ -2,7 +2,8 @@
 
 1. Sites on pairs of parallel planar facets (:mod:`geometry.facets`, the paper's 3.1).
 2. Sites on the rest of the surface by sampled antipodal pairs (:mod:`geometry.antipodal`),
-   on the faces the facet step left alone.
+   on the faces the facet step left alone; then, over every face, the pairs that close round
+   a hollow part (:func:`geometry.antipodal.enclosing_sites`), after all the others.
 3. Each site gets every roll angle ``k * roll_step`` (``k = 0, 1, ...`` while below 360
    degrees): the approach ``a`` is the site's reference approach rotated by the roll about
    the closing direction ``o``; ``n = o x a``. Rolls 180 degrees apart approach from
@@ -15,10 +16,10 @@
    collisions"). This step is separate: ``collider=None`` skips it.
 
 Row order (deterministic): facet sites first, by facet pair then grid order; then antipodal
-sites in sample order; within a site, rolls ascending from 0, and within a roll the
-depths in :func:`contact_offsets` order. Site indices are renumbered
-0, 1, 2, ... in that order after the collision filter (a site whose rolls all collide
-disappears).
+sites in sample order; then the enclosing ones in sample order; within a site, rolls
+ascending from 0, and within a roll the depths in :func:`contact_offsets` order. Site
+indices are renumbered 0, 1, 2, ... in that order after the collision filter (a site whose
+rolls all collide disappears).
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.geometry.antipodal import antipodal_sites
+from handover.geometry.antipodal import antipodal_sites, enclosing_sites
 from handover.geometry.candidates import CandidateSet
 from handover.geometry.facets import facet_sites
 from handover.geometry.quality import ContactPairs, antipodal_quality, com_distance
@@ -62,6 +63,8 @@ class GenerationStats:
     facet_pairs : antiparallel facet pairs within the opening. overlapping_pairs : those
     whose projected overlap is large enough. facet_sites, antipodal_samples,
     antipodal_pairs (valid, before deduplication), antipodal_sites : counts.
+    enclosing_sites : sites closing round a hollow part (a glass held round, not pinched
+    across its wall; :func:`geometry.antipodal.enclosing_sites`).
     antipodal_spacing : m, sampling spacing used. sites : facet + antipodal sites.
     rolls_per_site : roll angles per site. depths_per_roll : gripper depths per roll
     (:func:`contact_offsets`). before_collision, after_collision : candidates.
@@ -78,6 +81,7 @@ class GenerationStats:
     antipodal_pairs: int = 0
     antipodal_sites: int = 0
     antipodal_oblique_sites: int = 0
+    enclosing_sites: int = 0
     antipodal_spacing: float = 0.0
     sites: int = 0
     rolls_per_site: int = 0
@@ -229,7 +233,21 @@ def generate_with_stats(
     stats.antipodal_spacing = anti.spacing
 
     t = time.perf_counter()
-    sites = ContactPairs.concatenate([facet.sites, anti.sites])
+    known = ContactPairs.concatenate([facet.sites, anti.sites])
+    enclosing = enclosing_sites(
+        mesh,
+        spacing=float(spacing),
+        min_opening=gripper.min_opening,
+        max_opening=gripper.max_opening,
+        friction=gripper.friction,
+        seed=seed,
+        exclude=known,
+    )
+    stats.seconds["enclosing"] = time.perf_counter() - t
+    stats.enclosing_sites = len(enclosing)
+
+    t = time.perf_counter()
+    sites = ContactPairs.concatenate([known, enclosing])
     stats.sites = len(sites)
     offsets = contact_offsets(gripper)
     stats.depths_per_roll = len(offsets)

@@ -39,7 +39,7 @@ import numpy as np
 
 from handover.geometry.gripper import Box
 
-__all__ = ["HumanHand", "PINCH_MAX", "BOX_NAMES"]
+__all__ = ["HumanHand", "PINCH_MAX", "BOX_NAMES", "hand_frames"]
 
 BOX_NAMES = ("palm", "fingers", "thumb", "fingertips")
 """The hand's boxes, in the order :meth:`HumanHand.boxes` gives them."""
@@ -164,18 +164,11 @@ class HumanHand:
         ``thickness``, ``depth`` (n,) m (inputs not checked: :meth:`boxes` checks one).
         Returns extents (n, 4, 3) m, poses (n, 4, 4, 4) and valid (n, 4) bool, the boxes in
         :data:`BOX_NAMES` order (``fingertips`` valid where the fingers reach over)."""
-        site, axis, approach = (np.asarray(v, dtype=float).reshape(-1, 3)
-                                for v in (site, axis, approach))
+        frame = hand_frames(site, axis, approach)
+        site = frame[:, :3, 3]
         t = np.asarray(thickness, dtype=float).reshape(-1)
         d = np.asarray(depth, dtype=float).reshape(-1)
         n = len(site)
-        x = axis / np.linalg.norm(axis, axis=1, keepdims=True)
-        z = approach / np.linalg.norm(approach, axis=1, keepdims=True)
-        z = z - np.sum(z * x, axis=1, keepdims=True) * x
-        z = z / np.linalg.norm(z, axis=1, keepdims=True)
-        frame = np.tile(np.eye(4), (n, 1, 1))
-        frame[:, :3, 0], frame[:, :3, 1], frame[:, :3, 2] = x, np.cross(z, x), z
-        frame[:, :3, 3] = site
         ft, gw, reach = self.finger_thickness, self.grip_width, self.finger_length
         z_lo = -d / 2.0
         z_side = np.minimum(z_lo + reach, d / 2.0 + ft if cupped else d / 2.0)
@@ -195,3 +188,20 @@ class HumanHand:
         valid = np.ones((n, 4), dtype=bool)
         valid[:, 3] = (reach >= d + ft) & (not cupped)
         return extents, poses, valid
+
+
+def hand_frames(site: np.ndarray, axis: np.ndarray, approach: np.ndarray) -> np.ndarray:
+    """(n, 4, 4): the hand frames ``[x y z site]`` of n hands (the module docstring's frame:
+    ``x`` along ``axis``, ``z`` the ``approach`` made perpendicular to it, ``y = z x x``).
+    site, axis, approach : (n, 3) (or (3,)), any frame; inputs not checked (a hand's
+    :meth:`HumanHand.frame` checks one)."""
+    site, axis, approach = (np.asarray(v, dtype=float).reshape(-1, 3)
+                            for v in (site, axis, approach))
+    x = axis / np.linalg.norm(axis, axis=1, keepdims=True)
+    z = approach / np.linalg.norm(approach, axis=1, keepdims=True)
+    z = z - np.sum(z * x, axis=1, keepdims=True) * x
+    z = z / np.linalg.norm(z, axis=1, keepdims=True)
+    frame = np.tile(np.eye(4), (len(site), 1, 1))
+    frame[:, :3, 0], frame[:, :3, 1], frame[:, :3, 2] = x, np.cross(z, x), z
+    frame[:, :3, 3] = site
+    return frame

@@ -49,7 +49,7 @@ import numpy as np
 
 from handover.geometry.bodies import Body, BodyError
 
-__all__ = ["Landmarks", "human_body", "POSTURES"]
+__all__ = ["Landmarks", "human_body", "POSTURES", "reaching_elbows", "ELBOW_SWIVELS"]
 
 POSTURES = ("standing", "seated")
 
@@ -282,3 +282,42 @@ def human_body(
         seat_height=None if seat_height is None else float(seat_height + pos[2]),
     )
     return body, landmarks
+
+
+ELBOW_SWIVELS = (0.0, np.pi / 4, np.pi / 2)
+"""rad: the elbow's turns about the shoulder-to-wrist line tried for a reaching arm, from
+hanging below the line (0) outward to level with it (a person lifts the elbow over a rail)."""
+
+
+def reaching_elbows(shoulder: np.ndarray, wrist: np.ndarray, upper_arm: float, forearm: float,
+                    outward: np.ndarray, swivels: tuple[float, ...] = ELBOW_SWIVELS
+                    ) -> np.ndarray:
+    """(n, S, 3) m: where the elbow of an arm reaching from ``shoulder`` to ``wrist`` (n, 3)
+    m (world, z up) can be, for each of ``swivels`` (rad): the elbow that closes the
+    triangle of the ``upper_arm`` and ``forearm`` lengths (m), turned about the
+    shoulder-to-wrist line from straight below it towards ``outward`` (3,) or (n, 3) (the
+    side of the reaching hand). A wrist beyond the arm's reach is reached with a straight arm
+    pointing at it; one nearer than the two lengths allow, with the elbow fully bent.
+    Vectorised; inputs not checked beyond shape."""
+    sh = np.asarray(shoulder, dtype=float).reshape(-1, 3)
+    wr = np.asarray(wrist, dtype=float).reshape(-1, 3)
+    out_dir = np.broadcast_to(np.asarray(outward, dtype=float), sh.shape)
+    a, b = float(upper_arm), float(forearm)
+    d = wr - sh
+    length = np.maximum(np.linalg.norm(d, axis=1), 1e-9)
+    u = d / length[:, None]
+    down = np.array([0.0, 0.0, -1.0])
+    w_down = down - (u @ down)[:, None] * u
+    flat = np.linalg.norm(w_down, axis=1) < 1e-6  # reaching straight up or down
+    w_down[flat] = out_dir[flat] - np.einsum("ij,ij->i", out_dir[flat], u[flat])[:, None] * u[flat]
+    w_down /= np.maximum(np.linalg.norm(w_down, axis=1, keepdims=True), 1e-12)
+    w_out = np.cross(u, w_down)
+    w_out *= np.where(np.einsum("ij,ij->i", w_out, out_dir) < 0, -1.0, 1.0)[:, None]
+    reach = np.clip(length, abs(a - b) + 1e-9, a + b)
+    cos = np.clip((a * a + reach**2 - b * b) / (2 * a * reach), -1.0, 1.0)
+    sin = np.sqrt(1.0 - cos**2)
+    out = np.empty((len(sh), len(swivels), 3))
+    for j, phi in enumerate(swivels):
+        w = np.cos(phi) * w_down + np.sin(phi) * w_out
+        out[:, j] = sh + a * (cos[:, None] * u + sin[:, None] * w)
+    return out

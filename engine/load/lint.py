@@ -22,7 +22,8 @@ Errors:
     rule, or document the tag in a vocabulary (the hazard tags of ``common``);
   - an ``axis`` rule naming an axis no object defines and no vocabulary documents, a rule's
     ``applies.tasks`` naming a task no object has;
-  - a receiver's ``hand`` or a robot's (or an arm's) ``gripper`` that does not exist; two
+  - a receiver's ``hand`` or a robot's (or an arm's) ``gripper`` that does not exist (or a
+    grasp a receiver uses, or a ``receiver_grasp`` rule names, that no hand has); two
     obstacles with one id in a scene;
   - in ``hazards/``: a hazard tag declared twice, an implied tag nothing declares or
     documents, a cycle of implications, a measured hazard whose tag is not declared
@@ -62,9 +63,9 @@ from typing import TYPE_CHECKING
 
 from handover.engine.errors import KBIssue
 from handover.engine.load.lint_scene import lint_scene
+from handover.engine.load.lint_tests import lint_tests
 from handover.engine.spec.applies import Facts
-from handover.engine.spec.query import DEFAULTS
-from handover.engine.spec.schema import KBModel, KBTestFile, ObjectSpec, RobotSpec, RuleBase
+from handover.engine.spec.schema import KBModel, ObjectSpec, RobotSpec, RuleBase
 from handover.engine.store.cultures import (
     _resolve,
     applies_to_object,
@@ -309,6 +310,8 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                         "tasks",
                         k,
                     )
+            if rule.kind == "receiver_grasp" and "hands" not in failed:
+                yield from _lint_grasp_names(kb, rule)
             if rule.kind == "axis" and rule.axis is not None:
                 if rule.axis not in used_axes and rule.axis not in documented:
                     yield kb.issue(
@@ -336,6 +339,21 @@ def lint_cultures(kb: KB, failed: set[str]) -> Iterator[KBIssue]:
                         )
 
 
+def _lint_grasp_names(kb: KB, rule: RuleBase) -> Iterator[KBIssue]:
+    """A ``receiver_grasp`` rule naming a grasp no hand of the KB has (a misspelt grasp
+    silently disables the rule)."""
+    known = {g.name for hand in kb.hands.values() for g in hand.repertoire()}
+    for k, name in enumerate(rule.grasps):
+        if name not in known:
+            yield kb.issue(
+                rule,
+                f"rule '{rule.id}' names grasp '{name}', which no hand has (grasps: "
+                f"{', '.join(sorted(known)) or 'none'})",
+                "grasps",
+                k,
+            )
+
+
 # ---------------------------------------------------------------- references
 
 
@@ -350,6 +368,17 @@ def lint_references(kb: KB, failed: set[str], urdf: bool = True) -> Iterator[KBI
                     f"exist (hands: {', '.join(sorted(kb.hands)) or 'none'})",
                     "hand",
                 )
+            elif receiver.grasps is not None:
+                known = [g.name for g in kb.hands[receiver.hand].repertoire()]
+                for k, name in enumerate(receiver.grasps):
+                    if name not in known:
+                        yield kb.issue(
+                            receiver,
+                            f"receiver '{receiver.id}' uses grasp '{name}', which hand "
+                            f"'{receiver.hand}' does not have (grasps: {', '.join(known)})",
+                            "grasps",
+                            k,
+                        )
     if "grippers" not in failed:
         for gripper in kb.grippers.values():
             if gripper.meshes is not None:
@@ -437,58 +466,3 @@ def _rest_issues(kb: KB, robot: RobotSpec) -> Iterator[KBIssue]:
             said = ", ".join(f"{link} hits {target}" for link, target in found[:4])
             yield kb.issue(robot, f"robot '{robot.id}': the {side} arm's rest puts its links "
                                   f"into the robot: {said}", "arms", side, "rest")
-
-
-# ---------------------------------------------------------------- test files
-
-
-_QUERY_KINDS = {"receiver": "receivers", "culture": "etiquette", "scene": "scenes",
-                "gripper": "grippers", "robot": "robots"}
-
-
-def lint_tests(kb: KB, test_file: KBTestFile, failed: Iterable[str] = ()) -> Iterator[KBIssue]:
-    """A test file's cases against the KB: every id a query names exists, every axis, part,
-    tag and rule an expectation names exists for the case's object and culture (a misspelt
-    name would make ``robot_parts_none`` pass, or a case fail for the wrong reason)."""
-    failed = set(failed)
-    names: dict[str, KBModel] = {}
-    for case in test_file.cases:
-        if case.name in names:
-            first = names[case.name].source.line
-            yield kb.issue(case, f"two cases named '{case.name}' (the first at line {first})",
-                           "name")
-        names.setdefault(case.name, case)
-        q, expect = case.query, case.expect
-        for field, kind in _QUERY_KINDS.items():
-            item = getattr(q, field)
-            attr = kind if kind != "etiquette" else "cultures"
-            if item is not None and kind not in failed and item not in getattr(kb, attr):
-                known = ", ".join(sorted(getattr(kb, attr))) or "none"
-                yield kb.issue(q, f"unknown {field} '{item}' (known: {known})", field)
-        if "objects" in failed:
-            continue
-        obj = kb.objects.get(q.object)
-        if obj is None:
-            known = ", ".join(sorted(kb.objects)) or "none"
-            yield kb.issue(q, f"unknown object '{q.object}' (known: {known})", "object")
-            continue
-        if q.task is not None and q.task not in obj.tasks:
-            yield kb.issue(q, f"object '{obj.id}' has no task '{q.task}' (its tasks: "
-                           f"{', '.join(sorted(obj.tasks)) or 'none'})", "task")
-        for axis in expect.axes:
-            if axis not in obj.axes:
-                yield kb.issue(expect, f"object '{obj.id}' has no axis '{axis}' (its axes: "
-                               f"{', '.join(sorted(obj.axes)) or 'none'})", "axes", axis)
-        known_names = set(obj.parts) | object_tags(obj)
-        for field in ("receiver_parts_any", "robot_parts_none"):
-            for i, name in enumerate(getattr(expect, field)):
-                if name not in known_names:
-                    yield kb.issue(expect, f"object '{obj.id}' has no part or tag '{name}' "
-                                   f"(parts: {', '.join(obj.parts)})", field, i)
-        culture = q.culture or DEFAULTS["culture"]
-        if expect.rules and "etiquette" not in failed and culture in kb.cultures:
-            in_force = {r.rule.id for r in _resolve(kb, culture)[0]}
-            for rule_id in expect.rules:
-                if rule_id not in in_force:
-                    yield kb.issue(expect, f"rule '{rule_id}' is not in force in culture "
-                                   f"'{culture}'", "rules", rule_id)

@@ -60,6 +60,8 @@ class Pairs:
     not_liftable (H2G1; None for H2G2) : pairs no hand (or not both hands, for an object
     heavier than one hand's payload) can take from the table. overloaded (H2G1) : pairs where
     a gripper's share of the weight exceeds its payload or a hard torque rule's limit.
+    leaving_no_receiver_grasp (H2G1) : pairs whose grippers leave a receiving hand no grasp
+    of their repertoire.
     """
 
     checked: int
@@ -68,6 +70,7 @@ class Pairs:
     midair_hits: dict[str, int] = field(default_factory=dict)
     not_liftable: int | None = None
     overloaded: int = 0
+    leaving_no_receiver_grasp: int = 0
 
 
 @dataclass(frozen=True)

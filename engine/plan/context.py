@@ -26,6 +26,7 @@ from handover.engine.spec.applies import Facts
 if TYPE_CHECKING:
     from collections.abc import Sequence
 
+    from handover.engine.assets.hands import Repertoire
     from handover.engine.assets.lru import LRU
     from handover.engine.assets.robot import RobotArms
     from handover.engine.plan.phase import Hands
@@ -87,7 +88,7 @@ class Memo:
     # plan.hands / plan.offer
     hands: dict[tuple, Hands] = field(default_factory=dict)
     locations: dict[str, Locations] = field(default_factory=dict)  # by receiving hand
-    # plan.features
+    # plan.features, plan.hand_features, plan.receiver_grasps
     collision_scene: np.ndarray | None = None  # (N,) int8, -1 not judged yet
     collision_handover: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N*K,) int64
     collision_receiver_hand: dict[tuple, np.ndarray] = field(default_factory=dict)
@@ -95,7 +96,10 @@ class Memo:
     gripper_spheres: tuple[np.ndarray, float] | None = None
     interior: dict[tuple[str, ...], Any] = field(default_factory=dict)  # by tags: Interior
     keep_out_gripper: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N,) int64
-    hand_fit: dict[tuple, Any] = field(default_factory=dict)  # features.HandFit
+    hand_fit: dict[tuple, Any] = field(default_factory=dict)  # hand_features.HandFit
+    surface_samples: Any = None  # geometry.penetration.SurfaceSamples of the object
+    forbidden_samples: dict[tuple, Any] = field(default_factory=dict)  # by tags
+    receiver_choice: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N*K, H) int64
     # plan.arms
     arm_shoulders: dict[str, np.ndarray] = field(default_factory=dict)
     arm_checks: dict[tuple, Any] = field(default_factory=dict)  # arms.stages.ArmCheck
@@ -128,6 +132,8 @@ class PlanContext:
     rotations : (K, 3, 3) object -> world at the handover (where each is offered depends on
     the mode's rules: :meth:`hands`). initial : (4, 4) object -> world at pick-up.
     part_tags : tags of each part index of ``part_mesh``.
+    repertoire : the receiver's grasps (:mod:`handover.engine.assets.hands`; None: the wrap of
+    ``hand`` alone).
     warnings : what the preparation found worth telling (units of a mesh file).
     kb_root : the KB folder (files the KB names, e.g. a robot's URDF, are relative to it).
     arms_cache : where the robot's arms are kept between plans (a Planner's; None: this
@@ -152,6 +158,7 @@ class PlanContext:
     collider: Any = None
     kb_root: Any = None
     arms_cache: LRU | None = None
+    repertoire: Repertoire | None = None
     warnings: list[str] = field(default_factory=list)
     declared_part_tags: dict[str, set[str]] = field(default_factory=dict)
     memo: Memo = field(default_factory=Memo)
@@ -269,6 +276,7 @@ def build_context(
     hand: HumanHand,
     rules: Sequence[RuleBase] = (),
     families: TagFamilies | None = None,
+    repertoire: Repertoire | None = None,
 ) -> PlanContext:
     """Compute presentations, initial pose, scene and the object's facts for one query.
     Where the receiver's hands go depends on the rules of each mode: see
@@ -324,6 +332,7 @@ def build_context(
         scene=BoxWorld(boxes),
         scene_box_list=boxes,
         facts=facts,
+        repertoire=repertoire,
     )
 
 

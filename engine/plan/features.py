@@ -1,4 +1,6 @@
-"""Features the rule kinds read: quantities computed on candidate rows, vectorised.
+"""Features the rule kinds read: quantities computed on candidate rows, vectorised. Those of
+the receiver's hands (their boxes, the grasp each row takes, how they fit) are in
+:mod:`handover.engine.plan.hand_features`.
 
 Each function takes the plan context and, where the answer depends on the attempt, its
 :class:`~handover.engine.plan.phase.Phase` explicitly. Memoised values (the scene collision of a
@@ -8,7 +10,6 @@ key, so memoising them never changes an outcome.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -16,7 +17,6 @@ import numpy as np
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Hands
-    from handover.engine.plan.receiver_sites import ReceiverRegion, ReceiverSites
     from handover.geometry.bodies import Body
     from handover.geometry.interior import Interior
 
@@ -24,9 +24,6 @@ __all__ = [
     "tag_mask",
     "axis_world",
     "collision_scene",
-    "hand_model",
-    "hand_models",
-    "receiver_hand_boxes",
     "collision_receiver_hand",
     "collision_other_gripper",
     "COLLISION_BITS",
@@ -36,9 +33,6 @@ __all__ = [
     "open_interior",
     "keep_out_gripper",
     "keep_out_receiver_hand",
-    "HandFit",
-    "hand_fit",
-    "SITE_RAYS",
 ]
 
 # Bits of a collision rule's measured value: which targets were hit. At the handover, bit
@@ -149,88 +143,17 @@ def collision_scene(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
     return known[gi].astype(bool)
 
 
-def hand_model(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites, k: int,
-               pose: np.ndarray) -> list:
-    """One receiver hand (palm and finger boxes, world) at ``sites`` in presentation ``k``
-    with the object at ``pose`` (4, 4); empty where that hand has no site."""
-    from handover.geometry.hand import BOX_NAMES
-
-    extents, poses, valid = hand_models(ctx, region, sites, np.array([k]), pose[None])
-    return [(name, extents[0, b], poses[0, b]) for b, name in enumerate(BOX_NAMES)
-            if valid[0, b]]
-
-
-def hand_models(ctx: PlanContext, region: ReceiverRegion, sites: ReceiverSites,
-                ks: np.ndarray, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`hand_model` of n rows at once: presentations ``ks`` (n,) int with the object
-    at ``poses`` (n, 4, 4). Returns extents (n, 4, 3) m, box poses (n, 4, 4, 4) world and
-    valid (n, 4) bool (``HumanHand.boxes_many``; no box valid where the hand has no site)."""
-    from handover.engine.plan.receiver_sites import hand_approach
-
-    ks = np.asarray(ks, dtype=np.int64)
-    rot, shift = poses[:, :3, :3], poses[:, :3, 3]
-    site = np.einsum("nij,nj->ni", rot, sites.site[ks]) + shift
-    local_axis = sites.axis[ks] if sites.axis is not None else np.broadcast_to(
-        np.asarray(region.axis, dtype=float), (len(ks), 3))
-    axis = np.einsum("nij,nj->ni", rot, local_axis)
-    if sites.approach is not None:  # turned to fit the part (receiver_sites.predict_receiver_sites)
-        approach = np.einsum("nij,nj->ni", rot, sites.approach[ks])
-    else:
-        approach = hand_approach(axis, ctx.situation.toward, np.array([0.0, 0.0, 1.0]))
-    thickness = np.asarray(sites.thickness, dtype=float)[ks]
-    depth = np.asarray(sites.depth, dtype=float)[ks] if sites.depth is not None else thickness
-    extents, boxes, valid = ctx.hand.boxes_many(site, axis, approach, thickness, depth,
-                                                cupped=sites.cupped)
-    valid &= np.asarray(sites.valid, dtype=bool)[ks][:, None]
-    return extents, boxes, valid
-
-
-def receiver_hand_boxes(ctx: PlanContext, hands: Hands, k: int) -> list:
-    """Every receiver hand's boxes (world) at its sites in presentation ``k`` (those of every
-    presentation are built together, once per hands)."""
-    from handover.geometry.hand import BOX_NAMES
-
-    memo = ctx.memo.hand_boxes
-    if hands.key not in memo:
-        ks = np.arange(len(hands.poses))
-        per_k: list[list] = [[] for _ in ks]
-        for sites in hands.sites:
-            extents, poses, valid = hand_models(ctx, hands.region, sites, ks, hands.poses)
-            for kk, b in zip(*np.nonzero(valid), strict=True):
-                per_k[kk].append((BOX_NAMES[b], extents[kk, b], poses[kk, b]))
-        memo[hands.key] = per_k
-    return memo[hands.key][k]
-
-
 def collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
                             pk: np.ndarray) -> np.ndarray:
-    """(R,) bool: the gripper at grasp ``gi`` in presentation ``pk`` hits a receiver hand.
-    Memoised per row."""
-    return _per_row(ctx, ctx.memo.collision_receiver_hand, hands, gi, pk,
-                    lambda g, k: _collision_receiver_hand(ctx, hands, g, k)).astype(bool)
+    """(R,) bool: the gripper at grasp ``gi`` in presentation ``pk`` touches every grasp
+    option of a receiving hand (:func:`receiver_choice`)."""
+    from handover.engine.plan.hand_features import receiver_choice
 
-
-def _collision_receiver_hand(ctx: PlanContext, hands: Hands, gi: np.ndarray,
-                             pk: np.ndarray) -> np.ndarray:
-    """:func:`collision_receiver_hand`, computed."""
-    from handover.geometry.collision import BoxWorld
-
-    # The grippers are posed once in the object frame; each presentation's hands are moved
-    # into it (a few boxes per hand, instead of every gripper into the world), and every row
-    # is tested in one batch.
-    worlds: list[BoxWorld] = []
-    group = np.full(len(gi), -1, dtype=np.int64)
-    for k in np.unique(pk):
-        boxes = receiver_hand_boxes(ctx, hands, int(k))
-        if boxes:
-            group[pk == k] = len(worlds)
-            worlds.append(BoxWorld(boxes).moved(np.linalg.inv(hands.poses[k])))
-    out = np.zeros(len(gi), dtype=bool)
-    rows = np.flatnonzero(group >= 0)
-    if len(rows):
-        out[rows] = BoxWorld.grippers_hit_any(ctx.gripper_boxes(), gi[rows], worlds,
-                                              group[rows])
-    return out
+    choice = receiver_choice(ctx, hands, gi, pk)
+    hit = np.zeros(len(gi), dtype=bool)
+    for h, sites in enumerate(hands.sites):
+        hit |= (choice[:, h] < 0) & np.asarray(sites.valid, dtype=bool)[pk]
+    return hit
 
 
 def gripper_spheres(ctx: PlanContext) -> tuple[np.ndarray, float]:
@@ -298,6 +221,8 @@ def keep_out_receiver_hand(ctx: PlanContext, hands: Hands, interior: Interior,
                            k: int) -> list[str]:
     """The receiver's hand boxes (``"right palm"``, ...) that reach into ``interior`` in
     presentation ``k``."""
+    from handover.engine.plan.hand_features import hand_model
+
     names, boxes = [], []
     for hand, sites in zip(hands.receiving, hands.sites, strict=False):
         for name, ext, pose in hand_model(ctx, hands.region, sites, k, hands.poses[k]):
@@ -311,74 +236,3 @@ def keep_out_receiver_hand(ctx: PlanContext, hands: Hands, interior: Interior,
     return [n for n, e in zip(names, enter, strict=True) if e]
 
 
-SITE_RAYS = 4
-"""Rays cast from a receiver's site across the part (the hand's +-y and +-z) to see that the
-part surrounds it."""
-
-
-@dataclass(frozen=True)
-class HandFit:
-    """How the receiver's hands sit on the object, per presentation (K,) (every hand: the
-    worst). site_gap : m, how far a site lies from the part it is on (0 inside the part, or
-    surrounded by it within the hand's section: the middle of a cup; for a cupping hand, the
-    point where its palm meets the object's face). palm_depth,
-    finger_depth : m, how deep the palm and the finger boxes reach into the object.
-    grips : per presentation, each hand's grip (:meth:`geometry.hand.HumanHand.grip`).
-    """
-
-    site_gap: np.ndarray
-    palm_depth: np.ndarray
-    finger_depth: np.ndarray
-    grips: tuple[tuple[str, ...], ...]
-
-
-def hand_fit(ctx: PlanContext, hands: Hands) -> HandFit:
-    """:class:`HandFit` of ``hands`` in every presentation (memoised per hands)."""
-    from handover.geometry.mesh import ray_first_hits
-    from handover.geometry.penetration import box_depths, surface_gaps
-
-    memo = ctx.memo.hand_fit
-    if hands.key in memo:
-        return memo[hands.key]
-    mesh = ctx.part_mesh.mesh
-    k_all = ctx.k
-    gap, palm, fingers = np.zeros(k_all), np.zeros(k_all), np.zeros(k_all)
-    grips: list[list[str]] = [[] for _ in range(k_all)]
-    for sites in hands.sites:
-        ks = np.flatnonzero(sites.valid)
-        centres, rots, halves, owner, is_palm = [], [], [], [], []
-        origins, dirs, reach, palm_points = [], [], [], []
-        for k in ks:
-            inv = np.linalg.inv(hands.poses[k])
-            boxes = hand_model(ctx, hands.region, sites, int(k), hands.poses[k])
-            for name, ext, pose in boxes:
-                local = inv @ pose
-                centres.append(local[:3, 3])
-                rots.append(local[:3, :3])
-                halves.append(ext / 2.0)
-                owner.append(k)
-                is_palm.append(name == "palm")
-            frame = inv @ boxes[0][2]  # every box shares the hand frame's rotation
-            t = float(sites.thickness[k])
-            d = float(sites.depth[k]) if sites.depth is not None else t
-            for axis, half in ((1, t), (2, d)):
-                for sign in (1.0, -1.0):
-                    origins.append(sites.site[k])
-                    dirs.append(sign * frame[:3, axis])
-                    reach.append(half / 2.0)
-            grips[k].append("cup" if sites.cupped else ctx.hand.grip(t, d))
-            # a cupping hand holds the object's face: its site is where the palm meets it
-            palm_points.append(sites.site[k] - (d / 2.0 if sites.cupped else 0.0) * frame[:3, 2])
-        if not len(ks):
-            continue
-        depth = box_depths(mesh, np.array(centres), np.array(rots), np.array(halves))
-        owner_a, palm_a = np.array(owner), np.array(is_palm)
-        np.maximum.at(palm, owner_a[palm_a], depth[palm_a])
-        np.maximum.at(fingers, owner_a[~palm_a], depth[~palm_a])
-        face, dist = ray_first_hits(mesh, np.array(origins), np.array(dirs))
-        within = (face >= 0) & (dist <= np.array(reach) + 1e-3)
-        surrounded = within.reshape(len(ks), SITE_RAYS).all(axis=1) & (not sites.cupped)
-        site_gap = np.where(surrounded, 0.0, surface_gaps(mesh, np.array(palm_points)))
-        gap[ks] = np.maximum(gap[ks], site_gap)
-    memo[hands.key] = HandFit(gap, palm, fingers, tuple(tuple(g) for g in grips))
-    return memo[hands.key]

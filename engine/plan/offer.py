@@ -6,12 +6,12 @@ few locations at a time; and why nothing could be offered when nothing could.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.features import hand_models
+from handover.engine.plan.hand_features import hand_models
 from handover.engine.plan.world import (
     GRID_FRONT,
     GRID_HEIGHT,
@@ -28,7 +28,8 @@ if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
 
 __all__ = ["candidate_locations", "locations", "Placement", "site_points", "place",
-           "location_reason", "LOCATION_BATCHES"]
+           "location_reason", "LOCATION_BATCHES", "reach_hits", "scene_clearance",
+           "MEASURED_AT", "CLEARANCE_CAP", "reaching_arms", "shoulders"]
 
 
 def locations(ctx: PlanContext, hand: str) -> Locations:
@@ -78,13 +79,15 @@ LOCATION_BATCHES = (8, 24, 96)
 
 @dataclass(frozen=True)
 class Placement:
-    """Where each presentation is offered: see :class:`handover.engine.plan.phase.Hands`."""
+    """Where each presentation is offered: see :class:`handover.engine.plan.phase.Hands`.
+    sites : the receiving hands' sites, their options marked clear or not where offered."""
 
     poses: np.ndarray
     location: np.ndarray
     located: np.ndarray
     measured: dict
     hits: tuple[tuple[str, ...], ...]
+    sites: tuple = ()
 
 
 def site_points(ctx: PlanContext, sites: tuple) -> np.ndarray:
@@ -109,12 +112,20 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
     rules : the active ``location`` rules (compiled); hands : the receiving hands.
     avoid : indices of candidate locations tried last (a mode found no plan there): a
     presentation offered at one of them moves to its next best location, the others stay.
+
+    A location is clear when the object hits nothing there and every receiving hand has a
+    grasp option whose boxes and reaching arm hit nothing (:func:`reach_hits`); the object and
+    the hands keep the hard ``clearance`` rule's distance from the scene's table and
+    obstacles (their boxes grown by it). The options clear at the chosen location are marked
+    so (``GraspOptions.clear``) in the returned ``sites``.
     """
     world = ctx.world
     locs = locations(ctx, hands[0])
     L, K = len(locs.points), ctx.k
-    hard = [c.rule for c in rules if c.rule.hard and c.rule.measure != "clear"]
-    soft = [c.rule for c in rules if not c.rule.hard and c.rule.measure != "clear"]
+    hard = [c.rule for c in rules if c.rule.hard and c.rule.measure not in MEASURED_AT]
+    soft = [c.rule for c in rules if not c.rule.hard and c.rule.measure not in MEASURED_AT]
+    margin = max([c.rule.min for c in rules if c.rule.hard and c.rule.measure == "clearance"
+                  and c.rule.min is not None] or [0.0])
     ok = np.ones(L, dtype=bool)
     fails = np.zeros(L, dtype=int)
     for r in hard:
@@ -137,7 +148,10 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
     anchor = site_points(ctx, sites)  # (K, 3)
     rot = ctx.rotations
     targets = world.without_receiving_arms(hands)
-    names = targets.names
+    scene = np.array([n.startswith("scene:") for n in targets.names], dtype=bool)
+    near_scene = targets.subset(scene) if margin > 0 and scene.any() else None
+    arm_targets = world.arm_obstacles()
+    arm_from = shoulders(world, sites, hands)
 
     def poses_at(k_idx: np.ndarray, l_idx: np.ndarray) -> np.ndarray:
         out = np.tile(np.eye(4), (len(k_idx), 1, 1))
@@ -145,20 +159,45 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
         out[:, :3, 3] = locs.points[l_idx] - np.einsum("nij,nj->ni", rot[k_idx], anchor[k_idx])
         return out
 
-    def hits_at(k_idx: np.ndarray, l_idx: np.ndarray) -> np.ndarray:
-        """(n, P) bool: the object and the receiver's hands at (k, l) against the targets."""
+    def hits_at(k_idx: np.ndarray, l_idx: np.ndarray, every: bool = False
+                ) -> tuple[np.ndarray, list]:
+        """(n, P) bool: what the object and the receiver's hands at (k, l) hit; and per hand
+        (n, J) bool, the options clear there (None for a hand without options): every one
+        with ``every``, else the arm checked only until one option is clear (a location is
+        clear when one is)."""
         poses = poses_at(k_idx, l_idx)
         hit = mesh_hits(targets, ctx.collider, poses)
-        for s in sites:
-            ext, bp, valid = hand_models(ctx, region, s, k_idx, poses)
-            owner, box = np.nonzero(valid)
-            if len(owner):
-                hand_hit = targets.boxes_hit(bp[owner, box, :3, 3], bp[owner, box, :3, :3],
-                                             ext[owner, box])
-                np.logical_or.at(hit, owner, hand_hit)
-        return hit
+        if near_scene is not None:
+            hit[:, scene] |= mesh_hits(near_scene, ctx.collider, poses, margin=margin)
+        clear_opts = []
+        for h, s in enumerate(sites):
+            if s.options is None:
+                ext, bp, valid = hand_models(ctx, region, s, k_idx, poses)
+                owner, box = np.nonzero(valid)
+                if len(owner):
+                    hand_hit = _boxes_hit(targets, bp[owner, box], ext[owner, box], scene,
+                                          near_scene, margin)
+                    np.logical_or.at(hit, owner, hand_hit)
+                clear_opts.append(None)
+                continue
+            opt_hit, checked = reach_hits(ctx, s.options, k_idx, poses, targets, scene,
+                                          near_scene, margin, arm_targets, arm_from[h],
+                                          _arm_side(sites, hands, h), every,
+                                          skip=None if every else hit.any(axis=1))
+            exists = s.options.grasp[k_idx] >= 0
+            free = exists & checked & ~opt_hit.any(axis=2)
+            clear_opts.append(free)
+            stuck = ~free.any(axis=1)  # no option clear: what the best one hits, named
+            first = np.argmax(exists, axis=1)
+            stuck &= exists.any(axis=1)
+            if stuck.any():
+                rows = np.flatnonzero(stuck)
+                hit[rows] |= opt_hit[rows, first[rows]]
+        return hit, clear_opts
 
     chosen = np.full(K, -1, dtype=np.int64)
+    chosen_clear: list = [np.zeros((K, s.options.slots), dtype=bool)
+                          if s.options is not None else None for s in sites]
     hit_names: list[tuple[str, ...]] = [() for _ in range(K)]
     if L:
         candidates = order[:max(n_ok, 1)]  # the ok ones, or the closest one
@@ -171,15 +210,19 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
                 break
             kk = np.repeat(pending, len(chunk))
             ll = np.tile(chunk, len(pending))
-            hit = hits_at(kk, ll).reshape(len(pending), len(chunk), -1)
+            hit, opts = hits_at(kk, ll)
+            hit = hit.reshape(len(pending), len(chunk), -1)
             clear = ~hit.any(axis=2)
+            for free in opts:
+                if free is not None:
+                    clear &= free.any(axis=1).reshape(len(pending), len(chunk))
             found = clear.any(axis=1)
             first = np.argmax(clear, axis=1)
             chosen[pending[found]] = chunk[first[found]]
             for j in np.flatnonzero(~found):  # what the best one hit, for the reason
                 if chosen[pending[j]] < 0 and rnd == 0:
                     hit_names[pending[j]] = tuple(
-                        names[p] for p in np.flatnonzero(hit[j, 0]))
+                        targets.names[p] for p in np.flatnonzero(hit[j, 0]))
             pending = pending[~found]
         hit_names = [names if c < 0 else () for names, c in zip(hit_names, chosen, strict=True)]
     best = order[0] if L else -1
@@ -196,8 +239,182 @@ def place(ctx: PlanContext, region, sites: tuple, rules: list, hands: tuple[str,
         poses[:, :3, :3] = rot
         poses[:, :3, 3] = point - np.einsum("kij,kj->ki", rot, anchor)
         hit_names = [("no location within the receiver's reach",)] * K
+    if (chosen >= 0).any():  # every option's clearance where each presentation is offered
+        ks = np.flatnonzero(chosen >= 0)
+        _, opts = hits_at(ks, chosen[ks], every=True)
+        for h, free in enumerate(opts):
+            if free is not None:
+                chosen_clear[h][ks] = free
+    placed = tuple(s if s.options is None or chosen_clear[h] is None
+                   else replace(s, options=s.options.with_clear(
+                       np.where((chosen >= 0)[:, None], chosen_clear[h], True)))
+                   for h, s in enumerate(sites))
+    placed = tuple(_primary(s) for s in placed)
+    # the clearance kept: at least the margin the location was tested with where one was
+    # found (the exact distance, for a trace, is scene_clearance's); 0 where none was
+    measured["clearance"] = np.where(chosen >= 0, margin, 0.0)
     return Placement(poses=poses, location=location, located=located, measured=measured,
-                     hits=tuple(hit_names))
+                     hits=tuple(hit_names), sites=placed)
+
+
+MEASURED_AT = ("clear", "clearance")
+"""Location measures of a presentation at its location (not of a location alone)."""
+CLEARANCE_CAP = 0.1
+"""m: the most :func:`scene_clearance` says (farther is as clear)."""
+
+
+def _primary(sites):
+    """``sites`` whose fields are those of its best option clear where it is offered."""
+    if sites.options is None:
+        return sites
+    from handover.engine.plan.receiver_grasps import primary_sites
+
+    return primary_sites(sites.options, sites)
+
+
+def shoulders(world: World, sites: tuple, hands: tuple[str, ...]) -> list[np.ndarray]:
+    """(3,) world, the shoulder of the hand that takes each of ``sites``: two hands' sites
+    are the receiver's right then left; one hand's is the receiving hand."""
+    return [world.receiver.shoulder(_arm_side(sites, hands, h)) for h in range(len(sites))]
+
+
+def _arm_side(sites: tuple, hands: tuple[str, ...], h: int) -> str:
+    """The hand (``left`` | ``right``) that takes ``sites[h]``."""
+    return ("right", "left")[h] if len(sites) == 2 else hands[0]
+
+
+def _boxes_hit(targets, poses: np.ndarray, extents: np.ndarray, scene: np.ndarray,
+               near_scene, margin: float) -> np.ndarray:
+    """(n, P) bool: boxes (poses (n, 4, 4), extents (n, 3), world) against ``targets``, the
+    scene's primitives (``scene`` mask) grown by ``margin``."""
+    hit = targets.boxes_hit(poses[:, :3, 3], poses[:, :3, :3], extents)
+    if near_scene is not None and len(poses):
+        hit[:, scene] |= near_scene.boxes_hit(poses[:, :3, 3], poses[:, :3, :3], extents,
+                                              margin=margin)
+    return hit
+
+
+def reach_hits(ctx: PlanContext, options, k_idx: np.ndarray, poses: np.ndarray, targets,
+               scene: np.ndarray, near_scene, margin: float, arm_targets, shoulder: np.ndarray,
+               hand: str, every: bool = True, skip: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """(n, J, P) bool: what each grasp option's boxes (against ``targets``, the scene grown by
+    ``margin``) and reaching arm (against ``arm_targets``: the scene and the robot) hit, the
+    object of row i at ``poses[i]`` in presentation ``k_idx[i]``; and (n, J) bool, the options
+    judged. The arm reaches from the ``shoulder`` to the option's wrist (the nearer of its
+    two), its elbow at the first swivel (:data:`~handover.geometry.human.ELBOW_SWIVELS`) at
+    which neither segment hits anything; an arm that hits at every swivel hits what the first
+    one does (:func:`reaching_arms`). Arm hits are reported in the columns of ``targets``
+    with the same names. Without ``every``, a row's arms are judged option by option only
+    until one option is clear (the later ones are not judged). ``skip`` (n,) bool: rows
+    already blocked (the object hits something there), whose options are not judged."""
+    n, j_all = len(k_idx), options.slots
+    out = np.zeros((n, j_all, len(targets)), dtype=bool)
+    exists = options.grasp[k_idx] >= 0  # (n, J)
+    if skip is not None:
+        exists &= ~np.asarray(skip, dtype=bool)[:, None]
+    judged = exists.copy()
+    rot, shift = poses[:, :3, :3], poses[:, :3, 3]
+    rows, slots = np.nonzero(exists)
+    if not len(rows):
+        return out, judged
+    ext = options.extents[k_idx[rows], slots]  # (m, B, 3)
+    local = options.poses[k_idx[rows], slots]  # (m, B, 4, 4)
+    valid = options.valid[k_idx[rows], slots]
+    world_poses = np.einsum("mij,mbjk->mbik", poses[rows], local)
+    owner, box = np.nonzero(valid)
+    hit = _boxes_hit(targets, world_poses[owner, box], ext[owner, box], scene, near_scene,
+                     margin)
+    per = np.zeros((len(rows), len(targets)), dtype=bool)
+    np.logical_or.at(per, owner, hit)
+    out[rows, slots] = per
+    if not len(arm_targets):
+        return out, judged
+    # the reaching arm, slot by slot (every slot, or until each row has a clear option)
+    cols = _columns(targets.names, arm_targets.names)
+    settled = np.zeros(n, dtype=bool)
+    judged[:] = False
+    for j in range(j_all):
+        todo = np.flatnonzero(exists[:, j] & ~out[:, j].any(axis=1) & (every | ~settled))
+        judged[todo, j] = True
+        judged[np.flatnonzero(exists[:, j] & out[:, j].any(axis=1)), j] = True
+        if not len(todo):
+            continue
+        wrists = (np.einsum("mij,mwj->mwi", rot[todo], options.wrists[k_idx[todo], j])
+                  + shift[todo][:, None, :])
+        _, _, arm_hit = reaching_arms(ctx, wrists, shoulder, hand, arm_targets)
+        out[todo[:, None], j, cols[None, :]] |= arm_hit
+        settled[todo] |= ~arm_hit.any(axis=1)
+    return out, judged
+
+
+def reaching_arms(ctx: PlanContext, wrists: np.ndarray, shoulder: np.ndarray, hand: str,
+                  arm_targets) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The receiver's ``hand`` arm reaching from its ``shoulder`` (3,) world to m hands whose
+    two candidate wrists are ``wrists`` (m, 2, 3) world (the nearer to the shoulder taken):
+    (wrist (m, 3), elbow (m, 3), hits (m, P) bool against ``arm_targets``). The elbow is at
+    the first swivel (:data:`~handover.geometry.human.ELBOW_SWIVELS`) at which neither the
+    upper arm nor the forearm (capsules as thick as the body's) touches anything; where every
+    swivel does, the first one and what it hits."""
+    from handover.geometry.human import ELBOW_SWIVELS, reaching_elbows
+
+    m = len(wrists)
+    nearer = np.argmin(np.linalg.norm(wrists - shoulder[None, None, :], axis=2), axis=1)
+    wrist = wrists[np.arange(m), nearer]
+    lm = ctx.world.receiver
+    radii = ctx.world.arm_radii(hand)
+    elbows = reaching_elbows(np.broadcast_to(shoulder, wrist.shape), wrist, lm.upper_arm,
+                             lm.forearm, lm.side(hand), ELBOW_SWIVELS)  # (m, S, 3)
+    if not len(arm_targets) or not m:
+        return wrist, elbows[:, 0], np.zeros((m, len(arm_targets)), dtype=bool)
+    pick = np.zeros(m, dtype=np.int64)
+    hits = np.zeros((m, len(arm_targets)), dtype=bool)
+    todo = np.arange(m)
+    for j in range(len(ELBOW_SWIVELS)):  # the next swivel only where the last one hit
+        el = elbows[todo, j]
+        sh = np.broadcast_to(shoulder, el.shape)
+        arm = (arm_targets.capsules_hit(sh, el, radii[0])
+               | arm_targets.capsules_hit(el, wrist[todo], radii[1]))
+        clear = ~arm.any(axis=1)
+        if j == 0:
+            hits[todo] = arm
+        pick[todo[clear]] = j
+        hits[todo[clear]] = False
+        todo = todo[~clear]
+        if not len(todo):
+            break
+    return wrist, elbows[np.arange(m), pick], hits
+
+
+def _columns(names: tuple[str, ...], of: tuple[str, ...]) -> np.ndarray:
+    """(len(of),) int: where each of ``of`` is in ``names``."""
+    where = {n: i for i, n in enumerate(names)}
+    return np.array([where[n] for n in of], dtype=np.int64)
+
+
+def scene_clearance(ctx: PlanContext, hands, k: int, options: list[int]) -> float:
+    """m: how far the object and the receiving hands (in grasp ``options``, one per hand)
+    stay from the scene's table and obstacles in presentation ``k`` where it is offered
+    (python-fcl distances; :data:`CLEARANCE_CAP` at most)."""
+    from handover.engine.plan.hand_features import hand_model
+    from handover.geometry.body_mesh import box_clearances, mesh_clearances_many
+
+    targets = ctx.world.without_receiving_arms(hands.receiving)
+    scene = np.array([n.startswith("scene:") for n in targets.names], dtype=bool)
+    if not scene.any():
+        return CLEARANCE_CAP
+    body = targets.subset(scene)
+    pose = hands.poses[k]
+    out = min(CLEARANCE_CAP, float(mesh_clearances_many(body, ctx.collider, pose[None]).min()))
+    for sites, j in zip(hands.sites, options, strict=True):
+        boxes = hand_model(ctx, hands.region, sites, k, pose,
+                           None if sites.options is None or j < 0 else j)
+        if boxes:
+            dist = box_clearances(body, np.array([b[2][:3, 3] for b in boxes]),
+                                  np.array([b[2][:3, :3] for b in boxes]),
+                                  np.array([b[1] for b in boxes]))
+            out = min(out, float(dist.min()))
+    return out
 
 
 def location_reason(ctx: PlanContext, hands, rules: list) -> str | None:
@@ -224,7 +441,8 @@ def location_reason(ctx: PlanContext, hands, rules: list) -> str | None:
                         f"({c.id}, {robot.source})")
         elif rule.measure == "clear":
             hit = sorted({n for names in hands.hits for n in names})
-            said.append(f"wherever the receiver could take it the object or their hand hits "
+            said.append(f"wherever the receiver could take it the object, their hand or their "
+                        f"reaching arm hits "
                         f"{', '.join(hit) or 'something'} ({c.id})")
         elif not np.isfinite(value):
             said.append(f"there is no place within the receiver's reach ({c.id})")
@@ -235,10 +453,11 @@ def location_reason(ctx: PlanContext, hands, rules: list) -> str | None:
 
 def _nearest_for_receiver(locs: Locations, rules: list) -> float:
     """The least ``robot_reach`` among the locations that pass every hard location rule about
-    the receiver (all but ``robot_reach`` and ``clear``); inf when there is none."""
+    the receiver (all but ``robot_reach``, ``clear`` and ``clearance``); inf when there is
+    none."""
     ok = np.ones(len(locs.points), dtype=bool)
     for c in rules:
-        if c.rule.hard and c.rule.measure not in ("robot_reach", "clear"):
+        if c.rule.hard and c.rule.measure not in ("robot_reach", *MEASURED_AT):
             ok &= c.rule.judge(locs.measures[c.rule.measure])[0]
     values = locs.measures["robot_reach"][ok]
     return float(values.min()) if len(values) else float("inf")

@@ -54,8 +54,8 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
     """
     from handover.engine.assets import objects as assets
     from handover.engine.assets.graspdb import cached_candidates
+    from handover.engine.assets.hands import human_hand, receiver_repertoire
     from handover.geometry.collision import ObjectCollider
-    from handover.geometry.hand import HumanHand
     from handover.geometry.mesh import MESH_SUFFIXES
 
     path = Path(query.object)
@@ -82,18 +82,13 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
     collider = ObjectCollider(part_mesh.mesh)
     candidates, stats = cached_candidates(part_mesh, gripper, {"seed": 0}, db,
                                           collider=collider)
-    spec = situation.hand
-    hand = HumanHand(
-        palm=tuple(spec.palm),
-        finger_length=spec.finger_length,
-        finger_thickness=spec.finger_thickness,
-        grip_width=spec.grip_width,
-    )
+    hand = human_hand(situation.hand)
+    repertoire = receiver_repertoire(situation.hand, situation.receiver)
     from handover.engine.store.cultures import resolve_culture
 
     rules = [r.rule for r in resolve_culture(kb, situation.query.culture)]
     ctx = build_context(situation, part_mesh, part_tags, candidates, stats, gripper, hand,
-                        rules, families)
+                        rules, families, repertoire)
     ctx.collider = collider
     ctx.kb_root = kb.root
     ctx.arms_cache = arms_cache

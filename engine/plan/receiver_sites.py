@@ -1,5 +1,7 @@
 """Where the receiver will hold the object in each presentation: the region of the parts they
-may hold, and their predicted grasp site (one hand or two).
+may hold, and their predicted grasp site (one hand or two). Longer than 500 lines: a wrapping
+hand's site (where along the part, the section it closes round, the turn that fits it, moved
+to another place along the part) is one algorithm whose steps share their helpers.
 
 The receiver's grasp site (the paper's C, section 3.1) lies on the part the task or etiquette
 gives the receiver. Along the robot->receiver direction, the receiver takes the middle of the
@@ -11,17 +13,19 @@ half of the object near itself (a ``giver_side`` rule). The presentations themse
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from handover.engine.plan.presentation import ISOTROPY
+from handover.geometry.sections import section_pieces
 
 if TYPE_CHECKING:
     import trimesh
 
     from handover.geometry.hand import HumanHand
     from handover.geometry.interior import Interior
+    from handover.geometry.penetration import SurfaceSamples
 
 # A compact object's receiver hand stops this far (m) short of the object's middle.
 COMPACT_GAP = 0.005
@@ -29,6 +33,10 @@ MIN_SECTION = 0.002
 """m: the thinnest section a hand is modelled round (a wire is held like a 2 mm rod)."""
 BAND_TOL = 1e-9
 """m: samples this close outside a hand's band still count (rounding, not geometry)."""
+BAND_REACH = 0.02
+"""m: a band sample belongs to a piece of the part's cross-section within half this (the
+band is a grip wide along the axis, so its samples lie off the cutting plane, and a part's
+section changes little over it)."""
 
 __all__ = [
     "ReceiverRegion",
@@ -38,6 +46,8 @@ __all__ = [
     "hand_approach",
     "predict_receiver_sites",
     "predict_two_hand_sites",
+    "wraps_at",
+    "axis_wraps",
 ]
 
 
@@ -152,6 +162,11 @@ class ReceiverSites:
     cupped : the hand cups a compact object (no part to close round).
     approach : (K, 3) unit, object frame, or None (then :func:`hand_approach`). The
         direction the hand moves in, turned where it would not fit as it comes.
+    options : the grasps of the receiver's repertoire this hand may take in each
+        presentation, best first (a :class:`~handover.engine.plan.receiver_grasps.
+        GraspOptions`); None for sites predicted without a repertoire (the wrap alone, its
+        boxes :class:`~handover.geometry.hand.HumanHand`'s). The fields above are then the
+        best option's (or, where none fits, the wrap's as predicted).
     """
 
     site: np.ndarray
@@ -162,6 +177,7 @@ class ReceiverSites:
     depth: np.ndarray | None = None
     cupped: bool = False
     approach: np.ndarray | None = None
+    options: Any = None
 
 
 def predict_receiver_sites(
@@ -174,6 +190,8 @@ def predict_receiver_sites(
     hand: HumanHand | None = None,
     mesh: trimesh.Trimesh | None = None,
     opening: Interior | None = None,
+    samples: SurfaceSamples | None = None,
+    cuts: dict | None = None,
 ) -> ReceiverSites:
     """The paper's C for every presentation.
 
@@ -194,7 +212,11 @@ def predict_receiver_sites(
     rotations : (K, 3, 3) object -> world. grip_width : m, the hand's width along the part.
     hand : the receiver's hand model; mesh : the object (object frame, m). Without both, the
         hand never turns. opening : the object's openings the hand must not enter either (a
-        mug's cavity: a palm that rests in it does not fit), object frame, or None.
+        mug's cavity: a palm that rests in it does not fit), object frame, or None. samples :
+        the object's surface samples, which measure how deep the hand's boxes reach into it
+        (default: a lattice over each box, :func:`~handover.geometry.penetration.box_depths`).
+        cuts : a dict to keep the sections measured in (one per region and mesh: presentations
+        and turns that cut the part at the same place measure it once).
     """
     k = len(rotations)
     site = np.full((k, 3), np.nan)
@@ -250,8 +272,9 @@ def predict_receiver_sites(
         def measure(turn: float) -> ReceiverSites:
             # the hand turns about the part's axis
             approach = np.einsum("kij,kj->ki", _spin(axes, turn), default)
-            return _wrapped(region, band_site, part, axes, approach, band, grip_width, mesh)
-    return _fitted(measure, hand, mesh, opening)
+            return _wrapped(region, band_site, part, axes, approach, band, grip_width, mesh,
+                            cuts)
+    return _fitted(measure, hand, mesh, samples, opening)
 
 
 APPROACH_TURNS_DEG = (0.0, 45.0, -45.0, 90.0, -90.0)
@@ -278,28 +301,42 @@ def _spin(axes: np.ndarray, deg: float) -> np.ndarray:
     return rotation_about_axis(axes, np.full(len(axes), np.radians(deg)))
 
 
-def _fitted(measure, hand, mesh, opening: Interior | None = None) -> ReceiverSites:
+def _fitted(measure, hand, mesh, samples=None, opening: Interior | None = None) -> ReceiverSites:
     """The receiver's sites with each presentation's hand turned (``APPROACH_TURNS_DEG``,
     ``measure(turn)`` giving the sites of every presentation at that turn) to the first turn
     at which its boxes reach at most ``HAND_GIVE`` into ``mesh`` and none enters ``opening``
     (the least deep where none does; a box in the opening counts as :data:`IN_OPENING`
-    deep). Without a hand model or a mesh: the untouched first turn."""
+    deep), measured with ``samples`` when given, else a lattice over each box. Without a hand
+    model or a mesh: the untouched first turn."""
     first = measure(APPROACH_TURNS_DEG[0])
     if hand is None or mesh is None or not first.valid.any():
         return first
-    from functools import partial
+    if samples is not None:
+        def into_solid(centres, rots, halves):
+            return samples.box_depths(centres, rots, halves)
+    else:
+        from handover.geometry.penetration import box_depths
 
-    from handover.geometry.penetration import box_depths as into_solid
+        def into_solid(centres, rots, halves):
+            # a 3-point lattice (a subset of the rule's 5-point one): it never finds a box
+            # deeper than the rule does, so the hand turns only where it must
+            return box_depths(mesh, centres, rots, halves, lattice=FIT_LATTICE)
 
-    box_depths = partial(_depths, into_solid, opening)
+    def depths(centres, rots, halves):
+        depth = into_solid(centres, rots, halves)
+        if opening is not None:
+            enter = opening.boxes_enter(centres, rots, halves, lattice=FIT_LATTICE)
+            depth = np.where(enter, np.maximum(depth, IN_OPENING), depth)
+        return depth
+
     chosen = first
-    best = _box_depths(first, hand, mesh, np.flatnonzero(first.valid), box_depths)
+    best = _box_depths(first, hand, np.flatnonzero(first.valid), depths)
     todo = np.flatnonzero(first.valid)[best[first.valid] > HAND_GIVE]
     for turn in APPROACH_TURNS_DEG[1:]:
         if not len(todo):
             break
         other = measure(turn)
-        depth = _box_depths(other, hand, mesh, todo, box_depths)
+        depth = _box_depths(other, hand, todo, depths)
         better = todo[depth[todo] < best[todo]]
         if len(better):
             chosen = _take(chosen, other, better)
@@ -313,20 +350,9 @@ IN_OPENING = 1.0
 fit (deeper than any box into the material: a turn that keeps out of the opening wins)."""
 
 
-def _depths(into_solid, opening: Interior | None, mesh, centres: np.ndarray,
-            rotations: np.ndarray, halves: np.ndarray, lattice: int) -> np.ndarray:
-    """(n,) m: how deep each box reaches into ``mesh`` (``into_solid``), and
-    :data:`IN_OPENING` for a box that enters ``opening``."""
-    depth = into_solid(mesh, centres, rotations, halves, lattice=lattice)
-    if opening is not None:
-        enter = opening.boxes_enter(centres, rotations, halves, lattice=lattice)
-        depth = np.where(enter, np.maximum(depth, IN_OPENING), depth)
-    return depth
-
-
-def _box_depths(sites: ReceiverSites, hand, mesh, ks: np.ndarray, box_depths) -> np.ndarray:
-    """(K,) m: how deep the hand's deepest box reaches into ``mesh`` in presentations ``ks``
-    (object frame; inf elsewhere)."""
+def _box_depths(sites: ReceiverSites, hand, ks: np.ndarray, depths) -> np.ndarray:
+    """(K,) m: how deep the hand's deepest box reaches into the object in presentations
+    ``ks`` (``depths(centres, rotations, halves)``; inf elsewhere)."""
     out = np.full(len(sites.site), np.inf)
     centres, rots, halves, owner = [], [], [], []
     for k in ks:
@@ -338,10 +364,7 @@ def _box_depths(sites: ReceiverSites, hand, mesh, ks: np.ndarray, box_depths) ->
             halves.append(ext / 2.0)
             owner.append(k)
     if owner:
-        # a 3-point lattice (a subset of the rule's 5-point one): it never finds a box
-        # deeper than the rule does, so the hand turns only where it must
-        depth = box_depths(mesh, np.array(centres), np.array(rots), np.array(halves),
-                           lattice=FIT_LATTICE)
+        depth = depths(np.array(centres), np.array(rots), np.array(halves))
         out[ks] = 0.0
         np.maximum.at(out, np.array(owner), depth)
     return out
@@ -358,7 +381,8 @@ def _take(into: ReceiverSites, other: ReceiverSites, ks: np.ndarray) -> Receiver
     return ReceiverSites(mix(into.site, other.site), mix(into.part, other.part),
                          mix(into.thickness, other.thickness), mix(into.valid, other.valid),
                          axis=mix(into.axis, other.axis), depth=mix(into.depth, other.depth),
-                         cupped=into.cupped, approach=mix(into.approach, other.approach))
+                         cupped=into.cupped, approach=mix(into.approach, other.approach),
+                         options=into.options)
 
 
 def _cupped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, approach: np.ndarray,
@@ -393,7 +417,7 @@ def _cupped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, approach
 
 def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: np.ndarray,
              approach: np.ndarray, band: np.ndarray, grip_width: float,
-             mesh: trimesh.Trimesh | None = None) -> ReceiverSites:
+             mesh: trimesh.Trimesh | None = None, cuts: dict | None = None) -> ReceiverSites:
     """The hand closing round the region's whole section at the band's place along the axis
     (every sample within half a grip of it, all round, not only the receiver's half), coming
     along ``approach`` (K, 3): the site is the centre of that section's extent across the
@@ -414,12 +438,14 @@ def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: n
         ext = region.points @ axes.T  # (M, K)
         lo, hi = ext.min(axis=0) + OVERHANG * grip_width, ext.max(axis=0) - OVERHANG * grip_width
         along = np.where(lo <= hi, np.clip(along, lo, np.maximum(lo, hi)), along)
+    known: dict = {} if cuts is None else cuts  # presentations often cut the part at one place
     for col in range(k):  # K presentations (tens), not candidates
-        section = np.abs(solid @ axes[col] - along[col]) <= grip_width / 2.0 + BAND_TOL
-        pts = solid[section] if section.any() else region.points[band[:, col]]
-        if mesh is not None:
-            cut = trimesh.intersections.mesh_plane(mesh, axes[col], along[col] * axes[col])
-            pts = np.concatenate([pts, np.asarray(cut, dtype=float).reshape(-1, 3)])
+        key = (tuple(np.round(axes[col], 12)), round(float(along[col]), 12),
+               hash(band[:, col].tobytes()), round(float(grip_width), 12), mesh is None)
+        if key not in known:
+            known[key] = _section(region, solid, band[:, col], axes[col], along[col],
+                                  grip_width, mesh, trimesh)
+        pts = known[key]
         y, z = pts @ across[col], pts @ approach[col]
         thickness[col] = max(float(np.ptp(y)), MIN_SECTION)
         depth[col] = max(float(np.ptp(z)), MIN_SECTION)
@@ -427,6 +453,71 @@ def _wrapped(region: ReceiverRegion, site: np.ndarray, part: np.ndarray, axes: n
                      + 0.5 * (z.min() + z.max()) * approach[col])  # fmt: skip
     return ReceiverSites(site, part, thickness, np.ones(k, dtype=bool), axis=axes,
                          depth=depth, approach=approach)
+
+
+def _section(region: ReceiverRegion, solid: np.ndarray, band: np.ndarray, axis: np.ndarray,
+             along: float, grip_width: float, mesh, trimesh) -> np.ndarray:
+    """(n, 3) m: the points of the section a hand closes round, ``along`` m on ``axis`` (the
+    solid's samples within half a grip of the plane, and the mesh's cut there, both kept to
+    the pieces of the cut that hold the region's samples ``band`` (M,) bool: see
+    :func:`handover.geometry.sections.section_pieces`)."""
+    section = np.abs(solid @ axis - along) <= grip_width / 2.0 + BAND_TOL
+    pts = solid[section] if section.any() else region.points[band]
+    if mesh is None:
+        return pts
+    cut = np.asarray(trimesh.intersections.mesh_plane(mesh, axis, along * axis),
+                     dtype=float).reshape(-1, 2, 3)
+    u = np.cross(axis, [1.0, 0.0, 0.0])
+    u = u if np.linalg.norm(u) > 0.1 else np.cross(axis, [0.0, 1.0, 0.0])
+    u /= np.linalg.norm(u)
+    frame = np.stack([u, np.cross(axis, u)], axis=1)  # (3, 2): the plane's coordinates
+    own = region.points[band] if band.any() else region.points
+    near, on = section_pieces(cut @ frame, pts @ frame, own @ frame, near=0.5 * BAND_REACH)
+    return np.concatenate([pts[near], cut.reshape(-1, 3)[on]])
+
+
+def wraps_at(region: ReceiverRegion, sites: ReceiverSites, along: np.ndarray,
+             grip_width: float, mesh: trimesh.Trimesh | None = None,
+             cuts: dict | None = None) -> ReceiverSites:
+    """``sites`` (wrapping hands, with ``axis`` and ``approach``) moved along their parts' axes
+    to ``along`` (K,) m (the site's coordinate along the axis, object frame; NaN: not moved,
+    and not valid), their sections measured there as :func:`predict_receiver_sites` does, the
+    part the one most region samples within half a grip of it belong to."""
+    axes = np.asarray(sites.axis, dtype=float)
+    k = len(axes)
+    along = np.asarray(along, dtype=float)
+    moved = np.isfinite(along)
+    target = np.where(moved, along, np.einsum("ki,ki->k", sites.site, axes))
+    site = sites.site + (target - np.einsum("ki,ki->k", sites.site, axes))[:, None] * axes
+    band = np.abs(region.points @ axes.T - target[None, :]) <= grip_width / 2.0 + BAND_TOL
+    nearest = np.argmin(np.abs(region.points @ axes.T - target[None, :]), axis=0)
+    band[nearest, np.arange(k)] |= ~band.any(axis=0)
+    n_parts = int(region.parts.max()) + 1 if len(region.parts) else 1
+    part = np.array([int(np.bincount(region.parts[band[:, col]], minlength=n_parts).argmax())
+                     for col in range(k)], dtype=np.int64)
+    out = _wrapped(region, site, part, axes, sites.approach, band, grip_width, mesh, cuts)
+    out.valid = out.valid & moved & np.asarray(sites.valid, dtype=bool)
+    return out
+
+
+def axis_wraps(region: ReceiverRegion, rotations: np.ndarray, toward: np.ndarray,
+               grip_width: float, mesh: trimesh.Trimesh | None = None,
+               cuts: dict | None = None) -> ReceiverSites:
+    """The hand wrapping a region round its long axis (``region.axis``) at the middle of its
+    length, coming from the receiver (:func:`hand_approach`): a compact region's wrap where
+    :func:`predict_receiver_sites` cups it (a glass, which a hand also holds round its axis).
+    Not valid for an isotropic region (no long axis)."""
+    k = len(rotations)
+    axes = np.broadcast_to(np.asarray(region.axis, dtype=float), (k, 3)).copy()
+    d_obj = np.einsum("kji,j->ki", rotations, toward)
+    approach = hand_approach(axes, d_obj, rotations[:, 2, :])
+    middle = 0.5 * (region.points @ region.axis).min() + 0.5 * (region.points @ region.axis).max()
+    centre = region.points.mean(axis=0)
+    site = np.broadcast_to(centre + (middle - centre @ region.axis) * region.axis, (k, 3))
+    base = ReceiverSites(site=site.copy(), part=np.zeros(k, dtype=np.int64),
+                         thickness=np.zeros(k), valid=np.full(k, not region.isotropic),
+                         axis=axes, approach=approach)
+    return wraps_at(region, base, np.full(k, middle), grip_width, mesh, cuts)
 
 
 def hand_approach(axis: np.ndarray, toward: np.ndarray, up: np.ndarray) -> np.ndarray:
@@ -446,6 +537,7 @@ def predict_two_hand_sites(
     rotations: np.ndarray,
     toward: np.ndarray,
     grip_width: float,
+    mesh: trimesh.Trimesh | None = None,
 ) -> list[ReceiverSites]:
     """Sites of the receiver's two hands for a large object (the paper's 3.3, four hands): on the
     receiver's edge of the region (s* = s_max - grip_width / 2 along robot->receiver), one
@@ -453,8 +545,12 @@ def predict_two_hand_sites(
 
     The receiver faces the robot, so their right hand is on the robot's left,
     ``up x toward``. Each site is the mean of the region samples within half a grip width
-    of (s*, t*) in the horizontal plane; the hand wraps around the lateral direction.
+    of (s*, t*) in the horizontal plane; the hand wraps around the lateral direction. With the
+    ``mesh``, the section it closes round is the mesh's cross-section there (the piece that
+    holds the part, as :func:`predict_receiver_sites` measures it), not only the samples'.
     """
+    import trimesh as _trimesh
+
     k = len(rotations)
     empty = ReceiverSites(np.full((k, 3), np.nan), np.full(k, -1, dtype=np.int64),
                           np.zeros(k), np.zeros(k, dtype=bool))
@@ -484,12 +580,19 @@ def predict_two_hand_sites(
         part = np.zeros(k, dtype=np.int64)
         thickness = np.zeros(k)
         depth = np.zeros(k)
+        solid = region.points if region.solid is None else region.solid
         for col in range(k):  # K presentations (tens), not candidates
             parts = np.bincount(region.parts[band[:, col]], minlength=n_parts)
             part[col] = int(parts.argmax())
             # the hand closes round the edge it holds: the site is the middle of that
             # section, across (h) and along the approach (s), so the palm rests on its face
             hs, ss = h[band[:, col], col], s[band[:, col], col]
+            if mesh is not None:
+                pts = _section(region, solid, band[:, col], l_obj[col],
+                               float(site[col] @ l_obj[col]), grip_width, mesh, _trimesh)
+                near = np.abs(pts @ d_obj[col] - s_target[col]) <= grip_width / 2.0 + BAND_TOL
+                if near.any():  # the section's part within the hand's reach of its edge
+                    hs, ss = pts[near] @ h_obj[col], pts[near] @ d_obj[col]
             thickness[col] = max(float(np.ptp(hs)), MIN_SECTION)
             depth[col] = max(float(np.ptp(ss)), MIN_SECTION)
             site[col] += ((0.5 * (hs.min() + hs.max()) - site[col] @ h_obj[col]) * h_obj[col]

@@ -18,14 +18,15 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 __all__ = ["DECIMALS", "to_jsonable", "dumps", "read_back", "stored_json", "robot_grasp_of",
            "human_grasp_of", "ArmJoints", "GraspSupport", "RobotGrasp",
-           "HandBox", "HumanGrasp", "PlacementSite"]
+           "HandBox", "TakenGrasp", "ReachingArm", "HumanGrasp",
+           "PlacementSite"]
 
 DECIMALS = 6
 """Decimals floats keep in the JSON result: micrometres and microradians."""
@@ -209,25 +210,102 @@ class HandBox:
 
 
 @dataclass(frozen=True)
+class TakenGrasp:
+    """Which grasp of the receiver's repertoire a hand takes (``human_grasps[i].grasp``).
+
+    name, family : the grasp (``wrap``, ``pinch``, ...; its family's geometry). how : the way
+    it holds (``middle``, ``from the receiver``, ...). part : the part under it. thickness :
+    m, the section it holds. palm_depth, finger_depth : m, how deep its palm and fingers
+    press into the object. site_gap : m, its site off the part. max_load_kg : what it may
+    hold. boxes : its boxes (world). source : the hand file that gives it. why : the file's
+    reason, or None. not_taken : each other grasp of the repertoire -> why it is not the one.
+    """
+
+    name: str
+    family: str
+    how: str
+    part: str
+    thickness: float
+    palm_depth: float
+    finger_depth: float
+    site_gap: float
+    max_load_kg: float
+    boxes: tuple[HandBox, ...] = ()
+    source: str = ""
+    why: str | None = None
+    not_taken: dict[str, str] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        return to_jsonable({
+            "name": self.name, "family": self.family, "how": self.how, "part": self.part,
+            "thickness": self.thickness, "palm_depth": self.palm_depth,
+            "finger_depth": self.finger_depth, "site_gap": self.site_gap,
+            "max_load_kg": self.max_load_kg, "type": self.name,
+            "boxes": [b.to_dict() for b in self.boxes], "source": self.source, "why": self.why,
+            "not_taken": dict(self.not_taken)})
+
+    @classmethod
+    def of(cls, data: dict) -> TakenGrasp:
+        """The record of a ``human_grasps[i].grasp`` entry."""
+        return cls(data["name"], data["family"], data["how"], data["part"], data["thickness"],
+                   data["palm_depth"], data["finger_depth"], data["site_gap"],
+                   data["max_load_kg"], _boxes(data.get("boxes", [])), data.get("source", ""),
+                   data.get("why"), dict(data.get("not_taken", {})))
+
+
+@dataclass(frozen=True)
+class ReachingArm:
+    """The receiver's arm reaching for their grasp (``human_grasps[i].arm``): ``shoulder``,
+    ``elbow``, ``wrist`` (3,) m, world; ``radius`` (upper arm, forearm) m; ``hits``: what the
+    arm passes through (empty for a grasp that is taken)."""
+
+    shoulder: np.ndarray
+    elbow: np.ndarray
+    wrist: np.ndarray
+    radius: tuple[float, float]
+    hits: tuple[str, ...] = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        return to_jsonable({"shoulder": self.shoulder, "elbow": self.elbow, "wrist": self.wrist,
+                            "radius": list(self.radius), "hits": list(self.hits)})
+
+    @classmethod
+    def of(cls, data: dict) -> ReachingArm:
+        """The record of a ``human_grasps[i].arm`` entry."""
+        return cls(*(np.asarray(data[k], dtype=float) for k in ("shoulder", "elbow", "wrist")),
+                   tuple(data["radius"]), tuple(data.get("hits", ())))
+
+
+@dataclass(frozen=True)
 class HumanGrasp:
-    """The receiver's predicted grasp (the seed's C). hand : ``left`` | ``right``.
+    """The receiver's predicted grasp (the paper's C). hand : ``left`` | ``right``.
     position : (3,) m, object frame; position_world : (3,) m, world, at the handover (or
     where the object is set down); part : the part under it; model : the boxes of the
-    receiver's hand there (world; empty for an object set down)."""
+    receiver's hand there (world; empty for an object set down); grasp : which grasp of the
+    receiver's repertoire it is (:class:`TakenGrasp`), and arm : the arm reaching for it
+    (:class:`ReachingArm`), None for an object set down."""
 
     hand: str
     position: np.ndarray
     position_world: np.ndarray
     part: str
     model: tuple[HandBox, ...] = ()
+    grasp: TakenGrasp | None = None
+    arm: ReachingArm | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """The ``human_grasps`` entry: ``hand, position, position_world, part, model``."""
+        """The ``human_grasps`` entry: ``hand, position, position_world, part, model`` and,
+        for a handed object, ``grasp, arm``."""
         if stored_json(self) is not None:
             return stored_json(self)
-        return to_jsonable({"hand": self.hand, "position": self.position,
-                            "position_world": self.position_world, "part": self.part,
-                            "model": [b.to_dict() for b in self.model]})
+        out = {"hand": self.hand, "position": self.position,
+               "position_world": self.position_world, "part": self.part,
+               "model": [b.to_dict() for b in self.model]}
+        if self.grasp is not None:
+            out["grasp"] = self.grasp.to_dict()
+        if self.arm is not None:
+            out["arm"] = self.arm.to_dict()
+        return to_jsonable(out)
 
 
 @dataclass(frozen=True)
@@ -268,9 +346,16 @@ def human_grasp_of(data: dict) -> HumanGrasp:
     """A ``human_grasps`` entry (or a placement's receiver site, whose JSON lists
     ``position_world`` last) as its record, read back."""
     cls = PlacementSite if list(data)[-1:] == ["position_world"] else HumanGrasp
-    model = tuple(HandBox(b["name"], np.asarray(b["extents"], dtype=float),
-                          np.asarray(b["pose"], dtype=float)) for b in data.get("model", []))
+    grasp, arm = data.get("grasp"), data.get("arm")
     record = cls(data["hand"], np.asarray(data["position"], dtype=float),
-                 np.asarray(data["position_world"], dtype=float), data["part"], model)
+                 np.asarray(data["position_world"], dtype=float), data["part"],
+                 _boxes(data.get("model", [])), None if grasp is None else TakenGrasp.of(grasp),
+                 None if arm is None else ReachingArm.of(arm))
     return read_back(record, data)
+
+
+def _boxes(data: list[dict]) -> tuple[HandBox, ...]:
+    """Hand boxes from their JSON entries."""
+    return tuple(HandBox(b["name"], np.asarray(b["extents"], dtype=float),
+                         np.asarray(b["pose"], dtype=float)) for b in data)
 

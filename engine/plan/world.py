@@ -70,6 +70,22 @@ class World:
         keep = np.array([n not in drop for n in self.targets.names], dtype=bool)
         return self.targets.subset(keep)
 
+    def arm_obstacles(self) -> Body:
+        """What a receiver's reaching arm must not pass through: the scene (table, obstacles,
+        a bed's rail) and the robot's body; not the receiver's own body, which the arm joins
+        at the shoulder."""
+        keep = np.array([not n.startswith("body:receiver:") for n in self.targets.names],
+                        dtype=bool)
+        return self.targets.subset(keep)
+
+    def arm_radii(self, hand: str) -> tuple[float, float]:
+        """m: the radii of the receiver's upper arm and forearm on the ``hand`` side (their
+        body's capsules)."""
+        names = self.receiver_body.capsule_names
+        radius = self.receiver_body.radius
+        return (float(radius[names.index(f"{hand}_upper_arm")]),
+                float(radius[names.index(f"{hand}_forearm")]))
+
 
 def build_world(situation: Situation, scene_boxes: list, kb_root=None) -> World:
     """The bodies of ``situation``: the receiver standing or seated where the scene puts them,

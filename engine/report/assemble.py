@@ -15,22 +15,25 @@ from handover.engine.errors import UsageError
 from handover.engine.plan.blocking import blocking_sets
 from handover.engine.plan.evaluate import trace_row
 from handover.engine.plan.features import handover_targets
-from handover.engine.plan.records import HandBox, HumanGrasp, RobotGrasp
+from handover.engine.plan.hand_features import joint_choice
+from handover.engine.plan.records import (
+    HumanGrasp,
+    RobotGrasp,
+)
+from handover.engine.report.human import human_record
 from handover.engine.report.result import PlanResult, Regrasp
 
 if TYPE_CHECKING:
     from handover.engine.plan.attempt import Attempt
     from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
     from handover.engine.plan.context import PlanContext
-    from handover.engine.plan.phase import Hands
     from handover.engine.plan.place import PlacementPlan
-    from handover.engine.plan.receiver_sites import ReceiverSites
     from handover.engine.plan.records import ArmJoints
     from handover.engine.plan.situation import Situation
     from handover.engine.spec.schema import GripperSpec
     from handover.geometry.bodies import Body
 
-__all__ = ["build_result", "Shown", "grasp_record", "human_record", "robot_record",
+__all__ = ["build_result", "Shown", "grasp_record", "robot_record",
            "robot_grasps", "human_grasps", "regrasp_block", "trace_block", "candidates_block",
            "alternatives_block", "reason_text", "receiver_block", "gripper_block",
            "scene_block", "bodies_block", "warnings_block", "rule_warnings"]
@@ -50,7 +53,10 @@ def body_record(body: Body) -> list[dict]:
 
 def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
     """Where the object is offered (the receiver's grasp site, world) and why there: the
-    chosen location's measures against the location rules, and what else was considered."""
+    chosen location's measures against the location rules, and what else was considered.
+    ``site_of``: the grasp of each receiving hand whose site the location places (its best
+    grasp there; the one it takes with the robot's gripper, ``human_grasps``, may be
+    another)."""
     if attempt.phase is None:
         return None
     hands = attempt.phase.hands
@@ -72,9 +78,12 @@ def _handover_point(ctx: PlanContext, attempt: Attempt, k: int) -> dict | None:
                  f"where every hard location rule passes and nothing is hit, after "
                  f"{moved.locations_tried} better one(s) where {attempt.mode} found no plan "
                  f"({moved.why}): ")
+    site_of = [f"{s.options.name(k, 0)} ({s.options.label[k, 0]})"
+               for s in hands.sites if s.options is not None and s.options.grasp[k, 0] >= 0]
     return {
         "position": point,
         "presentation": k,
+        "site_of": site_of,
         "located": bool(hands.located[k]),
         "measured": measured,
         "hits": list(hands.hits[k]),
@@ -115,23 +124,6 @@ def grasp_record(ctx: PlanContext, gripper: str, i: int, pose_k: np.ndarray,
         parts=tuple(c.part_names[p] for p in c.parts[i]), score=score, stage=stage,
         arm_joints=arm_joints, id=i, quality=float(c.quality[i]),
         roll_deg=float(np.degrees(c.roll[i])), staged=staged)
-
-
-def human_record(ctx: PlanContext, k: int, hand: str, hands: Hands,
-                 sites: ReceiverSites) -> HumanGrasp | None:
-    """A receiver's predicted grasp (the paper's C) in presentation ``k``: one hand's ``sites`` of
-    ``hands``, with its hand model there; None where that hand has no site."""
-    if not sites.valid[k]:
-        return None
-    site = sites.site[k]
-    from handover.engine.plan.features import hand_model
-
-    pose = hands.poses[k]
-    return HumanGrasp(
-        hand=hand, position=site, position_world=pose[:3, :3] @ site + pose[:3, 3],
-        part=ctx.part_mesh.part_names[int(sites.part[k])],
-        model=tuple(HandBox(name, ext, box)
-                    for name, ext, box in hand_model(ctx, hands.region, sites, k, pose)))
 
 
 def _presentation(ctx: PlanContext, k: int) -> dict:
@@ -312,11 +304,13 @@ def human_grasps(ctx: PlanContext, attempt: Attempt, shown: Shown,
         return [placement.site] if placement.site is not None else []
     if not attempt.feasible:
         return []
-    hands = attempt.phase.hands
+    hands, k = attempt.phase.hands, shown.k
     names = [ctx.situation.receiver.dominant_hand] if len(hands.sites) == 1 \
         else ["right", "left"]
-    found = (human_record(ctx, shown.k, name, hands, sites)
-             for sites, name in zip(hands.sites, names, strict=True))
+    held = tuple(c.grasp for c in attempt.chosen if c.stage != "pick")
+    options = joint_choice(ctx, hands, held, k) if held else [None] * len(hands.sites)
+    found = (human_record(ctx, k, name, hands, sites, j)
+             for sites, name, j in zip(hands.sites, names, options, strict=True))
     return [h for h in found if h is not None]
 
 
@@ -384,6 +378,8 @@ def _mode_counts(attempt: Attempt) -> dict:
         out |= {"pairs_checked": notes.pairs.checked, "pairs_colliding": notes.pairs.colliding}
         if notes.pairs.not_liftable is not None:
             out["pairs_not_liftable"] = notes.pairs.not_liftable
+        if notes.pairs.leaving_no_receiver_grasp:
+            out["pairs_leaving_no_receiver_grasp"] = notes.pairs.leaving_no_receiver_grasp
     if notes.receiver_hands is not None:
         out |= {"receiver_hands": notes.receiver_hands.count,
                 "receiver_hands_why": notes.receiver_hands.why}

@@ -101,7 +101,10 @@ def render_plan(result: dict, console, explain: bool = False) -> None:
         console.print(table)
         for h in result["human_grasps"]:
             pos = ", ".join(f"{v:.3f}" for v in h["position_world"])
-            console.print(f"receiver's {h['hand']} hand on [bold]{h['part']}[/] at ({pos})")
+            grasp = h.get("grasp") or {}
+            how = f": a {grasp['name']} ({grasp['how']})" if grasp.get("name") else ""
+            console.print(f"receiver's {h['hand']} hand on [bold]{h['part']}[/] at ({pos})"
+                          f"{how}")
         pres = result.get("presentation") or {}
         if pres.get("axes_world"):
             axes = "; ".join(

@@ -14,7 +14,8 @@ Kinds of KB document, one per file, told apart by their folder:
 ``etiquette/`` :class:`Culture`         rules; ``common`` is the base every culture extends
 ``receivers/`` :class:`ReceiverProfile` who receives (role, dominant hand, posture)
 ``grippers/``  :class:`GripperSpec`     the robot's parallel-jaw gripper
-``hands/``     :class:`HumanHandSpec`   the receiver's hand model (an obstacle for the robot)
+``hands/``     :class:`HumanHandSpec`   the receiver's hand model and its grasps (an obstacle
+               for the robot; in :mod:`handover.engine.spec.handspec`)
 ``robots/``    :class:`RobotSpec`       hands, payload, gripper, arms (URDF), body
                (in :mod:`handover.engine.spec.robotspec`)
 ``scenes/``    :class:`SceneSpec`       table, obstacles, receiver placement, initial pose
@@ -30,6 +31,7 @@ from typing import Annotated, Literal, Union
 from pydantic import Field, TypeAdapter, field_validator, model_validator
 
 from handover.engine.spec.applies import Applies
+from handover.engine.spec.handspec import GRASP_FAMILIES, HandGraspSpec, HumanHandSpec
 from handover.engine.spec.hazards import HazardFile
 from handover.engine.spec.kbmodel import (
     DIRECTIONS,
@@ -68,6 +70,8 @@ __all__ = [
     "ReceiverProfile",
     "GripperSpec",
     "HumanHandSpec",
+    "HandGraspSpec",
+    "GRASP_FAMILIES",
     "RobotSpec",
     "BoxObstacle",
     "SupportSurface",
@@ -311,8 +315,10 @@ otherwise."""
 
 class ReceiverProfile(KBModel):
     """Who receives: role, dominant hand, posture (standing or seated), stature (m; the body
-    and its reach are sized from it), age (years; rules may depend on it), and the hand model
-    the robot keeps clear of."""
+    and its reach are sized from it), age (years; rules may depend on it), the hand model
+    the robot keeps clear of, the grasps of its repertoire this receiver uses (``grasps``;
+    None: all) and their grip's strength as a fraction of the hand's (``grip_strength``: the
+    load each grasp holds is scaled by it, an elder's weaker grip)."""
 
     id: Id
     name: str
@@ -335,6 +341,8 @@ class ReceiverProfile(KBModel):
         from handover.geometry.physics.params import receiver_grip_force
 
         return receiver_grip_force("adult" if self.role == "superior" else self.role)
+    grasps: list[Id] | None = None
+    grip_strength: Annotated[float, Field(gt=0, le=2, allow_inf_nan=False)] = 1.0
 
     @property
     def years(self) -> float:
@@ -391,20 +399,6 @@ class GripperSpec(KBModel):
         if self.min_opening >= self.max_opening:
             raise ValueError("min_opening must be smaller than max_opening")
         return self
-
-
-class HumanHandSpec(KBModel):
-    """A simple human hand: a palm box and a finger box wrapped around the grasped part.
-
-    palm : (breadth along the held part, length from wrist to knuckles, thickness), m.
-    """
-
-    id: Id
-    name: str
-    palm: tuple[Positive, Positive, Positive]
-    finger_length: Positive
-    finger_thickness: Positive
-    grip_width: Positive
 
 
 class BoxObstacle(KBModel):

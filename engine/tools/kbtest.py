@@ -84,7 +84,7 @@ def case_files(kb: KB, paths: list[Path] | None = None) -> list[KBTestFile]:
     """
     if not paths:
         return list(kb.tests.values())
-    from handover.engine.load.lint import lint_tests
+    from handover.engine.load.lint_tests import lint_tests
     from handover.engine.store.validate import validate_document
     from handover.engine.store.yamlpos import YAML_SUFFIXES, parse_yaml
 

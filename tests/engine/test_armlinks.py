@@ -119,18 +119,24 @@ def receiver_body(result: dict, without: tuple[str, ...] = ()) -> dict[str, fcl.
 
 def receiver_hands(result: dict) -> dict[str, fcl.CollisionObject]:
     """The boxes of the receiver's hands that take the object, where the result puts them
-    at the handover (``human_grasps[].model``, world), and each arm reaching for it: a
-    capsule from the shoulder (the result's body) to the palm's centre, as thick as the
-    upper arm."""
+    at the handover (``human_grasps[].model``, world), and each arm reaching for it, as thick
+    as the body's upper arm: from the shoulder (the result's body) through the elbow to the
+    wrist where the result bends it (``human_grasps[].arm``), the wrist at most a hand's
+    length (0.2 m) from the hand's boxes."""
     out = {f"body:receiver:{h['hand']}_hand:{b['name']}": fcl_object(
         fcl.Box(*b["extents"]), np.asarray(b["pose"])) for h in result["human_grasps"]
         for b in h["model"]}
     parts = {p["name"]: p for p in result["bodies"]["receiver"]}
     for h in result["human_grasps"]:
         upper = parts[f"{h['hand']}_upper_arm"]
-        palm = next(b for b in h["model"] if b["name"] == "palm")
-        out.update(capsule_objects(f"body:receiver:{h['hand']}_arm", upper["p0"],
-                                   np.asarray(palm["pose"])[:3, 3], upper["radius"]))
+        arm = h["arm"]
+        assert np.allclose(arm["shoulder"], upper["p0"], atol=1e-6)
+        hand = np.mean([np.asarray(b["pose"])[:3, 3] for b in h["model"]], axis=0)
+        assert np.linalg.norm(hand - np.asarray(arm["wrist"])) < 0.2
+        out.update(capsule_objects(f"body:receiver:{h['hand']}_upper_arm", upper["p0"],
+                                   arm["elbow"], upper["radius"]))
+        out.update(capsule_objects(f"body:receiver:{h['hand']}_forearm", arm["elbow"],
+                                   arm["wrist"], upper["radius"]))
     return out
 
 

@@ -103,7 +103,7 @@ def test_list_json_is_one_object(capsys):
     cultures = {c["id"]: c for c in data["cultures"]}
     assert cultures["common"]["extends"] is None
     assert cultures["korean"]["extends"] == "common"
-    assert cultures["japanese"]["rules"] == 4
+    assert cultures["japanese"]["rules"] == 5
 
 
 def test_list_text_names_everything(capsys):

@@ -42,8 +42,9 @@ def test_japanese_replaces_in_place_and_appends(builtin_kb):
     assert ids.index("handle_first") == common.index("handle_toward_receiver")
     assert "sharp_tip_away" not in ids and "handle_toward_receiver" not in ids
     # new rules come last, in file order
-    assert ids[-2:] == ["two_hands_for_superiors", "business_card_faces_receiver"]
-    assert len(ids) == len(common) + 2
+    assert ids[-3:] == ["two_hands_for_superiors", "offered_with_both_taken_with_the_whole_hand",
+                        "business_card_faces_receiver"]
+    assert len(ids) == len(common) + 3
     tip = resolved[ids.index("tip_toward_giver")]
     assert tip.culture == "japanese"
     assert [(o.rule.id, o.culture) for o in tip.overrides] == [("sharp_tip_away", "common")]
@@ -53,7 +54,8 @@ def test_japanese_replaces_in_place_and_appends(builtin_kb):
 def test_korean_extends_common(builtin_kb):
     assert culture_chain(builtin_kb, "korean") == (["korean", "common"], None)
     resolved = resolve_culture(builtin_kb, "korean")
-    last = resolved[-1]
+    assert resolved[-1].rule.id == "taken_in_the_whole_hand_when_given_with_both"
+    last = resolved[-2]
     assert (last.rule.id, last.culture, last.rule.mode) == (
         "two_hands_for_elders",
         "korean",

@@ -92,6 +92,9 @@ def kb_dir(tmp_path_factory):
     (objects / "walled_mug_full.yaml").write_text(
         WALLED_MUG.format(extra=", open_container").replace("id: walled_mug", "id: mug_full"))
     (objects / "wine_glass.yaml").write_text(WINE_GLASS)
+    (root / "receivers" / "wrap_only.yaml").write_text(
+        "id: wrap_only\nname: A receiver who takes everything with the whole hand\n"
+        "grasps: [wrap]\n")
     # the same cup, written as a mesh file standing on its base
     hollow.cup(0.033, 0.1, 0.003, 0.005, 48,
                np.diag([1.0, 1.0, 1.0, 1.0]) + np.array([[0, 0, 0, 0], [0, 0, 0, 0],
@@ -171,21 +174,30 @@ def test_the_trace_shows_the_giver_contacts_and_their_parts(planner):
     assert entry["contact_parts"] == grasp["parts"]
 
 
-def test_the_wine_glass_receiver_site_is_on_its_stem_or_bowl(kb_dir, planner):
+@pytest.mark.parametrize("receiver", ["adult", "wrap_only"])
+def test_the_wine_glass_receiver_site_is_on_its_stem_bowl_or_foot(kb_dir, planner, receiver):
+    """On the stem's axis or within 1 mm of the glass's surface: a wrap round the stem, the
+    bowl, or the stem's foot end (a receiver who only wraps), or, with the whole repertoire,
+    also a palm under the foot (the robot holding the stem)."""
     from handover.engine.assets.objects import object_part_mesh
 
-    plan = planner.plan("wine_glass")
+    plan = planner.plan("wine_glass", receiver=receiver)
     result = plan.to_dict()
     assert result["human_grasps"]
     kb = load_kb(kb_dir)
     pm = object_part_mesh(kb, kb.objects["wine_glass"])
     for h in result["human_grasps"]:
         site = np.asarray(h["position"])
-        # on the stem's axis or within 1 mm of the glass's surface
         _, dist, _ = trimesh.proximity.closest_point(pm.mesh, site[None])
         on_stem = np.linalg.norm(site[:2]) <= 0.002 and 0.004 <= site[2] <= 0.084
         assert on_stem or dist[0] <= 0.001
-        assert h["part"] in ("stem", "bowl")
+        if receiver == "wrap_only":
+            assert h["part"] in ("stem", "bowl", "foot") and h["grasp"]["name"] == "wrap"
+            assert on_stem or h["part"] == "bowl"
+        else:
+            assert h["part"] in ("stem", "bowl") or (
+                h["part"] == "foot" and h["grasp"]["family"] == "support"
+                and site[2] <= 1e-6)  # the palm under the foot's bottom face
 
 
 def _palm_depth_by_sampling(mesh: trimesh.Trimesh, ext, pose) -> float:

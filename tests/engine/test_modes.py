@@ -100,7 +100,7 @@ def test_forced_modes_explain_their_failure(capsys):
     r = plan(capsys, "tray", "--mode", "h1g1", code=4)
     assert r["feasible"] is False and r["mode"] is None
     assert "two_hands" in r["reason"] or "H1G1" in r["reason"]
-    r = plan(capsys, "knife", "--mode", "h2g1", code=4)
+    r = plan(capsys, "pen", "--mode", "h2g1", code=4)  # two grippers leave it no room
     assert r["feasible"] is False and r["reason"].startswith("H2G1")
     assert r["modes_tried"] == [{"mode": "H2G1", "feasible": False, "reason": r["reason"]}]
     r = plan(capsys, "hammer", "--scene", "hammer_by_wall", "--mode", "h2g2")

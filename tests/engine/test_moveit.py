@@ -128,7 +128,7 @@ def test_each_grasp_in_the_bag_is_the_tip_link_where_the_gripper_closes(results,
     result = results[name]
     swapped = [closing_stage(result, g)[0] in g.get("fingers_swapped", [])
                for g in result["robot_grasps"]]
-    assert any(swapped) == (name in ("screwdriver", "pen"))  # both cases are met
+    assert any(swapped) == (name in ("screwdriver", "pen", "book"))  # both cases are met
     _, messages = bag(result, tmp_path)
     grasps = grasps_of(messages)
     assert len(grasps) == len(result["robot_grasps"]) >= 1
@@ -156,6 +156,8 @@ def test_h2g2_grasps_close_at_pick_up_and_at_the_midair_regrasp(results, tmp_pat
     tcp = rigid(result["robot"]["arms"][result["robot_grasps"][0]["arm"]]["tcp"])
     # The first grasp's pose_world is where it picks the book up (the JSON gives it there).
     at = pose_matrix(first.grasp_pose) @ tcp
+    if "pickup" in result["robot_grasps"][0].get("fingers_swapped", []):  # fingers alike
+        at = at @ FLIP
     np.testing.assert_allclose(at, rigid(result["robot_grasps"][0]["pose_world"]), atol=2e-6)
     # The second takes it where the first holds it midair.
     midair = np.asarray(result["regrasp"]["midair_pose"]) @ np.asarray(
@@ -277,10 +279,11 @@ def test_the_bag_is_a_ros2_bag_with_the_full_definitions(results, tmp_path):
         "trajectory_msgs/JointTrajectoryPoint", "builtin_interfaces/Duration"]
     assert "\n\n" + "=" * 80 + "\nMSG: geometry_msgs/PoseStamped\n" in text
     # Log times from a fixed base, one millisecond apart, grasps first.
+    first, second = (g["arm"] for g in results["book"]["robot_grasps"])
     assert [(t, s) for t, s, _ in messages] == [
         ("/handover/grasps", 1_000_000_000), ("/handover/grasps", 1_001_000_000),
-        ("/handover/trajectory/right", 1_002_000_000),
-        ("/handover/trajectory/left", 1_003_000_000)]
+        (f"/handover/trajectory/{first}", 1_002_000_000),
+        (f"/handover/trajectory/{second}", 1_003_000_000)]
 
 
 @pytest.mark.parametrize("name", sorted(PLANS))

@@ -48,7 +48,7 @@ def arms_kb(tmp_path_factory) -> Path:
     for side, sign in (("left", 1.0), ("right", -1.0)):
         (root / "scenes" / f"far_{side}.yaml").write_text(SIDE_SCENE.format(
             name=f"far_{side}", side=side, centre=0.3 * sign, receiver=1.1 * sign,
-            facing=-sign, y=0.62 * sign), encoding="utf-8")  # fmt: skip
+            facing=-sign, y=0.68 * sign), encoding="utf-8")  # fmt: skip
     (root / "scenes" / "floor.yaml").write_text(FLOOR_SCENE, encoding="utf-8")
     return root
 

@@ -53,6 +53,19 @@ parts:
 axes:
   up: [0, 0, 1]
 """
+# A 7-year-old who takes everything with the whole hand (no pinch, no support from below):
+# a book is too wide for their wrap.
+WRAP_ONLY_CHILD = """\
+id: wrap_only_child
+name: Child who only wraps
+role: child
+dominant_hand: right
+posture: standing
+stature: 1.25
+age: 7.5
+hand: child_hand
+grasps: [wrap]
+"""
 HOT_BLOCK = """\
 id: hot_block
 name: Hot block
@@ -72,7 +85,8 @@ def planner(tmp_path_factory) -> Planner:
     root = tmp_path_factory.mktemp("cause") / "kb"
     shutil.copytree(builtin_kb_dir(), root)
     for name, text in {"scenes/under_shelf.yaml": UNDER_SHELF, "scenes/far_receiver.yaml": FAR,
-                       "objects/tile.yaml": TILE, "objects/hot_block.yaml": HOT_BLOCK}.items():
+                       "objects/tile.yaml": TILE, "objects/hot_block.yaml": HOT_BLOCK,
+                       "receivers/wrap_only_child.yaml": WRAP_ONLY_CHILD}.items():
         (Path(root) / name).write_text(text, encoding="utf-8")
     return Planner(root, db=False)
 
@@ -106,9 +120,10 @@ def test_a_part_hot_all_over_names_the_rule_that_keeps_the_receiver_off_it(plann
 
 
 def test_the_mode_tried_first_speaks_even_when_another_got_further(planner):
-    """The built-in book for a child: every mode fails; H1G1 is what the query asks first,
-    so its reason is the plan's, whichever mode's rows went further."""
-    plan = planner.plan("book", receiver="child")
+    """The built-in book for a child who takes things only in a wrap: every mode fails; H1G1
+    is what the query asks first, so its reason is the plan's, whichever mode's rows went
+    further."""
+    plan = planner.plan("book", receiver="wrap_only_child")
     assert plan.outcome == "infeasible"
     tried = {t["mode"]: t for t in plan.to_dict()["modes_tried"]}
     assert not any(t["feasible"] for t in tried.values())

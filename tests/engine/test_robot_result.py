@@ -218,7 +218,8 @@ def test_infeasible_and_placed_plans_still_name_the_robot(capsys, moved_kb, tmp_
     """The block describes the robot whatever the outcome; a placement's grasp names the arm
     that sets the object down and its joints at pick-up and where it is set down."""
     handed = plan_json(capsys, "--kb", str(moved_kb), "plan", "knife")
-    r = plan_json(capsys, "--kb", str(moved_kb), "plan", "knife", "--mode", "h2g1",
+    # a pen between two grippers leaves no room (the knife's handle leaves a tripod's)
+    r = plan_json(capsys, "--kb", str(moved_kb), "plan", "pen", "--mode", "h2g1",
                   code=EXIT_INFEASIBLE)  # fmt: skip
     assert r["outcome"] == "infeasible" and r["robot_grasps"] == []
     assert r["robot"] == handed["robot"]

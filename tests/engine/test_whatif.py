@@ -80,6 +80,9 @@ def kb_dir(tmp_path_factory):
     (root / "objects" / "short_knife.yaml").write_text(SHORT_KNIFE)
     (root / "grippers" / "small_jaw.yaml").write_text(SMALL_JAW)
     (root / "etiquette" / "picky.yaml").write_text(PICKY.format(q=0.5))
+    # a receiver who takes everything with the whole hand: no room on the short handle
+    (root / "receivers" / "whole_hand.yaml").write_text(
+        "id: whole_hand\nname: Takes everything with the whole hand\ngrasps: [wrap]\n")
     return root
 
 
@@ -98,7 +101,10 @@ def test_a_handle_too_short_for_gripper_and_hand_names_the_geometry_first(planne
     assert hand["grip_width"] + jaw["finger_width"] + 2 * jaw["clearance"] > handle
     assert hand["grip_width"] + small["finger_width"] + 2 * small["clearance"] < handle
 
-    plan = planner.plan("short_knife", what_if=True)
+    # with a fingertip grasp of the repertoire the adult takes it beside the gripper ...
+    assert planner.plan("short_knife").feasible
+    # ... one who only wraps cannot
+    plan = planner.plan("short_knife", receiver="whole_hand", what_if=True)
     assert not plan.feasible
     reason = plan.reason
     cause = reason.index("the cause:")
@@ -121,11 +127,12 @@ def test_a_handle_too_short_for_gripper_and_hand_names_the_geometry_first(planne
     grippers = [c for c in changes if c["kind"] == "gripper"]
     assert [c["detail"].split()[1].rstrip(":") for c in grippers] == ["small_jaw"]
     # checked again here: the smaller gripper really plans it
-    assert planner.plan("short_knife", gripper="small_jaw").feasible
+    assert planner.plan("short_knife", receiver="whole_hand", gripper="small_jaw").feasible
     for c in changes:
         if c["kind"] in ("receiver", "scene"):
             name = c["detail"].split()[1].rstrip(":")
-            assert planner.plan("short_knife", **{c["kind"]: name}).feasible, c
+            query = {"receiver": "whole_hand"} | {c["kind"]: name}
+            assert planner.plan("short_knife", **query).feasible, c
 
 
 def test_a_forced_mode_lists_the_modes_that_work(planner):
@@ -165,9 +172,11 @@ def test_a_feasible_plan_has_nothing_to_change(planner):
 
 def test_the_cli_prints_the_changes_and_puts_them_in_the_json(kb_dir, tmp_path, capsys):
     db = str(tmp_path / "db")
-    rc = main(["--kb", str(kb_dir), "plan", "short_knife", "--what-if", "--db", db])
+    args = ["--kb", str(kb_dir), "plan", "short_knife", "--receiver", "whole_hand", "--what-if",
+            "--db", db]
+    rc = main(args)
     out = capsys.readouterr().out
     assert rc == 4 and "what if" in out and "--gripper small_jaw" in out
-    rc = main(["--kb", str(kb_dir), "plan", "short_knife", "--what-if", "--json", "--db", db])
+    rc = main([*args, "--json"])
     data = json.loads(capsys.readouterr().out)
     assert rc == 4 and any(c["kind"] == "gripper" for c in data["what_if"])

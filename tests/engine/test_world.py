@@ -91,19 +91,9 @@ def receiver_landmarks(result: dict):
 
 REFUSED = {(obj, "child") for obj in ("knife", "pen", "scissors", "screwdriver")}
 """Built-in cases a rule refuses: a sharp or pointed object to a child under 8."""
-NOT_YET = {("book", "child"), ("book", "child_10")}
-"""Built-in cases refused today that a careful person would hand over: a book to a child (the
-receiver's hand has one shape, a wrap round the whole section, too small for a book)."""
 
 
-def _case(obj: str, receiver: str):
-    if (obj, receiver) in NOT_YET:
-        return pytest.param(obj, receiver, marks=pytest.mark.xfail(
-            strict=True, reason="the receiver's hand has one shape: a child's cannot take a book"))
-    return pytest.param(obj, receiver)
-
-
-@pytest.mark.parametrize(("obj", "receiver"), [_case(o, r) for o in OBJECTS for r in RECEIVERS])
+@pytest.mark.parametrize(("obj", "receiver"), [(o, r) for o in OBJECTS for r in RECEIVERS])
 def test_every_object_to_every_receiver_is_offered_in_free_space_within_reach(
     planner, obj, receiver
 ):
@@ -122,10 +112,15 @@ def test_every_object_to_every_receiver_is_offered_in_free_space_within_reach(
         assert reach <= lm.arm_reach + 1e-6, f"{h['hand']} hand {reach:.3f} m from the shoulder"
     point = np.asarray(r["handover_point"]["position"])
     assert r["handover_point"]["located"] and r["handover_point"]["measured"]["clear"] == 1.0
-    # The handover point is the receiver's grasp site (the middle of two hands' sites).
+    # The handover point is the receiver's grasp site (the middle of two hands' sites) of the
+    # grasps it was chosen for; a hand that takes another grasp (the robot's gripper is in
+    # the way of the best one) holds the same object within a hand's length of it.
     sites = np.array([h["position_world"] for h in r["human_grasps"]])
-    if len(sites):
+    taken = [f"{h['grasp']['name']} ({h['grasp']['how']})" for h in r["human_grasps"]]
+    if len(sites) and taken == r["handover_point"]["site_of"]:
         np.testing.assert_allclose(point, sites.mean(axis=0), atol=1e-6)
+    elif len(sites):
+        assert np.linalg.norm(sites.mean(axis=0) - point) <= lm.hand + 1e-6
 
 
 def knife_part_centres(plan) -> dict[str, np.ndarray]:

@@ -586,10 +586,6 @@ def test_a_carton_in_a_skewed_frame_is_offered_its_label_the_same_way(turn):
     check_rotated_invariance("juice_carton", SKEWS[turn])
 
 
-@pytest.mark.xfail(strict=True, reason="the candidates are sampled on the composed mesh, whose "
-                   "faces the frame orders, and approached at rolls the frame starts: in the "
-                   "skewed frame the arms reach no upright grasp among the best, and the bottle "
-                   "is offered lying, its label sideways")
 def test_a_pill_bottle_in_a_skewed_frame_is_offered_like_the_upright_file():
     check_rotated_invariance("pill_bottle", SKEWS[0], PILL_BOTTLE)
 

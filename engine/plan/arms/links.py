@@ -192,7 +192,7 @@ def _hand_boxes(ctx: PlanContext, phase: Phase, k: int) -> list[tuple]:
     capsule, ``body:receiver:<hand>_arm``, from the shoulder to the palm's centre, as thick
     as the upper arm: the elbow's bend is not known, the straight arm stands for it).
     Memoised per hands and presentation."""
-    from handover.engine.plan.features import hand_models
+    from handover.engine.plan.hand_features import hand_models
     from handover.geometry.bodies import Body
     from handover.geometry.hand import BOX_NAMES
 

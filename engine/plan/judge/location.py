@@ -14,7 +14,7 @@ if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Phase
 
-__all__ = ["evaluate"]
+__all__ = ["evaluate", "detail"]
 
 
 def evaluate(rule: LocationRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
@@ -26,4 +26,17 @@ def evaluate(rule: LocationRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
                    f"this presentation, so its {rule.measure} cannot be measured")
 
 
-judges(LocationRule, evaluate=evaluate)
+def detail(rule: LocationRule, ctx: PlanContext, phase: Phase, grasp: int,
+           presentation: int) -> dict:
+    """``clearance``: ``distance_m``, how far the object and the receiver's hands (in the
+    grasp they take on the row) stay from the table and the obstacles, measured."""
+    if rule.measure != "clearance" or phase is None or not phase.receiver_present:
+        return {}
+    from handover.engine.plan.hand_features import joint_choice
+    from handover.engine.plan.offer import scene_clearance
+
+    options = joint_choice(ctx, phase.hands, (grasp,), presentation)
+    return {"distance_m": round(scene_clearance(ctx, phase.hands, presentation, options), 6)}
+
+
+judges(LocationRule, evaluate=evaluate, detail=detail)

@@ -45,6 +45,7 @@ from handover.engine.plan.compiler import ConstraintGraph, compile
 from handover.engine.plan.evaluate import evaluate
 from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.features import collision_scene
+from handover.engine.plan.hand_features import pair_leaves_receiver
 from handover.engine.plan.hands import hands_for
 from handover.engine.plan.judge.torque import torques
 from handover.engine.plan.modes.common import (
@@ -170,7 +171,7 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
     best = None
     found: list[tuple] = []  # with arms: the best pairs of each presentation, for the arms
     arms = reach_rule(cg, ctx) is not None
-    checked = colliding = unpickable = overloaded = 0
+    checked = colliding = unpickable = overloaded = receiver_blocked = 0
     for k in np.unique(pk):  # at most 24 presentations; pairs within one are vectorised
         li = ranking[(pk == k) & left][:SIDE_POOL]
         ri = ranking[(pk == k) & right][:SIDE_POOL]
@@ -179,6 +180,9 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
         gl, gr = decision.gi[li], decision.gi[ri]
         hit = grippers_collide(ctx.gripper, poses[gl], widths[gl], poses[gr], widths[gr],
                                paired=False)
+        blocked = ~pair_leaves_receiver(ctx, hands, gl, gr, int(k)) & ~hit
+        receiver_blocked += int(blocked.sum())
+        hit |= blocked  # the two grippers leave a receiving hand no grasp
         checked += hit.size
         colliding += int(hit.sum())
         cl, cr = ctx.candidates.centre[gl], ctx.candidates.centre[gr]
@@ -209,11 +213,14 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
         if np.isfinite(score[a, b]) and (best is None or score[a, b] > best[0] + 1e-12):
             best = (float(score[a, b]), int(gl[a]), int(gr[b]), int(k), float(off[a, b]))
     notes = replace(notes, pairs=Pairs(checked=checked, colliding=colliding,
-                                       not_liftable=unpickable, overloaded=overloaded))
+                                       not_liftable=unpickable, overloaded=overloaded,
+                                       leaving_no_receiver_grasp=receiver_blocked))
     if best is None:
         lift = "both hands" if both_pick else "either hand"
         heavy = (f", {overloaded} where a gripper's share of the weight exceeds its payload "
                  f"or torque limit" if overloaded else "")
+        heavy += (f", {receiver_blocked} of them leaving the receiver's hand no grasp"
+                  if receiver_blocked else "")
         return Attempt("H2G1", False,
                        f"H2G1: no pair of grasps at the far left and far right ({checked} pairs "
                        f"checked, {colliding} with colliding grippers{heavy}, {unpickable} "

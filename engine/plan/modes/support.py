@@ -21,7 +21,7 @@ frame, giving grasp ``[n o a p]``):
 A support is kept when its gripper, with the object at the handover pose, touches neither the
 object, nor the table, obstacles and bodies at the handover
 (:func:`~handover.engine.plan.features.handover_targets`), nor the receiver's hands
-(:func:`~handover.engine.plan.features.receiver_hand_boxes`), nor the giving gripper. It joins
+(:func:`~handover.engine.plan.hand_features.receiver_hand_boxes`), nor the giving gripper. It joins
 after pick-up (as H2G1's second hand does), so it is not checked against the table there.
 
 With arms, both grippers are held by arms solved by exact inverse kinematics, as every other
@@ -182,7 +182,8 @@ def find_support(ctx: PlanContext, attempt: Attempt) -> tuple[Support | None, st
     gripper can support, collision-free (with arms: both held by arms solved by inverse
     kinematics, :func:`support_arm`), and the support; or None and why not."""
     from handover.engine.plan.arms.solve import confirm, preferred_sides, reach_rule
-    from handover.engine.plan.features import handover_targets, receiver_hand_boxes
+    from handover.engine.plan.features import handover_targets
+    from handover.engine.plan.hand_features import receiver_hand_boxes
     from handover.geometry.collision import BoxWorld, grippers_collide
 
     g = ctx.gripper
@@ -225,7 +226,7 @@ def find_support(ctx: PlanContext, attempt: Attempt) -> tuple[Support | None, st
         world = targets.moved(inv).posed_hits(posed) if len(targets) else \
             np.zeros((len(cand), 0), bool)
         clear["table, obstacles and bodies"] = ~world.any(axis=1)
-        boxes = receiver_hand_boxes(ctx, hands, k)
+        boxes = receiver_hand_boxes(ctx, hands, k, (i,))
         clear["receiver's hands"] = (~BoxWorld(boxes).moved(inv).posed_hits(posed).any(axis=1)
                                      if boxes else np.ones(len(cand), bool))
         ok = np.logical_and.reduce(list(clear.values()))

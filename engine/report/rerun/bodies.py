@@ -15,10 +15,13 @@ from handover.engine.report.rerun.stages import ENTITY_ARMS
 
 if TYPE_CHECKING:
     from handover.engine.assets.robot import RobotArms
+    from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
     from handover.engine.plan.records import RobotGrasp
+    from handover.engine.report.result import PlanResult
 
 __all__ = ["ARM_COLOURS", "ROBOT_BODY_COLOUR", "arm_primitives", "log_arms", "log_body",
-           "boxes_arrays", "quaternions"]
+           "boxes_arrays", "quaternions", "log_receiver"]
 
 ROBOT_BODY_COLOUR = (110, 115, 130)
 ARM_COLOURS = {"left": (90, 125, 180), "right": (180, 120, 80)}
@@ -164,3 +167,35 @@ def log_arms(rec, arms: RobotArms, grasps: list[RobotGrasp], stage: str,
         [c["points"] for c in chains], radii=0.005,
         colors=[ARM_COLOURS.get(c["side"], ROBOT_BODY_COLOUR) for c in chains],
         labels=[f"{c['side']} arm at rest, {STAGE_WORDS[stage]}" for c in chains]))
+
+
+def log_receiver(rec, result: PlanResult, ctx: PlanContext, phase: Phase | None, k: int,
+                 colour: tuple[int, int, int]) -> None:
+    """The receiver's hands (``world/receiver/hands``: the boxes of the result's
+    ``human_grasps``, each labelled with its hand and the grasp it takes; for a plan with none,
+    an infeasible one, each hand's best grasp in the shown presentation ``k``) and their
+    reaching arms (``world/receiver/arms``: shoulder, elbow, wrist), static."""
+    import rerun as rr
+
+    from handover.engine.plan.hand_features import receiver_hand_boxes
+
+    boxes, labels = [], []
+    for h in result.human_grasps:
+        grasp = f"{h.grasp.name}: " if h.grasp is not None else ""
+        for box in h.model:
+            boxes.append((box.name, box.extents, box.pose))
+            labels.append(f"receiver {h.hand} {grasp}{box.name}")
+    if not boxes and phase is not None:
+        boxes = receiver_hand_boxes(ctx, phase.hands, k)
+        labels = [f"receiver {b[0]}" for b in boxes]
+    names, centres, half, quats = boxes_arrays(boxes)
+    if names:
+        rec.log("world/receiver/hands", rr.Boxes3D(
+            centers=centres, half_sizes=half, quaternions=quats, colors=colour,
+            labels=labels, fill_mode="solid"), static=True)  # fmt: skip
+    reaching = [h for h in result.human_grasps if h.arm is not None]
+    if reaching:
+        rec.log("world/receiver/arms", rr.LineStrips3D(
+            [np.array([h.arm.shoulder, h.arm.elbow, h.arm.wrist]) for h in reaching],
+            radii=[float(np.mean(h.arm.radius)) for h in reaching], colors=colour,
+            labels=[f"receiver's {h.hand} arm" for h in reaching]), static=True)  # fmt: skip

@@ -209,7 +209,8 @@ def stage_documents(
         text += _grasps_table(result.robot_grasps) + "\n\n"
         for h in result.human_grasps:
             pos = ", ".join(f"{v:.3f}" for v in np.asarray(h.position_world, dtype=float))
-            text += f"Receiver's {h.hand} hand on **{h.part}** at ({pos}).\n\n"
+            how = f", a **{h.grasp.name}** ({h.grasp.how})" if h.grasp is not None else ""
+            text += f"Receiver's {h.hand} hand on **{h.part}** at ({pos}){how}.\n\n"
         axes = (result.presentation or {}).get("axes_world") or {}
         if axes:
             text += ("Placed with " if placed else "Presented with ") + "; ".join(

@@ -41,7 +41,9 @@ Entities (see ``ENTITY_*``)::
                                       Capsules3D, Boxes3D: the bodies, static
     world/handover/locations          Points3D: candidate handover locations, the chosen one
                                       large (stage 0)
-    world/receiver/hands              Boxes3D: the receiver's hand model(s), shown presentation
+    world/receiver/hands              Boxes3D: the receiver's hand model(s), shown presentation,
+                                      each box labelled with its hand and grasp
+    world/receiver/arms               LineStrips3D: their reaching arms (shoulder, elbow, wrist)
     world/receiver/sites              Points3D: the receiver's predicted grasp (stage 4)
     world/initial                     Transform3D: object -> world at pick-up
     world/initial/object              Mesh3D, faces coloured by part
@@ -78,12 +80,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.errors import UsageError
-from handover.engine.plan.features import receiver_hand_boxes
 from handover.engine.report.rerun.bodies import (
     ROBOT_BODY_COLOUR,
     boxes_arrays,
     log_arms,
     log_body,
+    log_receiver,
     quaternions,
 )
 from handover.engine.report.rerun.stages import (
@@ -352,12 +354,7 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
             labels=list(axes), colors=[AXIS_COLOURS.get(a, OTHER_AXIS_COLOUR) for a in axes]),
             static=True)  # fmt: skip
     phase = attempt.phase if attempt is not None else None
-    hand_boxes = receiver_hand_boxes(ctx, phase.hands, k) if phase is not None else []
-    names, centres, half, quats = boxes_arrays(hand_boxes)
-    if names:
-        rec.log("world/receiver/hands", rr.Boxes3D(
-            centers=centres, half_sizes=half, quaternions=quats, colors=RECEIVER_HAND_COLOUR,
-            labels=[f"receiver {nm}" for nm in names], fill_mode="solid"), static=True)  # fmt: skip
+    log_receiver(rec, result, ctx, phase, k, RECEIVER_HAND_COLOUR)
     rec.set_time(TIMELINE, sequence=0)
     _log_locations(rec, phase, k)
     rec.log(ENTITY_CANDIDATES, rr.AnnotationContext(

@@ -40,6 +40,8 @@ FEATURES: dict[str, tuple[float, str, str]] = {
     "clearance": (3.0, "grasp x presentation", "distance from robot grasp to receiver site"),
     "location": (1.0, "presentation", "the handover location chosen for the presentation"),
     "hand_fit": (10.0, "presentation", "the receiver's hand on the object: site, palm, fingers"),
+    "receiver_grasp": (10.0, "grasp x presentation",
+                       "the receiver's grasp (wrap, pinch, ...) chosen for the row"),
     "keep_out_gripper": (20.0, "grasp", "gripper boxes reaching into the object's opening"),
     "keep_out_receiver_hand": (20.0, "presentation",
                                "receiver's hand boxes reaching into the object's opening"),

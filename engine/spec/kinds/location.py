@@ -1,8 +1,9 @@
 """``location``: where the object is offered. A measure of the chosen handover location
 (the receiver's reach, the height between elbow and chest, the distance in front of them,
-the side, the robot's reach, nothing hit there) within bounds (hard) or near a preferred
-value (soft). The location is chosen per presentation before the grasps are judged
-(:mod:`handover.engine.plan.world`); each row reports its presentation's location."""
+the side, the robot's reach, nothing hit there, the distance kept from obstacles) within
+bounds (hard) or near a preferred value (soft). The location is chosen per presentation
+before the grasps are judged (:mod:`handover.engine.plan.world`); each row reports its
+presentation's location."""
 
 from __future__ import annotations
 
@@ -14,7 +15,8 @@ from pydantic import model_validator
 from handover.engine.spec.kbmodel import Finite, Positive
 from handover.engine.spec.kinds.base import RuleBase, register
 
-Measure = Literal["receiver_reach", "height", "front", "lateral", "robot_reach", "clear"]
+Measure = Literal["receiver_reach", "height", "front", "lateral", "robot_reach", "clear",
+                  "clearance"]
 
 
 LOCATION_MEASURES = {
@@ -27,8 +29,13 @@ LOCATION_MEASURES = {
                 "receiving hand"),
     "robot_reach": ("fraction", "horizontal distance of the receiver's grasp site from the "
                     "robot's base axis over the robot's reach"),
-    "clear": ("", "1 when the object and the receiver's hands at this location hit nothing "
-              "(table, obstacles, bodies), else 0"),
+    "clear": ("", "1 when the object, the receiver's hands and their reaching arm at this "
+              "location hit nothing (table, obstacles, bodies; the arm: the scene and the "
+              "robot), else 0"),
+    "clearance": ("m", "how far the object and the receiver's hands stay from the scene's "
+                  "table and obstacles at this location, at least: the hard clearance rules' "
+                  "largest min where a location clear by that much was found (the trace "
+                  "gives the distance measured), 0 where none was"),
 }
 """Measures a ``location`` rule may judge: name -> (unit, meaning)."""
 
