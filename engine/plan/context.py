@@ -80,6 +80,7 @@ class Memo:
 
     # PlanContext itself
     poses: np.ndarray | None = None  # (N, 4, 4) gripper poses, object frame
+    pad_patches: np.ndarray | None = None  # (N, 3) pads' patch radius, extents; NaN: not yet
     gripper_boxes: PosedBoxes | None = None  # the gripper's boxes at every candidate
     d_obj: np.ndarray | None = None  # (K, 3) robot->receiver per presentation, object frame
     world: World | None = None
@@ -112,7 +113,8 @@ class Memo:
     arm_pairs: dict[tuple, tuple] = field(default_factory=dict)
 
     GRASP_ONLY: ClassVar[tuple[str, ...]] = (
-        "poses", "gripper_boxes", "gripper_spheres", "collision_scene", "keep_out_gripper",
+        "poses", "pad_patches", "gripper_boxes", "gripper_spheres", "collision_scene",
+        "keep_out_gripper",
         "interior", "world", "locations", "arms")
     """Fields that depend on the grasps only, not on the presentations' rotations."""
 

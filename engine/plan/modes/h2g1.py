@@ -47,7 +47,7 @@ from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.features import collision_scene
 from handover.engine.plan.hand_features import pair_leaves_receiver
 from handover.engine.plan.hands import hands_for
-from handover.engine.plan.judge.torque import torques
+from handover.engine.plan.judge.torque import pair_uses
 from handover.engine.plan.modes.common import (
     H2G1_RELOCATIONS,
     RETRY_CHECKS,
@@ -55,7 +55,7 @@ from handover.engine.plan.modes.common import (
     relocated,
 )
 from handover.engine.plan.phase import Hands, Phase
-from handover.engine.spec.kinds.torque import load_shares, pair_lever
+from handover.engine.spec.kinds.torque import load_shares
 
 if TYPE_CHECKING:
     from handover.engine.load.loader import KB
@@ -105,13 +105,16 @@ def _overloaded(ctx: PlanContext, cg: ConstraintGraph, gl: np.ndarray, gr: np.nd
     left = (ctx.candidates.centre[gl] @ rot.T)[:, None, :]
     right = (ctx.candidates.centre[gr] @ rot.T)[None, :, :]
     share_l = load_shares(com_w, left, right)  # (L, R)
-    lever = pair_lever(com_w, left, right)
     mass, payload = ctx.facts.mass, ctx.facts.payload
     over = (np.maximum(share_l, 1.0 - share_l) * mass > payload + 1e-12)
-    for c in cg.hard:
-        if c.rule.kind == "torque":
-            worst = np.maximum(share_l, 1.0 - share_l)
-            over |= torques(c.rule, ctx, worst, lever) > c.rule.max_nm + 1e-12
+    rules = [c.rule for c in cg.hard if c.rule.kind == "torque"]
+    if rules:
+        ll, rr = np.meshgrid(gl, gr, indexing="ij")
+        ll, rr = ll.ravel(), rr.ravel()
+        pk = np.full(len(ll), k)
+        for rule in rules:
+            use = np.maximum(pair_uses(rule, ctx, ll, rr, pk), pair_uses(rule, ctx, rr, ll, pk))
+            over |= (use > 1.0 + 1e-12).reshape(over.shape)
     return over
 
 
