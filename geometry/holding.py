@@ -37,8 +37,8 @@ import numpy as np
 if TYPE_CHECKING:
     import trimesh
 
-__all__ = ["PadGrip", "Patches", "contact_patches", "holding_capacity", "load_torques",
-           "utilisation", "GRAVITY"]
+__all__ = ["PadGrip", "Patches", "contact_patches", "holding_capacity", "squeeze_capacity",
+           "load_torques", "utilisation", "GRAVITY"]
 
 GRAVITY = 9.81
 """m/s^2."""
@@ -162,6 +162,26 @@ def holding_capacity(grip: PadGrip, patches: Patches, widths: np.ndarray) -> np.
         f * patches.extent_n + couple,
         np.full(len(widths), 2.0 * mu * f),
     ], axis=1)
+
+
+def squeeze_capacity(grip: PadGrip, force: float, tip: tuple[float, float],
+                     rows: int) -> np.ndarray:
+    """(rows, 4) what one press of closed jaws holds (a squeeze: two arms press an object
+    between them; :mod:`handover.geometry.squeeze`), in its grasp frame (``a`` the press):
+    [about n, o, a (N m), along the surface (N)]. Its fingertips' patch is ``tip`` = (along
+    n, along o) m, pressed with ``force`` N: about the press, ``force (mu rho + mu_t)``
+    (``rho`` the patch's friction radius); about the patch's own axes, the couple of the
+    pressure moving to its edge, ``force`` x half its extent across; along the surface, ``mu
+    force``. Each press carries its share of the load (the pair holds it together)."""
+    if not (np.isfinite(force) and force > 0):
+        raise ValueError(f"a squeeze force must be a positive number of N, got {force}")
+    ext_n, ext_o = (float(v) for v in tip)
+    grid = _pad_grid(PadGrip(force, grip.friction, grip.torsional_friction, ext_n, ext_o),
+                     min(ext_n, ext_o) / 4.0)
+    rho = float(np.linalg.norm(grid - grid.mean(axis=0), axis=1).mean())
+    row = [force * ext_o / 2.0, force * ext_n / 2.0,
+           force * (grip.friction * rho + grip.torsional_friction), grip.friction * force]
+    return np.tile(row, (rows, 1))
 
 
 def load_torques(poses: np.ndarray, com: np.ndarray, down: np.ndarray,

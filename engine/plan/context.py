@@ -22,6 +22,7 @@ from handover.engine.plan.presentation import (
 from handover.engine.plan.situation import Situation
 from handover.engine.plan.world import World, build_world
 from handover.engine.spec.applies import Facts
+from handover.geometry.squeeze import SOURCE_SQUEEZE
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -192,7 +193,8 @@ class PlanContext:
         contacts on parts the robot may hold (no part tagged with one of ``forbid``, the
         tags the giver's hard contact rules forbid). Zero means no single gripper can take
         the object: a mug too wide for the gripper still has its handle, a saucepan its
-        handle; a tray wider than any opening with no rim to pinch has none. Memoised per
+        handle; a tray wider than any opening with no rim to pinch has none (squeeze sites,
+        two arms pressing it between closed jaws, do not count). Memoised per
         ``forbid``."""
         memo = self.memo.single_grasps
         if forbid not in memo:
@@ -200,6 +202,7 @@ class PlanContext:
             held = np.array([not (t & forbid) for t in self.part_tags] or [True], dtype=bool)
             ok = (c.width <= self.gripper.max_opening + 1e-12) if len(c) else np.zeros(0, bool)
             if len(c):
+                ok &= c.source != SOURCE_SQUEEZE  # a press of closed jaws holds nothing alone
                 ok &= held[c.parts].all(axis=1)
             memo[forbid] = int(ok.sum())
         return memo[forbid]

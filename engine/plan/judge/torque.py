@@ -11,16 +11,22 @@ import numpy as np
 
 from handover.engine.plan.judge.base import Outcome, inapplicable, judges
 from handover.engine.spec.kinds.torque import GRAVITY, TorqueRule, load_shares, pair_lever
+from handover.geometry.squeeze import SOURCE_SQUEEZE
 
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Phase
     from handover.geometry.holding import PadGrip
 
-__all__ = ["evaluate", "detail", "pad_grip", "pad_patches", "capacity", "grasp_loads",
-           "uses", "pair_uses"]
+__all__ = ["evaluate", "detail", "pad_grip", "pad_patches", "capacity", "pair_capacity",
+           "squeeze_force", "grasp_loads", "uses", "pair_uses"]
 
 _DOWN = np.array([0.0, 0.0, -1.0])
+
+
+def down_world(rows: int) -> np.ndarray:
+    """(rows, 3) gravity's direction in the world."""
+    return np.tile(_DOWN, (rows, 1))
 
 
 def pad_grip(ctx: PlanContext) -> PadGrip:
@@ -36,12 +42,14 @@ def pad_grip(ctx: PlanContext) -> PadGrip:
 
 def pad_patches(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
     """(R, 3) the pads' contact patches at candidates ``gi``: friction radius, extent along
-    ``n``, extent along ``a`` (m), computed once per candidate (the context's memo)."""
+    ``n``, extent along ``a`` (m), computed once per candidate (the context's memo); zeros
+    for a squeeze site (closed jaws: no pads across the object)."""
     from handover.geometry.holding import contact_patches
 
     memo = ctx.memo
     if memo.pad_patches is None:
         memo.pad_patches = np.full((ctx.n, 3), np.nan)
+        memo.pad_patches[ctx.candidates.source == SOURCE_SQUEEZE] = 0.0
     gi = np.asarray(gi, dtype=np.int64)
     todo = np.unique(gi[np.isnan(memo.pad_patches[gi, 0])])
     if len(todo):
@@ -60,8 +68,39 @@ def capacity(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
     cap = holding_capacity(pad_grip(ctx), Patches(p[:, 0], p[:, 1], p[:, 2],
                                                   np.zeros((len(gi), 2), np.int64)),
                            ctx.candidates.width[gi])
+    cap[ctx.candidates.source[gi] == SOURCE_SQUEEZE] = 0.0  # a lone press holds nothing
     if rule.max_nm is not None:
         cap[:, :3] = np.minimum(cap[:, :3], rule.max_nm)
+    return cap
+
+
+def squeeze_force(ctx: PlanContext) -> float | None:
+    """N, how hard each of the robot's arms presses in a squeeze (its ``squeeze_force``)."""
+    return ctx.situation.robot.squeeze_force
+
+
+def pair_capacity(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray,
+                  other: np.ndarray) -> np.ndarray:
+    """(R, 4) what grasp ``gi`` holds with ``other`` holding the object too: a pinch what
+    its pads hold (:func:`capacity`); a squeeze site what its press holds at the robot's
+    ``squeeze_force`` (:func:`handover.geometry.holding.squeeze_capacity`) where ``other``
+    is a squeeze site opposing it along one line, else nothing."""
+    from handover.geometry.holding import squeeze_capacity
+    from handover.geometry.squeeze import opposed
+
+    cap = capacity(rule, ctx, gi)
+    c = ctx.candidates
+    sq = c.source[gi] == SOURCE_SQUEEZE
+    force = squeeze_force(ctx)
+    if sq.any() and force is not None:
+        g = ctx.gripper
+        tip = squeeze_capacity(pad_grip(ctx), float(force),
+                               (g.finger_width, 2.0 * g.finger_thickness), int(sq.sum()))
+        both = opposed(c.centre[gi[sq]], c.a[gi[sq]], c.centre[other[sq]], c.a[other[sq]])
+        both &= c.source[other[sq]] == SOURCE_SQUEEZE
+        cap[sq] = np.where(both[:, None], tip, 0.0)
+        if rule.max_nm is not None:
+            cap[:, :3] = np.minimum(cap[:, :3], rule.max_nm)
     return cap
 
 
@@ -139,7 +178,11 @@ def pair_uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, other: np.ndar
     loads = load_torques(poses, poses[:, :3, 3], down, load)  # the pull; no torque yet
     grasp_world = np.einsum("rij,rjk->rik", rot, poses[:, :3, :3])
     loads[:, :3] = np.einsum("rji,rj->ri", grasp_world, (load * lever)[:, None] * line)
-    return _use(rule, loads, capacity(rule, ctx, gi))
+    sq = ctx.candidates.source[gi] == SOURCE_SQUEEZE
+    if sq.any():  # a press holds the weight along the surface it presses (across ``a``)
+        local = np.einsum("rji,rj->ri", grasp_world[sq], load[sq, None] * down_world(len(sq))[sq])
+        loads[sq, 3] = np.hypot(local[:, 0], local[:, 1])
+    return _use(rule, loads, pair_capacity(rule, ctx, gi, other))
 
 
 def _threshold(rule: TorqueRule, ctx: PlanContext) -> str:
@@ -171,7 +214,9 @@ def detail(rule: TorqueRule, ctx: PlanContext, phase: Phase, grasp: int, present
     """What the pads hold at the grasp (twist and tip N m, weight N) and, in H2G1, the share
     of the weight this grasp carries, its load (kg) and lever (m)."""
     gi, pk = np.array([grasp]), np.array([presentation])
-    cap = capacity(rule, ctx, gi)[0]
+    paired = phase is not None and phase.mode == "H2G1" and phase.other_grasp is not None
+    cap = (pair_capacity(rule, ctx, gi, np.array([phase.other_grasp])) if paired
+           else capacity(rule, ctx, gi))[0]
     out = {"holds": {"twist_nm": round(float(cap[1]), 4), "tip_n_nm": round(float(cap[0]), 4),
                      "tip_a_nm": round(float(cap[2]), 4), "weight_n": round(float(cap[3]), 4)}}
     if phase is None or phase.mode != "H2G1":

@@ -47,7 +47,7 @@ from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.features import collision_scene
 from handover.engine.plan.hand_features import pair_leaves_receiver
 from handover.engine.plan.hands import hands_for
-from handover.engine.plan.judge.torque import pair_uses
+from handover.engine.plan.judge.torque import pair_uses, squeeze_force
 from handover.engine.plan.modes.common import (
     H2G1_RELOCATIONS,
     RETRY_CHECKS,
@@ -56,6 +56,7 @@ from handover.engine.plan.modes.common import (
 )
 from handover.engine.plan.phase import Hands, Phase
 from handover.engine.spec.kinds.torque import load_shares
+from handover.geometry.squeeze import SOURCE_SQUEEZE
 
 if TYPE_CHECKING:
     from handover.engine.load.loader import KB
@@ -220,8 +221,14 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
                                        leaving_no_receiver_grasp=receiver_blocked))
     if best is None:
         lift = "both hands" if both_pick else "either hand"
+        holding = ", ".join(c.id for c in cg.hard if c.rule.kind == "torque")
         heavy = (f", {overloaded} where a gripper's share of the weight exceeds its payload "
-                 f"or torque limit" if overloaded else "")
+                 f"or what its grip holds ({holding or 'no holding rule'})"
+                 if overloaded else "")
+        squeezes = ctx.candidates.source[decision.gi[ranking]] == SOURCE_SQUEEZE
+        if overloaded and squeezes.any():
+            heavy += (f"; two arms squeezing it press {squeeze_force(ctx):g} N each, their "
+                      "friction holding too little of its weight")
         heavy += (f", {receiver_blocked} of them leaving the receiver's hand no grasp"
                   if receiver_blocked else "")
         return Attempt("H2G1", False,
