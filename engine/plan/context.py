@@ -144,6 +144,8 @@ class PlanContext:
     declared_part_tags : every part the object's file declares -> its tags as ``part_tags``
     has them (with the object's and what they imply), those the geometry has no face of
     included (a rule about them cannot tell where they are).
+    passed_over : candidates no mode may choose, each with why (the physics check saw them
+    slip or drop: ``handover plan --physics`` plans again without them).
     """
 
     situation: Situation
@@ -164,6 +166,7 @@ class PlanContext:
     repertoire: Repertoire | None = None
     warnings: list[str] = field(default_factory=list)
     declared_part_tags: dict[str, set[str]] = field(default_factory=dict)
+    passed_over: dict[int, str] = field(default_factory=dict)
     memo: Memo = field(default_factory=Memo)
 
     @property

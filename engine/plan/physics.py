@@ -54,7 +54,7 @@ if TYPE_CHECKING:
 
 __all__ = ["FALLBACKS", "GraspCheck", "PlanPhysics", "object_model", "gripper_hand",
            "squeeze_hand", "plan_motion", "plan_grasps", "receiver_grasps", "check_group",
-           "check_plan", "check_alternatives", "record_plan"]
+           "check_plan", "check_alternatives", "failing_grasps", "record_plan"]
 
 FALLBACKS = 3
 """At most this many next best candidates are checked when the chosen grasp fails."""
@@ -289,15 +289,18 @@ class GraspCheck:
 
 @dataclass(frozen=True)
 class PlanPhysics:
-    """A plan's physics check: ``checked`` the chosen grasps' group, ``failed`` the next
-    best candidates checked after it failed and that failed too, ``holds`` the first of them
-    that held (None if none was checked or none held); ``seconds`` wall time in all."""
+    """A plan's physics check: ``checked`` the chosen grasps' group, ``failed`` the groups
+    checked before or after it that failed (better-scored grasps the plan passed over, or
+    next best candidates that did not hold either), ``holds`` the first alternative that
+    held (None if none was checked or none held); ``passed_over`` the candidates the plan
+    was planned again without, each with why; ``seconds`` wall time in all."""
 
     checked: GraspCheck
     failed: tuple[GraspCheck, ...] = ()
     holds: GraspCheck | None = None
     seconds: float = 0.0
     notes: tuple[str, ...] = field(default=())
+    passed_over: tuple[tuple[int, str], ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -309,7 +312,33 @@ class PlanPhysics:
         return {"passed": self.passed, "chosen": self.checked.to_dict(),
                 "alternatives_failed": [c.to_dict() for c in self.failed],
                 "alternative_holds": None if self.holds is None else self.holds.to_dict(),
+                "passed_over": [{"id": i, "why": why} for i, why in self.passed_over],
                 "seconds": round(self.seconds, 3), "notes": list(self.notes)}
+
+
+def failing_grasps(check: GraspCheck) -> dict[int, str]:
+    """The candidate ids of a failed group's grippers that let the object slip or drop,
+    each with how (``slipped 6.2 mm / 14.1 deg in shake``): the holders whose slip passed
+    the thresholds in some phase (every gripper of the group when the receiver's hands, or
+    nothing it can tell, failed)."""
+    from handover.geometry.physics import Thresholds
+
+    t = Thresholds()
+    worst: dict[str, tuple[float, float, str, bool]] = {}
+    for p in check.result.nominal.phases:
+        over = p.dropped or p.translation_mm > t.max_slip_mm or p.rotation_deg > t.max_slip_deg
+        if over and p.holder not in worst:
+            worst[p.holder] = (p.translation_mm, p.rotation_deg, p.phase, p.dropped)
+    names = {f"gripper{k}": i for k, i in enumerate(check.ids)}
+    out = {}
+    for holder, (mm, deg, phase, dropped) in worst.items():
+        i = names.get(holder)
+        if i is not None:
+            out[int(i)] = (f"dropped in {phase}" if dropped else
+                           f"slipped {mm:.1f} mm / {deg:.1f} deg in {phase}")
+    if not out:
+        out = {int(i): "the physics check failed" for i in check.ids if i is not None}
+    return out
 
 
 def _specs(kb: KB, data: dict) -> tuple[ObjectSpec, GripperSpec]:
