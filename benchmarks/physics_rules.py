@@ -14,6 +14,12 @@ no ensemble). The table prints each grasp's use of what the pads hold per rule, 
 verdict, the physics verdict (holds / slips / drops, the slip in mm and deg) and whether
 they agree; then the counts. Candidates whose fingers would start inside the object (the
 check refuses them) are counted apart.
+
+Then the squeeze (two arms pressing closed jaws on opposite faces, H2G1): crates written
+here too wide for the gripper, each planned with the shipped robot; the chosen pair judged
+by the holding rules and simulated at several squeeze forces (the robot's ``squeeze_force``
+replaced; the pair is the plan's at the strongest), the rules' verdict against the
+physics.
 """
 
 from __future__ import annotations
@@ -37,6 +43,9 @@ from handover.engine.planner import plan  # noqa: E402
 from handover.engine.spec.query import Query  # noqa: E402
 from handover.engine.tools.answer import convex_cache  # noqa: E402
 from handover.geometry.physics import Grasp, Motion, check  # noqa: E402
+
+SQUEEZED = ("crate", "big_crate")
+FORCES = (10.0, 15.0, 20.0, 30.0, 45.0)
 
 OWN_OBJECTS = {
     "steel_bar": """id: steel_bar
@@ -68,6 +77,26 @@ tags: [box]
 geometry:
   primitives:
     - {shape: box, part: body, extents: [0.12, 0.06, 0.06], position: [0, 0, 0.03]}
+parts:
+  body: {tags: [body]}
+""",
+    "crate": """id: crate
+name: Crate (25 x 30 x 15 cm)
+mass: 1.2
+tags: [box, flat]
+geometry:
+  primitives:
+    - {shape: box, part: body, extents: [0.25, 0.3, 0.15], position: [0, 0, 0.075]}
+parts:
+  body: {tags: [body]}
+""",
+    "big_crate": """id: big_crate
+name: Crate (30 x 40 x 20 cm)
+mass: 1.2
+tags: [box, flat]
+geometry:
+  primitives:
+    - {shape: box, part: body, extents: [0.3, 0.4, 0.2], position: [0, 0, 0.1]}
 parts:
   body: {tags: [body]}
 """,
@@ -112,7 +141,8 @@ def main() -> None:
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         kb = _kb_with_own_objects(Path(tmp))
-        objects = [o for o in args.objects.split(",") if o] or sorted(kb.objects)
+        objects = [o for o in args.objects.split(",") if o] or sorted(
+            o for o in kb.objects if o not in SQUEEZED)
         rules = [r for r in kb.cultures["common"].rules if r.kind == "torque" and r.hard]
         if args.load_factor is not None:
             rules = [r.model_copy(update={"load_factor": args.load_factor}) for r in rules]
@@ -168,6 +198,61 @@ def main() -> None:
               f" ({100.0 * agree / max(total, 1):.0f} %); of the kept, "
               f"{counts[(True, True)]}/{counts[(True, True)] + counts[(True, False)]} hold; "
               f"not simulable {refused}; {np.median(seconds):.3f} s median per check")
+        squeeze_table(kb, rules)
+
+
+def squeeze_table(kb, rules) -> None:
+    """The squeeze pairs of :data:`SQUEEZED`: rules against physics at each of :data:`FORCES`."""
+    from dataclasses import replace
+
+    from handover.engine.plan.judge.torque import pair_uses
+
+    print("\nsqueeze (H2G1, closed jaws on opposite faces), squeeze force N per arm")
+    print(f"{'object':11s} {'force':>5s} " + " ".join(f"{n[:9]:>9s}" for n in
+                                                     [r.id for r in rules])
+          + f" {'rules':5s} {'physics':7s} {'mm':>6s} {'deg':>6s} agree")
+    robot_id = kb.robots[next(iter(kb.robots))].id
+    for oid in SQUEEZED:
+        spec = kb.robots[robot_id]  # the pair planned at the strongest squeeze, then judged
+        kb.robots[robot_id] = spec.model_copy(update={"squeeze_force": max(FORCES)})
+        try:
+            planned = plan(kb, Query(oid, robot=robot_id))
+        finally:
+            kb.robots[robot_id] = spec
+        data = planned.result.to_dict()
+        if data["outcome"] != "handover":
+            print(f"{oid:11s} {data['outcome']}: {data['reason'][:120]}")
+            continue
+        ctx = planned.context
+        ids = np.array([g["id"] for g in data["robot_grasps"]])
+        k = np.full(2, int(data["presentation"]["index"]))
+        for force in FORCES:
+            robot = ctx.situation.robot.model_copy(update={"squeeze_force": force})
+            at = replace(ctx, situation=replace(ctx.situation, robot=robot))
+            use = [float(max(pair_uses(r, at, ids, ids[::-1], k))) for r in rules]
+            keep = max(use) <= 1.0 + 1e-12
+            checked = _check_at(kb, data, force)
+            n = checked.checked.result.nominal
+            verdict = "holds" if n.passed else "drops" if n.dropped else "slips"
+            print(f"{oid:11s} {force:5.0f} " + " ".join(f"{u:9.2f}" for u in use)
+                  + f" {'keep' if keep else 'rej':5s} {verdict:7s} "
+                  f"{min(n.max_translation_mm, 999):6.1f} {n.max_rotation_deg:6.1f} "
+                  f"{'yes' if keep == n.passed else 'NO'}")
+
+
+def _check_at(kb, data, force):
+    """The plan's check with its robot's squeeze force replaced by ``force``."""
+    import copy
+
+    from handover.engine.plan.physics import check_plan
+
+    robot = data["query"]["robot"]
+    spec = kb.robots[robot]
+    kb.robots[robot] = spec.model_copy(update={"squeeze_force": force})
+    try:
+        return check_plan(kb, copy.deepcopy(data), convex_cache())
+    finally:
+        kb.robots[robot] = spec
 
 
 if __name__ == "__main__":

@@ -96,3 +96,16 @@ def test_a_robot_that_does_not_squeeze_has_no_grasp_for_it(tmp_path):
     r = Planner(kb=root, db=False).plan("crate").to_dict()
     assert r["outcome"] == "infeasible"
     assert "no geometric grasp" in r["reason"]
+
+
+def test_a_squeeze_must_also_hold_the_crates_turn_about_the_press_line(tmp_path):
+    # 30 x 40 x 20 cm pressed at its 30 x 20 cm faces: turning it at 41 rad/s^2 (the carry's
+    # shake) asks 1.2 x (0.3^2 + 0.2^2) / 12 x 41 = 0.53 N m about the press line, more than
+    # the two presses' fingertip torsion at 30 N (~0.44 N m); the weight alone (8 N of 15 N
+    # per press) would be held
+    root = kb_with_crate(tmp_path / "kb", 30.0)
+    (root / "objects" / "crate.yaml").write_text(CRATE.replace("[0.25, 0.3, 0.15]",
+                                                               "[0.3, 0.4, 0.2]"))
+    r = Planner(kb=root, db=False).plan("crate").to_dict()
+    assert r["outcome"] == "infeasible"
+    assert "press 30 N each" in r["reason"]

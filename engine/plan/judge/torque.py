@@ -182,7 +182,33 @@ def pair_uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, other: np.ndar
     if sq.any():  # a press holds the weight along the surface it presses (across ``a``)
         local = np.einsum("rji,rj->ri", grasp_world[sq], load[sq, None] * down_world(len(sq))[sq])
         loads[sq, 3] = np.hypot(local[:, 0], local[:, 1])
-    return _use(rule, loads, pair_capacity(rule, ctx, gi, other))
+        # and its share of the object's inertia about the press line, turned by the carry
+        line_obj = np.einsum("rji,rj->ri", rot[sq], line[sq])  # object frame
+        spin = share[sq] * rule.angular_acceleration * _inertia_about(ctx, gi[sq], line_obj)
+        loads[sq, :3] += np.einsum("rji,rj->ri", grasp_world[sq], spin[:, None] * line[sq])
+    cap = pair_capacity(rule, ctx, gi, other)
+    # a press twists about its own axis a: that is what ``twist`` judges (slot 1), and its
+    # turn about o is a tip (slot 2)
+    loads[np.ix_(sq, [1, 2])] = loads[np.ix_(sq, [2, 1])]
+    cap[np.ix_(sq, [1, 2])] = cap[np.ix_(sq, [2, 1])]
+    return _use(rule, loads, cap)
+
+
+def _inertia_about(ctx: PlanContext, gi: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """(R,) kg m^2, the object's inertia about the line through grasp ``gi``'s centre along
+    ``axis`` ((R, 3) unit, object frame): its mesh's inertia at the object's mass (a mesh
+    that is no closed volume: its bounding box's), moved to the line (parallel axes)."""
+    mesh, mass = ctx.part_mesh.mesh, ctx.facts.mass
+    com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
+    if mesh.is_volume and mesh.volume > 0:
+        tensor = np.asarray(mesh.moment_inertia) * mass / float(mesh.volume)
+    else:
+        e2 = np.asarray(mesh.extents, dtype=float) ** 2
+        tensor = mass / 12.0 * np.diag([e2[1] + e2[2], e2[0] + e2[2], e2[0] + e2[1]])
+    about = np.einsum("ri,ij,rj->r", axis, tensor, axis)
+    rel = com - ctx.candidates.centre[gi]
+    off = rel - np.einsum("ri,ri->r", rel, axis)[:, None] * axis
+    return about + mass * np.einsum("ri,ri->r", off, off)
 
 
 def _threshold(rule: TorqueRule, ctx: PlanContext) -> str:
@@ -217,6 +243,8 @@ def detail(rule: TorqueRule, ctx: PlanContext, phase: Phase, grasp: int, present
     paired = phase is not None and phase.mode == "H2G1" and phase.other_grasp is not None
     cap = (pair_capacity(rule, ctx, gi, np.array([phase.other_grasp])) if paired
            else capacity(rule, ctx, gi))[0]
+    if ctx.candidates.source[grasp] == SOURCE_SQUEEZE:  # a press twists about its a
+        cap = cap[[0, 2, 1, 3]]
     out = {"holds": {"twist_nm": round(float(cap[1]), 4), "tip_n_nm": round(float(cap[0]), 4),
                      "tip_a_nm": round(float(cap[2]), 4), "weight_n": round(float(cap[3]), 4)}}
     if phase is None or phase.mode != "H2G1":

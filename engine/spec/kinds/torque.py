@@ -12,6 +12,9 @@ their friction across the object's width, ``mu F w``; along the pads their frict
 ``2 mu F`` of weight. The load is the weight (each gripper's share when two hold the object)
 hanging from the centre of mass, at the pick-up and at the handover orientation, times
 ``load_factor`` (lifting, carrying and a shake add 30-50 % to what the weight alone asks).
+A squeeze (two arms pressing closed jaws on opposite faces) holds its share of the weight
+by the presses' friction, and the object's inertia about the press line as it is turned
+(``angular_acceleration``) by their torsion.
 ``about`` says which of the three a rule judges (``twist``, ``tip``, ``weight``) or ``all``
 of them (the torques combined as an ellipse); the measured value is the share of what the
 pads hold that the load uses (pass at most 1). ``max_nm``, if given, caps what the pads are
@@ -35,7 +38,8 @@ from pydantic import Field
 from handover.engine.spec.kbmodel import NonNegative
 from handover.engine.spec.kinds.base import RuleBase, register
 
-__all__ = ["TorqueRule", "GRAVITY", "LOAD_FACTOR", "ABOUT", "load_shares", "pair_lever"]
+__all__ = ["TorqueRule", "GRAVITY", "LOAD_FACTOR", "ANGULAR_ACCELERATION", "ABOUT",
+           "load_shares", "pair_lever"]
 
 GRAVITY = 9.81  # m/s^2
 
@@ -43,6 +47,11 @@ LOAD_FACTOR = 1.4
 """The load on a grasp while it is lifted, carried and shaken, over the weight alone: the
 physics check's shake (+-2 cm at 2 Hz, 0.32 g; +-15 deg about the closing axis, 41
 rad/s^2) and carry add 1.3-1.5x to the weight's torque in simulation."""
+
+ANGULAR_ACCELERATION = 41.0
+"""rad/s^2, the turn a carried object must follow: the physics check's shake, +-15 deg at
+2 Hz (0.26 rad x (2 pi 2 Hz)^2). A squeeze holds the object's inertia about its press line
+against it with the presses' torsion alone (the weight has no lever about that line)."""
 
 ABOUT = ("all", "twist", "tip", "weight")
 """What a ``torque`` rule judges: every load at once, the twist about the closing axis, the
@@ -94,11 +103,15 @@ def pair_lever(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class TorqueRule(RuleBase):
     """What the pads hold of the weight (see the module docstring). about: ``twist``,
     ``tip``, ``weight`` or ``all``; load_factor: the dynamic load over the weight alone;
-    max_nm: optional, N m, caps what the pads are taken to hold about each axis."""
+    angular_acceleration: rad/s^2, the turn a squeeze must hold the object's inertia through
+    about its press line; max_nm: optional, N m, caps what the pads are taken to hold about
+    each axis."""
 
     kind: Literal["torque"] = "torque"
     about: Literal["all", "twist", "tip", "weight"] = "all"
     load_factor: float = Field(default=LOAD_FACTOR, ge=1.0, le=10.0, allow_inf_nan=False)
+    angular_acceleration: float = Field(default=ANGULAR_ACCELERATION, ge=0.0, le=1000.0,
+                                        allow_inf_nan=False)
     max_nm: NonNegative | None = None
 
     colour = (120, 80, 210)
