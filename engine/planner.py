@@ -46,7 +46,7 @@ __all__ = ["plan", "decide", "Decided", "refusing_rules", "fallback_rules", "Pla
 
 def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
          mesh: trimesh.Trimesh | None = None, what_if: bool = False,
-         arms_cache: LRU | None = None) -> Plan:
+         arms_cache: LRU | None = None, passed_over: dict[int, str] | None = None) -> Plan:
     """Plan a handover, choosing the mode (``auto``) or using the forced one; or, when the
     rules say so, set the object down or refuse (see :func:`decide`).
 
@@ -56,12 +56,15 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
     feasible (``result.what_if``, :mod:`handover.engine.plan.whatif`).
     arms_cache : where the robot's arms are kept between plans (a :class:`Planner`'s); None:
     this process's (:data:`handover.engine.assets.robot.PLAN_ARMS`).
+    passed_over : candidate ids no mode may choose, each with why (the physics check saw
+    them fail: ``handover plan --physics`` plans again without them).
     Returns the :class:`Plan` (any outcome) with its context and chosen attempt.
     """
     from handover.engine.plan.prepare import prepare
     from handover.engine.report.assemble import build_result
 
     ctx = prepare(kb, query, db, mesh=mesh, arms_cache=arms_cache)
+    ctx.passed_over = dict(passed_over or {})
     d = decide(kb, ctx, query.mode)
     result = build_result(ctx, d.attempt, d.tried, d.mode_reason, why_not, outcome=d.outcome,
                           placement=d.placement, refused=d.refused, fallback=d.fallback)

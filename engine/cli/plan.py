@@ -181,6 +181,9 @@ def render_physics(physics: dict, console) -> None:
         console.print(f"  alternative {escape(_group_line(physics['alternative_holds']))}")
     for note in physics.get("notes", []):
         console.print(f"  {escape(note)}")
+    over = physics.get("passed_over") or []
+    if over:
+        console.print(f"  planned again without {len(over)} grasps on contacts that failed")
 
 
 @app.command()

@@ -22,6 +22,7 @@ from handover.engine.plan.presentation import (
 from handover.engine.plan.situation import Situation
 from handover.engine.plan.world import World, build_world
 from handover.engine.spec.applies import Facts
+from handover.geometry.squeeze import SOURCE_SQUEEZE
 
 if TYPE_CHECKING:
     from collections.abc import Sequence
@@ -80,6 +81,7 @@ class Memo:
 
     # PlanContext itself
     poses: np.ndarray | None = None  # (N, 4, 4) gripper poses, object frame
+    pad_patches: np.ndarray | None = None  # (N, 3) pads' patch radius, extents; NaN: not yet
     gripper_boxes: PosedBoxes | None = None  # the gripper's boxes at every candidate
     d_obj: np.ndarray | None = None  # (K, 3) robot->receiver per presentation, object frame
     world: World | None = None
@@ -112,7 +114,8 @@ class Memo:
     arm_pairs: dict[tuple, tuple] = field(default_factory=dict)
 
     GRASP_ONLY: ClassVar[tuple[str, ...]] = (
-        "poses", "gripper_boxes", "gripper_spheres", "collision_scene", "keep_out_gripper",
+        "poses", "pad_patches", "gripper_boxes", "gripper_spheres", "collision_scene",
+        "keep_out_gripper",
         "interior", "world", "locations", "arms")
     """Fields that depend on the grasps only, not on the presentations' rotations."""
 
@@ -141,6 +144,8 @@ class PlanContext:
     declared_part_tags : every part the object's file declares -> its tags as ``part_tags``
     has them (with the object's and what they imply), those the geometry has no face of
     included (a rule about them cannot tell where they are).
+    passed_over : candidates no mode may choose, each with why (the physics check saw them
+    slip or drop: ``handover plan --physics`` plans again without them).
     """
 
     situation: Situation
@@ -161,6 +166,7 @@ class PlanContext:
     repertoire: Repertoire | None = None
     warnings: list[str] = field(default_factory=list)
     declared_part_tags: dict[str, set[str]] = field(default_factory=dict)
+    passed_over: dict[int, str] = field(default_factory=dict)
     memo: Memo = field(default_factory=Memo)
 
     @property
@@ -190,7 +196,8 @@ class PlanContext:
         contacts on parts the robot may hold (no part tagged with one of ``forbid``, the
         tags the giver's hard contact rules forbid). Zero means no single gripper can take
         the object: a mug too wide for the gripper still has its handle, a saucepan its
-        handle; a tray wider than any opening with no rim to pinch has none. Memoised per
+        handle; a tray wider than any opening with no rim to pinch has none (squeeze sites,
+        two arms pressing it between closed jaws, do not count). Memoised per
         ``forbid``."""
         memo = self.memo.single_grasps
         if forbid not in memo:
@@ -198,6 +205,7 @@ class PlanContext:
             held = np.array([not (t & forbid) for t in self.part_tags] or [True], dtype=bool)
             ok = (c.width <= self.gripper.max_opening + 1e-12) if len(c) else np.zeros(0, bool)
             if len(c):
+                ok &= c.source != SOURCE_SQUEEZE  # a press of closed jaws holds nothing alone
                 ok &= held[c.parts].all(axis=1)
             memo[forbid] = int(ok.sum())
         return memo[forbid]

@@ -106,8 +106,13 @@ class Decision:
         return {c.id: int(counts[h]) for h, c in enumerate(self.hard) if counts[h]}
 
     def ranking(self) -> np.ndarray:
-        """Indices of kept rows, best first (score descending, then row index)."""
+        """Indices of kept rows, best first (score descending, then row index), without the
+        rows of candidates the context passes over (:attr:`PlanContext.passed_over
+        <handover.engine.plan.context.PlanContext.passed_over>`)."""
         idx = np.flatnonzero(self.kept)
+        ctx = self.judged_in[0] if self.judged_in is not None else None
+        if ctx is not None and ctx.passed_over:
+            idx = idx[~np.isin(self.gi[idx], np.fromiter(ctx.passed_over, dtype=np.int64))]
         order = np.lexsort((idx, -self.score[idx]))
         return idx[order]
 

@@ -53,8 +53,8 @@ if TYPE_CHECKING:
     )
 
 __all__ = ["FALLBACKS", "GraspCheck", "PlanPhysics", "object_model", "gripper_hand",
-           "plan_motion", "plan_grasps", "receiver_grasps", "check_group", "check_plan",
-           "check_alternatives", "record_plan"]
+           "squeeze_hand", "plan_motion", "plan_grasps", "receiver_grasps", "check_group",
+           "check_plan", "check_alternatives", "failing_grasps", "record_plan"]
 
 FALLBACKS = 3
 """At most this many next best candidates are checked when the chosen grasp fails."""
@@ -144,24 +144,50 @@ def plan_motion(data: dict) -> Motion:
     return Motion(pickup, handover[None])
 
 
-def _grasp(hand: Hand, g: Any, where: str) -> Grasp:
+def _grasp(hand: Hand, g: Any, where: str, squeeze: Hand | None = None) -> Grasp:
+    from handover.geometry.frames import transform_from
     from handover.geometry.physics import Grasp
+    from handover.geometry.squeeze import SQUEEZE_GAP
 
     if not isinstance(g, dict):
         raise UsageError(f"the plan's {where} must be a grasp (an object with pose and width)")
     width = g.get("width")
     if isinstance(width, bool) or not isinstance(width, int | float) or not width >= 0:
         raise UsageError(f"the plan's {where}.width must be a length in metres")
+    pose = _matrix(g.get("pose"), f"{where}.pose")
     try:
-        return Grasp(hand, _matrix(g.get("pose"), f"{where}.pose"), float(width))
+        if g.get("hold") == "squeeze":
+            if squeeze is None:
+                raise UsageError(f"the plan's {where} squeezes the object, but its robot has no "
+                                 "squeeze_force")
+            # the grasp frame sits half a finger and a gap before the face it presses
+            face = pose @ transform_from(translation=[0.0, 0.0, hand.finger_length / 2.0
+                                                      + SQUEEZE_GAP])
+            return Grasp(squeeze, face, 0.0, kind="squeeze")
+        return Grasp(hand, pose, float(width))
     except ValueError as e:
         raise UsageError(f"the plan's {where}: {e}") from None
 
 
-def plan_grasps(hand: Hand, data: dict) -> list[tuple[str, Any, Grasp]]:
+def squeeze_hand(kb: KB, data: dict, hand: Hand) -> Hand | None:
+    """The gripper ``hand`` pressing with the squeeze force of the plan's robot
+    (``query.robot``'s ``squeeze_force``), or None when the robot does not squeeze."""
+    from dataclasses import replace
+
+    query = data.get("query") if isinstance(data.get("query"), dict) else {}
+    robot = kb.robots.get(query.get("robot")) if isinstance(query.get("robot"), str) else None
+    if robot is None or robot.squeeze_force is None:
+        return None
+    return replace(hand, grip_force=float(robot.squeeze_force))
+
+
+def plan_grasps(hand: Hand, data: dict,
+                squeeze: Hand | None = None) -> list[tuple[str, Any, Grasp]]:
     """(hand, candidate id, physics grasp) of the plan's grippers in the order the check
     takes them: H1G1 its grasp; H2G2 the first (pick) then the second (handover) grasp;
-    H2G1 both. Raises UsageError when the plan's grasps do not match its mode."""
+    H2G1 both (a grasp that says ``"hold": "squeeze"`` presses with the ``squeeze`` hand:
+    :func:`squeeze_hand`). Raises UsageError when the plan's grasps do not match its
+    mode."""
     mode = data.get("mode")
     grasps = data.get("robot_grasps")
     if not isinstance(grasps, list) or not grasps:
@@ -179,7 +205,7 @@ def plan_grasps(hand: Hand, data: dict) -> list[tuple[str, Any, Grasp]]:
         ordered, where = holding, [f"robot_grasps[{k}]" for k in range(len(holding))]
     out = []
     for g, w in zip(ordered, where, strict=True):
-        grasp = _grasp(hand, g, w)
+        grasp = _grasp(hand, g, w, squeeze)
         out.append((str(g.get("hand", "?")), g.get("id"), grasp))
     return out
 
@@ -263,15 +289,18 @@ class GraspCheck:
 
 @dataclass(frozen=True)
 class PlanPhysics:
-    """A plan's physics check: ``checked`` the chosen grasps' group, ``failed`` the next
-    best candidates checked after it failed and that failed too, ``holds`` the first of them
-    that held (None if none was checked or none held); ``seconds`` wall time in all."""
+    """A plan's physics check: ``checked`` the chosen grasps' group, ``failed`` the groups
+    checked before or after it that failed (better-scored grasps the plan passed over, or
+    next best candidates that did not hold either), ``holds`` the first alternative that
+    held (None if none was checked or none held); ``passed_over`` the candidates the plan
+    was planned again without, each with why; ``seconds`` wall time in all."""
 
     checked: GraspCheck
     failed: tuple[GraspCheck, ...] = ()
     holds: GraspCheck | None = None
     seconds: float = 0.0
     notes: tuple[str, ...] = field(default=())
+    passed_over: tuple[tuple[int, str], ...] = ()
 
     @property
     def passed(self) -> bool:
@@ -283,7 +312,33 @@ class PlanPhysics:
         return {"passed": self.passed, "chosen": self.checked.to_dict(),
                 "alternatives_failed": [c.to_dict() for c in self.failed],
                 "alternative_holds": None if self.holds is None else self.holds.to_dict(),
+                "passed_over": [{"id": i, "why": why} for i, why in self.passed_over],
                 "seconds": round(self.seconds, 3), "notes": list(self.notes)}
+
+
+def failing_grasps(check: GraspCheck) -> dict[int, str]:
+    """The candidate ids of a failed group's grippers that let the object slip or drop,
+    each with how (``slipped 6.2 mm / 14.1 deg in shake``): the holders whose slip passed
+    the thresholds in some phase (every gripper of the group when the receiver's hands, or
+    nothing it can tell, failed)."""
+    from handover.geometry.physics import Thresholds
+
+    t = Thresholds()
+    worst: dict[str, tuple[float, float, str, bool]] = {}
+    for p in check.result.nominal.phases:
+        over = p.dropped or p.translation_mm > t.max_slip_mm or p.rotation_deg > t.max_slip_deg
+        if over and p.holder not in worst:
+            worst[p.holder] = (p.translation_mm, p.rotation_deg, p.phase, p.dropped)
+    names = {f"gripper{k}": i for k, i in enumerate(check.ids)}
+    out = {}
+    for holder, (mm, deg, phase, dropped) in worst.items():
+        i = names.get(holder)
+        if i is not None:
+            out[int(i)] = (f"dropped in {phase}" if dropped else
+                           f"slipped {mm:.1f} mm / {deg:.1f} deg in {phase}")
+    if not out:
+        out = {int(i): "the physics check failed" for i in check.ids if i is not None}
+    return out
 
 
 def _specs(kb: KB, data: dict) -> tuple[ObjectSpec, GripperSpec]:
@@ -329,7 +384,7 @@ def check_plan(kb: KB, data: dict, cache_dir: str | Path | None = None,
     except ValueError as e:
         raise UsageError(str(e)) from None
     hand = gripper_hand(kb, grip_spec)
-    grasps = plan_grasps(hand, data)
+    grasps = plan_grasps(hand, data, squeeze_hand(kb, data, hand))
     motion = plan_motion(data)
     taker, notes = _receiver(kb, data) if receiver else ([], [])
     try:
@@ -417,7 +472,8 @@ def record_plan(kb: KB, data: dict, cache_dir: str | Path | None = None) -> Traj
 
     obj_spec, grip_spec = _specs(kb, data)
     obj = object_model(kb, obj_spec, cache_dir)
-    grasps = plan_grasps(gripper_hand(kb, grip_spec), data)
+    hand = gripper_hand(kb, grip_spec)
+    grasps = plan_grasps(hand, data, squeeze_hand(kb, data, hand))
     try:
         result = check(obj, [g for _, _, g in grasps], plan_motion(data), mode=data["mode"],
                        record=True)

@@ -16,9 +16,13 @@ if TYPE_CHECKING:
 
     from handover.engine.assets.lru import LRU
     from handover.engine.load.loader import KB
+    from handover.engine.plan.situation import Situation
     from handover.engine.spec.schema import ObjectSpec
+    from handover.geometry.candidates import CandidateSet
+    from handover.geometry.gripper import Gripper
+    from handover.geometry.mesh import PartMesh
 
-__all__ = ["prepare", "mesh_file_spec", "DEFAULT_DENSITY"]
+__all__ = ["prepare", "mesh_file_spec", "with_squeeze_sites", "DEFAULT_DENSITY"]
 
 # A mesh file with no KB entry: its mass from its volume at the density of wood/plastic.
 DEFAULT_DENSITY = 700.0  # kg/m^3
@@ -82,6 +86,7 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
     collider = ObjectCollider(part_mesh.mesh)
     candidates, stats = cached_candidates(part_mesh, gripper, {"seed": 0}, db,
                                           collider=collider)
+    candidates = with_squeeze_sites(situation, part_mesh, gripper, candidates)
     hand = human_hand(situation.hand)
     repertoire = receiver_repertoire(situation.hand, situation.receiver)
     from handover.engine.store.cultures import resolve_culture
@@ -97,3 +102,22 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
                                       strict=True))
     ctx.warnings.extend(hints)
     return ctx
+
+
+def with_squeeze_sites(situation: Situation, part_mesh: PartMesh, gripper: Gripper,
+                       candidates: CandidateSet) -> CandidateSet:
+    """``candidates`` with the object's squeeze sites after them
+    (:func:`handover.geometry.squeeze.squeeze_sites`) when the robot squeezes (its
+    ``squeeze_force``), has two hands and no candidate lies within the gripper's opening:
+    an object no single gripper spans is then carried between two grippers, jaws closed,
+    pressing opposite sides (H2G1). Otherwise ``candidates`` as they are."""
+    from handover.geometry.candidates import CandidateSet as Rows
+    from handover.geometry.squeeze import squeeze_sites
+
+    robot = situation.robot
+    if robot.squeeze_force is None or len(robot.hands) < 2:
+        return candidates
+    if len(candidates) and (candidates.width <= gripper.max_opening + 1e-12).any():
+        return candidates
+    sites = squeeze_sites(part_mesh, gripper, gripper.friction)
+    return Rows.concatenate([candidates, sites]) if len(candidates) else sites

@@ -135,7 +135,9 @@ class RobotGrasp:
     staged : the plan holds the object with different grasps at different stages (H2G2, a
     placement, a support), so the JSON names this grasp's ``stage``; a grasp that picks the
     object up and hands it over (H1G1, H2G1) has none there. supports : for a supporting
-    gripper, what it supports (:class:`GraspSupport`).
+    gripper, what it supports (:class:`GraspSupport`). squeeze : the gripper holds by
+    pressing its closed jaws on a face (two arms squeeze the object between them; the JSON
+    then says ``"hold": "squeeze"``), not by closing them across it.
     """
 
     gripper: str
@@ -152,6 +154,7 @@ class RobotGrasp:
     roll_deg: float | None = None
     staged: bool = False
     supports: GraspSupport | None = None
+    squeeze: bool = False
 
     @property
     def arm(self) -> str | None:
@@ -187,6 +190,8 @@ class RobotGrasp:
         out.update(pose=self.pose, pose_world=self.pose_world, width=self.width,
                    contacts=self.contacts, parts=list(self.parts), score=self.score,
                    quality=self.quality, roll_deg=self.roll_deg)
+        if self.squeeze:
+            out["hold"] = "squeeze"
         if self.supports is not None:
             out["supports"] = self.supports.to_dict()
         if self.arm_joints is not None:
@@ -338,7 +343,8 @@ def robot_grasp_of(data: dict) -> RobotGrasp:
         contacts=np.asarray(data["contacts"], dtype=float).reshape(-1, 3),
         parts=tuple(data["parts"]), score=data["score"], stage=data.get("stage", "handover"),
         arm_joints=held, id=data.get("id"), quality=data.get("quality"),
-        roll_deg=data.get("roll_deg"), staged="stage" in data, supports=supports)
+        roll_deg=data.get("roll_deg"), staged="stage" in data, supports=supports,
+        squeeze=data.get("hold") == "squeeze")
     return read_back(record, data)
 
 

@@ -22,6 +22,7 @@ from handover.engine.plan.records import (
 )
 from handover.engine.report.human import human_record
 from handover.engine.report.result import PlanResult, Regrasp
+from handover.geometry.squeeze import SOURCE_SQUEEZE
 
 if TYPE_CHECKING:
     from handover.engine.plan.attempt import Attempt
@@ -123,7 +124,8 @@ def grasp_record(ctx: PlanContext, gripper: str, i: int, pose_k: np.ndarray,
         contacts=np.array(c.contacts[i], dtype=float),
         parts=tuple(c.part_names[p] for p in c.parts[i]), score=score, stage=stage,
         arm_joints=arm_joints, id=i, quality=float(c.quality[i]),
-        roll_deg=float(np.degrees(c.roll[i])), staged=staged)
+        roll_deg=float(np.degrees(c.roll[i])), staged=staged,
+        squeeze=bool(c.source[i] == SOURCE_SQUEEZE))
 
 
 def _presentation(ctx: PlanContext, k: int) -> dict:

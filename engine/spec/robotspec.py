@@ -93,6 +93,9 @@ class RobotSpec(KBModel):
     body : the robot's body for collision (base frame). Absent with a ``urdf``: the collision
         shapes of the URDF's links rigidly fixed to its root link (a base, a torso, a head,
         the arms' mounts). Given, it replaces them.
+    squeeze_force : N, how hard each arm presses an object between its two grippers, jaws
+        closed, when no single gripper spans it (H2G1's squeeze: friction at the two faces
+        holds the weight); absent: the robot does not squeeze.
     A one-handed robot (``hands: [right]`` or one arm) plans H1G1 only.
     """
 
@@ -106,6 +109,7 @@ class RobotSpec(KBModel):
     base_pose: FramePose = Field(default_factory=FramePose)
     arms: dict[Literal["left", "right"], ArmSpec] = {}
     body: list[BodyPrimitive] | None = None
+    squeeze_force: Positive | None = None
 
     @model_validator(mode="after")
     def _arms(self) -> RobotSpec:

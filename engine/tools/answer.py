@@ -149,7 +149,8 @@ def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
         raise UsageError(f"--physics checks objects of the knowledge base; '{request.object}' "
                          "is not one")
     if request.physics and planned.outcome == "handover":
-        planned.result.physics = physics_of(kb, planned, db).to_dict()
+        planned, checked = physics_plan(kb, request, planned, db)
+        planned.result.physics = checked.to_dict()
     return planned
 
 
@@ -160,6 +161,78 @@ def convex_cache(db=None) -> Path:
 
     root = getattr(db, "root", None)
     return Path(root if root is not None else default_db_dir()) / "convex"
+
+
+def physics_plan(kb: KB, request: PlanRequest, planned: Plan, db=None,
+                 rounds: int | None = None):
+    """A handover plan whose chosen grasps hold in physics, when one can be found: the plan
+    checked (:func:`physics_of`); when its grasps fail, planned again without the grasps
+    that slipped or dropped (:attr:`PlanContext.passed_over
+    <handover.engine.plan.context.PlanContext.passed_over>`: the next best grasps, their
+    arms solved as any chosen grasp's) and checked again, at most ``rounds`` times
+    (:data:`handover.engine.plan.physics.FALLBACKS`). Returns the plan to answer with (the
+    first that holds; the original when none does) and its
+    :class:`~handover.engine.plan.physics.PlanPhysics`: the failed checks of the grasps
+    passed over, and why each was."""
+    import time
+    from dataclasses import replace
+
+    import numpy as np
+
+    from handover.engine.plan.physics import FALLBACKS, check_plan, failing_grasps
+    from handover.engine.planner import plan
+
+    start = time.perf_counter()
+    first = physics_of(kb, planned, db)
+    if first.passed:
+        return planned, first
+    cache = convex_cache(db)
+    site = planned.context.candidates.site
+
+    def with_site(ids: dict[int, str]) -> dict[int, str]:
+        """The failing grasps and every other roll and depth on the same contacts."""
+        out = {}
+        for i, why in ids.items():
+            out[i] = why
+            for j in np.flatnonzero(site == site[i]):
+                out.setdefault(int(j), f"on the contacts of grasp {i}, which {why}")
+        return out
+
+    failed = [first.checked, *first.failed]
+    passed_over = {}
+    for group in failed:
+        passed_over.update(with_site(failing_grasps(group)))
+    for _ in range(FALLBACKS if rounds is None else rounds):
+        again = plan(kb, request.query(), why_not=request.why_not, db=db,
+                     what_if=request.what_if, passed_over=passed_over)
+        if again.outcome != "handover":
+            break
+        try:
+            checked = check_plan(kb, again.result.to_dict(), cache)
+        except UsageError:
+            break
+        if checked.passed:
+            tried = [g.ids for g in failed]
+            notes = [f"grasp {', '.join(map(str, ids))} passed over: "
+                     f"{passed_over.get(ids[0], 'failed')}" for ids in tried if ids]
+            warning = ("physics: the better-scored " + "; ".join(notes) + f" (with "
+                       f"{len(passed_over)} grasps on the same contacts); the plan holds with "
+                       + ", ".join(f"grasp {i}" for i in checked.checked.ids))
+            again.result.warnings.append(warning)
+            return again, replace(checked, failed=tuple(failed),
+                                  seconds=time.perf_counter() - start,
+                                  notes=tuple(notes), passed_over=tuple(passed_over.items()))
+        failed.append(checked.checked)
+        more = {i: w for i, w in with_site(failing_grasps(checked.checked)).items()
+                if i not in passed_over}
+        if not more:
+            break
+        passed_over.update(more)
+    return planned, replace(first, failed=tuple(failed[1:]),
+                            seconds=time.perf_counter() - start,
+                            notes=first.notes + (f"planned again without {len(passed_over)} "
+                                                 "grasps on contacts that slipped: none found "
+                                                 "holds; the plan keeps its grasps",))
 
 
 def physics_of(kb: KB, planned: Plan, db=None):

@@ -1,5 +1,7 @@
 """How a ``torque`` rule is judged on candidate rows (the rule's fields:
-:class:`~handover.engine.spec.kinds.torque.TorqueRule`)."""
+:class:`~handover.engine.spec.kinds.torque.TorqueRule`): the share of what the gripper's pads
+hold (:mod:`handover.geometry.holding`, at the query's gripper's grip force and friction)
+that the object's weight uses."""
 
 from __future__ import annotations
 
@@ -9,12 +11,97 @@ import numpy as np
 
 from handover.engine.plan.judge.base import Outcome, inapplicable, judges
 from handover.engine.spec.kinds.torque import GRAVITY, TorqueRule, load_shares, pair_lever
+from handover.geometry.squeeze import SOURCE_SQUEEZE
 
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Phase
+    from handover.geometry.holding import PadGrip
 
-__all__ = ["evaluate", "detail", "torques", "grasp_loads"]
+__all__ = ["evaluate", "detail", "pad_grip", "pad_patches", "capacity", "pair_capacity",
+           "squeeze_force", "grasp_loads", "uses", "pair_uses"]
+
+_DOWN = np.array([0.0, 0.0, -1.0])
+
+
+def down_world(rows: int) -> np.ndarray:
+    """(rows, 3) gravity's direction in the world."""
+    return np.tile(_DOWN, (rows, 1))
+
+
+def pad_grip(ctx: PlanContext) -> PadGrip:
+    """The query's gripper's holding numbers: its spec's ``grip_force``, ``friction`` and
+    ``torsional_friction``, its pads' extents from the geometry model."""
+    from handover.geometry.holding import PadGrip
+
+    spec = ctx.situation.gripper
+    ext = ctx.gripper.part_extents()[1]  # a finger's box along n, o, a
+    return PadGrip(float(spec.grip_force), float(spec.friction),
+                   float(spec.torsional_friction), float(ext[0]), float(ext[2]))
+
+
+def pad_patches(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
+    """(R, 3) the pads' contact patches at candidates ``gi``: friction radius, extent along
+    ``n``, extent along ``a`` (m), computed once per candidate (the context's memo); zeros
+    for a squeeze site (closed jaws: no pads across the object)."""
+    from handover.geometry.holding import contact_patches
+
+    memo = ctx.memo
+    if memo.pad_patches is None:
+        memo.pad_patches = np.full((ctx.n, 3), np.nan)
+        memo.pad_patches[ctx.candidates.source == SOURCE_SQUEEZE] = 0.0
+    gi = np.asarray(gi, dtype=np.int64)
+    todo = np.unique(gi[np.isnan(memo.pad_patches[gi, 0])])
+    if len(todo):
+        p = contact_patches(ctx.part_mesh.mesh, ctx.gripper_poses()[todo],
+                            ctx.candidates.width[todo], pad_grip(ctx))
+        memo.pad_patches[todo] = np.stack([p.radius, p.extent_n, p.extent_a], axis=1)
+    return memo.pad_patches[gi]
+
+
+def capacity(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
+    """(R, 4) what the pads hold at candidates ``gi``: about n, o, a (N m) and along the pads
+    (N), each torque capped at the rule's ``max_nm`` if it has one."""
+    from handover.geometry.holding import Patches, holding_capacity
+
+    p = pad_patches(ctx, gi)
+    cap = holding_capacity(pad_grip(ctx), Patches(p[:, 0], p[:, 1], p[:, 2],
+                                                  np.zeros((len(gi), 2), np.int64)),
+                           ctx.candidates.width[gi])
+    cap[ctx.candidates.source[gi] == SOURCE_SQUEEZE] = 0.0  # a lone press holds nothing
+    if rule.max_nm is not None:
+        cap[:, :3] = np.minimum(cap[:, :3], rule.max_nm)
+    return cap
+
+
+def squeeze_force(ctx: PlanContext) -> float | None:
+    """N, how hard each of the robot's arms presses in a squeeze (its ``squeeze_force``)."""
+    return ctx.situation.robot.squeeze_force
+
+
+def pair_capacity(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray,
+                  other: np.ndarray) -> np.ndarray:
+    """(R, 4) what grasp ``gi`` holds with ``other`` holding the object too: a pinch what
+    its pads hold (:func:`capacity`); a squeeze site what its press holds at the robot's
+    ``squeeze_force`` (:func:`handover.geometry.holding.squeeze_capacity`) where ``other``
+    is a squeeze site opposing it along one line, else nothing."""
+    from handover.geometry.holding import squeeze_capacity
+    from handover.geometry.squeeze import opposed
+
+    cap = capacity(rule, ctx, gi)
+    c = ctx.candidates
+    sq = c.source[gi] == SOURCE_SQUEEZE
+    force = squeeze_force(ctx)
+    if sq.any() and force is not None:
+        g = ctx.gripper
+        tip = squeeze_capacity(pad_grip(ctx), float(force),
+                               (g.finger_width, 2.0 * g.finger_thickness), int(sq.sum()))
+        both = opposed(c.centre[gi[sq]], c.a[gi[sq]], c.centre[other[sq]], c.a[other[sq]])
+        both &= c.source[other[sq]] == SOURCE_SQUEEZE
+        cap[sq] = np.where(both[:, None], tip, 0.0)
+        if rule.max_nm is not None:
+            cap[:, :3] = np.minimum(cap[:, :3], rule.max_nm)
+    return cap
 
 
 def grasp_loads(ctx: PlanContext, phase: Phase, gi: np.ndarray,
@@ -27,41 +114,144 @@ def grasp_loads(ctx: PlanContext, phase: Phase, gi: np.ndarray,
         return np.ones(len(gi)), ctx.candidates.com_distance[gi]
     if phase.other_grasp is None:
         return np.full(len(gi), 0.5), np.full(len(gi), np.nan)
+    other = np.full(len(gi), phase.other_grasp)
+    share, lever, _ = _pair(ctx, gi, other, pk)
+    return share, lever
+
+
+def _pair(ctx: PlanContext, gi: np.ndarray, other: np.ndarray,
+          pk: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Grasp ``gi``'s share and lever with partner ``other`` in presentation ``pk``, and
+    (R, 3) the unit line from it to its partner, world."""
     rot = ctx.rotations[pk]  # (R, 3, 3) object -> world at the handover
     centre = ctx.candidates.centre
     com = np.einsum("rij,j->ri", rot, np.asarray(ctx.part_mesh.mass_centre, dtype=float))
     mine = np.einsum("rij,rj->ri", rot, centre[gi])
-    other = np.einsum("rij,j->ri", rot, centre[phase.other_grasp])
-    return load_shares(com, mine, other), pair_lever(com, mine, other)
+    theirs = np.einsum("rij,rj->ri", rot, centre[other])
+    line = theirs - mine
+    line = line / np.maximum(np.linalg.norm(line, axis=1, keepdims=True), 1e-12)
+    return load_shares(com, mine, theirs), pair_lever(com, mine, theirs), line
 
 
-def torques(rule: TorqueRule, ctx: PlanContext, share: np.ndarray, lever: np.ndarray) -> np.ndarray:
-    """N m: ``share`` of the object's weight at ``lever`` (m), broadcast."""
-    return share * ctx.facts.mass * GRAVITY * lever
+def _use(rule: TorqueRule, loads: np.ndarray, cap: np.ndarray) -> np.ndarray:
+    """(R,) the share of ``cap`` the ``loads`` use, for what the rule is ``about``."""
+    from handover.geometry.holding import utilisation
+
+    if rule.about == "all":
+        return utilisation(loads, cap)
+    keep = {"twist": [1], "tip": [0, 2], "weight": [3]}[rule.about]
+    mask = np.zeros(4, bool)
+    mask[keep] = True
+    return utilisation(np.where(mask, loads, 0.0), cap)
+
+
+def uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
+         share: np.ndarray) -> np.ndarray:
+    """(R,) the share of what the pads hold at ``gi`` that ``share`` of the object's weight
+    (times the rule's ``load_factor``) hanging from the centre of mass uses, the worse of the
+    pick-up and the handover orientation (presentation ``pk``)."""
+    from handover.geometry.holding import load_torques
+
+    poses = ctx.gripper_poses()[gi]
+    com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
+    load = share * ctx.facts.mass * GRAVITY * rule.load_factor
+    cap = capacity(rule, ctx, gi)
+    out = np.zeros(len(gi))
+    for rot in (np.broadcast_to(ctx.initial[:3, :3], (len(gi), 3, 3)), ctx.rotations[pk]):
+        down = np.einsum("rji,j->ri", rot, _DOWN)  # gravity in the object frame
+        out = np.maximum(out, _use(rule, load_torques(poses, com, down, load), cap))
+    return out
+
+
+def pair_uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, other: np.ndarray,
+              pk: np.ndarray) -> np.ndarray:
+    """(R,) as :func:`uses`, for grasp ``gi`` holding the object with ``other`` (H2G1) in the
+    presented pose ``pk``: its share of the weight along its pads and its share of the
+    weight's torque about the line joining the two grasps."""
+    from handover.geometry.holding import load_torques
+
+    share, lever, line = _pair(ctx, gi, other, pk)
+    poses = ctx.gripper_poses()[gi]
+    rot = ctx.rotations[pk]
+    load = share * ctx.facts.mass * GRAVITY * rule.load_factor
+    down = np.einsum("rji,j->ri", rot, _DOWN)
+    loads = load_torques(poses, poses[:, :3, 3], down, load)  # the pull; no torque yet
+    grasp_world = np.einsum("rij,rjk->rik", rot, poses[:, :3, :3])
+    loads[:, :3] = np.einsum("rji,rj->ri", grasp_world, (load * lever)[:, None] * line)
+    sq = ctx.candidates.source[gi] == SOURCE_SQUEEZE
+    if sq.any():  # a press holds the weight along the surface it presses (across ``a``)
+        local = np.einsum("rji,rj->ri", grasp_world[sq], load[sq, None] * down_world(len(sq))[sq])
+        loads[sq, 3] = np.hypot(local[:, 0], local[:, 1])
+        # and its share of the object's inertia about the press line, turned by the carry
+        line_obj = np.einsum("rji,rj->ri", rot[sq], line[sq])  # object frame
+        spin = share[sq] * rule.angular_acceleration * _inertia_about(ctx, gi[sq], line_obj)
+        loads[sq, :3] += np.einsum("rji,rj->ri", grasp_world[sq], spin[:, None] * line[sq])
+    cap = pair_capacity(rule, ctx, gi, other)
+    # a press twists about its own axis a: that is what ``twist`` judges (slot 1), and its
+    # turn about o is a tip (slot 2)
+    loads[np.ix_(sq, [1, 2])] = loads[np.ix_(sq, [2, 1])]
+    cap[np.ix_(sq, [1, 2])] = cap[np.ix_(sq, [2, 1])]
+    return _use(rule, loads, cap)
+
+
+def _inertia_about(ctx: PlanContext, gi: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """(R,) kg m^2, the object's inertia about the line through grasp ``gi``'s centre along
+    ``axis`` ((R, 3) unit, object frame): its mesh's inertia at the object's mass (a mesh
+    that is no closed volume: its bounding box's), moved to the line (parallel axes)."""
+    mesh, mass = ctx.part_mesh.mesh, ctx.facts.mass
+    com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
+    if mesh.is_volume and mesh.volume > 0:
+        tensor = np.asarray(mesh.moment_inertia) * mass / float(mesh.volume)
+    else:
+        e2 = np.asarray(mesh.extents, dtype=float) ** 2
+        tensor = mass / 12.0 * np.diag([e2[1] + e2[2], e2[0] + e2[2], e2[0] + e2[1]])
+    about = np.einsum("ri,ij,rj->r", axis, tensor, axis)
+    rel = com - ctx.candidates.centre[gi]
+    off = rel - np.einsum("ri,ri->r", rel, axis)[:, None] * axis
+    return about + mass * np.einsum("ri,ri->r", off, off)
+
+
+def _threshold(rule: TorqueRule, ctx: PlanContext) -> str:
+    spec = ctx.situation.gripper
+    cap = "" if rule.max_nm is None else f", <= {rule.max_nm:g} N m an axis"
+    return (f"<= 1 of what the pads hold ({rule.about}; {spec.grip_force:g} N, mu "
+            f"{spec.friction:g}, load x{rule.load_factor:g}{cap})")
 
 
 def evaluate(rule: TorqueRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
              pk: np.ndarray) -> Outcome:
+    threshold = _threshold(rule, ctx)
     if phase is not None and phase.mode == "H2G1" and phase.other_grasp is None:
         return inapplicable(len(gi), "H2G1: judged with the other gripper's grasp, once it is "
                             "known (the share of the weight and its lever need both)",
-                            f"<= {rule.max_nm:g} N m", "N m")
-    torque = torques(rule, ctx, *grasp_loads(ctx, phase, gi, pk))
-    known = np.isfinite(torque)
-    ok = known & (torque <= rule.max_nm + 1e-12)
-    score = np.where(known, np.clip(1.0 - torque / max(rule.max_nm, 1e-9), 0.0, 1.0), 0.0)
-    return Outcome(ok, torque, score, f"<= {rule.max_nm:g} N m", "N m", ~known,
-                   "the lever of the object's weight about the grasp is not known (no centre "
-                   "of mass, or no partner grasp to share it with)")
+                            threshold, "")
+    if phase is not None and phase.mode == "H2G1":
+        use = pair_uses(rule, ctx, gi, np.full(len(gi), phase.other_grasp), pk)
+    else:
+        use = uses(rule, ctx, gi, pk, np.ones(len(gi)))
+    known = np.isfinite(use) | (use == np.inf)
+    ok = known & (use <= 1.0 + 1e-12)
+    score = np.where(np.isfinite(use), np.clip(1.0 - use, 0.0, 1.0), 0.0)
+    return Outcome(ok, np.where(np.isfinite(use), use, 1e9), score, threshold, "",
+                   ~known, "the object's centre of mass or the pads' contact is not known")
 
 
 def detail(rule: TorqueRule, ctx: PlanContext, phase: Phase, grasp: int, presentation: int) -> dict:
-    """In H2G1, the share of the weight this grasp carries, its load (kg) and lever (m)."""
+    """What the pads hold at the grasp (twist and tip N m, weight N) and, in H2G1, the share
+    of the weight this grasp carries, its load (kg) and lever (m)."""
+    gi, pk = np.array([grasp]), np.array([presentation])
+    paired = phase is not None and phase.mode == "H2G1" and phase.other_grasp is not None
+    cap = (pair_capacity(rule, ctx, gi, np.array([phase.other_grasp])) if paired
+           else capacity(rule, ctx, gi))[0]
+    if ctx.candidates.source[grasp] == SOURCE_SQUEEZE:  # a press twists about its a
+        cap = cap[[0, 2, 1, 3]]
+    out = {"holds": {"twist_nm": round(float(cap[1]), 4), "tip_n_nm": round(float(cap[0]), 4),
+                     "tip_a_nm": round(float(cap[2]), 4), "weight_n": round(float(cap[3]), 4)}}
     if phase is None or phase.mode != "H2G1":
-        return {}
-    share, lever = grasp_loads(ctx, phase, np.array([grasp]), np.array([presentation]))
-    out = {"load_share": round(float(share[0]), 6),
-           "load_kg": round(float(share[0]) * ctx.facts.mass, 6)}
+        return out
+    share, lever = grasp_loads(ctx, phase, gi, pk)
+    out |= {"load_share": round(float(share[0]), 6),
+            "load_kg": round(float(share[0]) * ctx.facts.mass, 6)}
     if np.isfinite(lever[0]):
         out["lever_m"] = round(float(lever[0]), 6)
     return out

@@ -47,7 +47,7 @@ from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.features import collision_scene
 from handover.engine.plan.hand_features import pair_leaves_receiver
 from handover.engine.plan.hands import hands_for
-from handover.engine.plan.judge.torque import torques
+from handover.engine.plan.judge.torque import pair_uses, squeeze_force
 from handover.engine.plan.modes.common import (
     H2G1_RELOCATIONS,
     RETRY_CHECKS,
@@ -55,7 +55,8 @@ from handover.engine.plan.modes.common import (
     relocated,
 )
 from handover.engine.plan.phase import Hands, Phase
-from handover.engine.spec.kinds.torque import load_shares, pair_lever
+from handover.engine.spec.kinds.torque import load_shares
+from handover.geometry.squeeze import SOURCE_SQUEEZE
 
 if TYPE_CHECKING:
     from handover.engine.load.loader import KB
@@ -105,13 +106,16 @@ def _overloaded(ctx: PlanContext, cg: ConstraintGraph, gl: np.ndarray, gr: np.nd
     left = (ctx.candidates.centre[gl] @ rot.T)[:, None, :]
     right = (ctx.candidates.centre[gr] @ rot.T)[None, :, :]
     share_l = load_shares(com_w, left, right)  # (L, R)
-    lever = pair_lever(com_w, left, right)
     mass, payload = ctx.facts.mass, ctx.facts.payload
     over = (np.maximum(share_l, 1.0 - share_l) * mass > payload + 1e-12)
-    for c in cg.hard:
-        if c.rule.kind == "torque":
-            worst = np.maximum(share_l, 1.0 - share_l)
-            over |= torques(c.rule, ctx, worst, lever) > c.rule.max_nm + 1e-12
+    rules = [c.rule for c in cg.hard if c.rule.kind == "torque"]
+    if rules:
+        ll, rr = np.meshgrid(gl, gr, indexing="ij")
+        ll, rr = ll.ravel(), rr.ravel()
+        pk = np.full(len(ll), k)
+        for rule in rules:
+            use = np.maximum(pair_uses(rule, ctx, ll, rr, pk), pair_uses(rule, ctx, rr, ll, pk))
+            over |= (use > 1.0 + 1e-12).reshape(over.shape)
     return over
 
 
@@ -217,8 +221,14 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
                                        leaving_no_receiver_grasp=receiver_blocked))
     if best is None:
         lift = "both hands" if both_pick else "either hand"
+        holding = ", ".join(c.id for c in cg.hard if c.rule.kind == "torque")
         heavy = (f", {overloaded} where a gripper's share of the weight exceeds its payload "
-                 f"or torque limit" if overloaded else "")
+                 f"or what its grip holds ({holding or 'no holding rule'})"
+                 if overloaded else "")
+        squeezes = ctx.candidates.source[decision.gi[ranking]] == SOURCE_SQUEEZE
+        if overloaded and squeezes.any():
+            heavy += (f"; two arms squeezing it press {squeeze_force(ctx):g} N each, their "
+                      "friction holding too little of its weight")
         heavy += (f", {receiver_blocked} of them leaving the receiver's hand no grasp"
                   if receiver_blocked else "")
         return Attempt("H2G1", False,

@@ -1,0 +1,90 @@
+"""With ``--physics`` the plan's grasp is one that holds: when the chosen grasp slips or drops
+in the simulation, the plan is made again without it (and the other rolls and depths on its
+contacts), its arm solved as any chosen grasp's, and the result says which better-scored
+grasps were passed over and why. When none found holds, the plan keeps its grasps and says
+so.
+
+The failing case is made here: the built-in KB without its holding rules (torque_limit,
+tipping_limit, grip_holds_weight) and with the gripper closing at 35 N instead of 70 N, so
+the hammer's best-scored grasp, on its head 11 cm from the centre of mass, drops."""
+
+from __future__ import annotations
+
+import shutil
+
+import pytest
+import yaml
+
+from handover.engine.load.loader import load_kb
+from handover.engine.plan.physics import FALLBACKS
+from handover.engine.planner import plan
+from handover.engine.spec.query import Query
+from handover.engine.store.kb import builtin_kb_dir
+from handover.engine.tools.answer import PlanRequest, plan_request
+
+HOLDING_RULES = ("torque_limit", "tipping_limit", "grip_holds_weight")
+
+BOARD = """\
+id: board
+name: Oak board (60 x 8 x 2 cm)
+mass: 0.9
+geometry:
+  primitives:
+    - {shape: box, part: board, extents: [0.6, 0.08, 0.02], position: [0, 0, 0.01]}
+parts:
+  board: {tags: [board]}
+"""
+
+
+@pytest.fixture(scope="module")
+def weak_kb(tmp_path_factory):
+    root = tmp_path_factory.mktemp("replan") / "kb"
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    common = root / "etiquette" / "common.yaml"
+    doc = yaml.safe_load(common.read_text())
+    doc["rules"] = [r for r in doc["rules"] if r["id"] not in HOLDING_RULES]
+    common.write_text(yaml.safe_dump(doc, sort_keys=False))
+    gripper = root / "grippers" / "parallel_jaw.yaml"
+    spec = yaml.safe_load(gripper.read_text())
+    spec["grip_force"] = 35.0
+    gripper.write_text(yaml.safe_dump(spec, sort_keys=False))
+    (root / "objects" / "board.yaml").write_text(BOARD)
+    return load_kb(root)
+
+
+def test_a_grasp_that_drops_is_passed_over_and_the_plan_holds_with_the_next(weak_kb):
+    without = plan(weak_kb, Query("hammer")).result.to_dict()
+    dropped = without["robot_grasps"][0]["id"]
+    r = plan_request(weak_kb, PlanRequest("hammer", physics=True)).result.to_dict()
+    physics = r["physics"]
+    assert physics["passed"] is True
+    chosen = r["robot_grasps"][0]
+    assert chosen["id"] != dropped
+    assert physics["chosen"]["grasps"] == [{"hand": chosen["hand"], "id": chosen["id"]}]
+    over = {p["id"]: p["why"] for p in physics["passed_over"]}
+    assert "dropped" in over[dropped] or "slipped" in over[dropped]
+    assert chosen["id"] not in over
+    assert dropped in [g["grasps"][0]["id"] for g in physics["alternatives_failed"]]
+    # the new grasp's arm is solved like any chosen grasp's
+    assert chosen["arm"] in ("left", "right") and chosen["joints"]
+    assert any(w.startswith("physics: the better-scored grasp") for w in r["warnings"])
+
+
+def test_passed_over_grasps_are_never_chosen(weak_kb):
+    first = plan(weak_kb, Query("hammer")).result.to_dict()["robot_grasps"][0]["id"]
+    again = plan(weak_kb, Query("hammer"), passed_over={first: "test"})
+    data = again.result.to_dict()
+    assert data["outcome"] == "handover"
+    assert data["robot_grasps"][0]["id"] != first
+
+
+def test_when_nothing_found_holds_the_plan_keeps_its_grasps_and_says_so(weak_kb):
+    without = plan(weak_kb, Query("board")).result.to_dict()
+    r = plan_request(weak_kb, PlanRequest("board", physics=True)).result.to_dict()
+    physics = r["physics"]
+    assert physics["passed"] is False
+    assert r["robot_grasps"][0]["id"] == without["robot_grasps"][0]["id"]
+    assert physics["passed_over"] == []
+    # bounded: the next best of the first check, then at most FALLBACKS plans again
+    assert 1 <= len(physics["alternatives_failed"]) <= 2 * FALLBACKS
+    assert any("none found holds" in n for n in physics["notes"])

@@ -1,0 +1,111 @@
+"""Two arms that squeeze (H2G1): an object no single gripper spans is carried between the
+two grippers, jaws closed, pressing opposite faces; the robot's ``squeeze_force`` and the
+pads' friction must hold its weight (the KB's holding rules), and the physics check confirms
+it. The crate is written here, into a copy of the built-in KB (the shipped robot, its arms
+solved by inverse kinematics)."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+import yaml
+
+from handover import Planner
+from handover.engine.load.loader import load_kb
+from handover.engine.plan.physics import check_plan
+from handover.engine.store.kb import builtin_kb_dir
+
+# 25 x 30 x 15 cm, 1.2 kg: no face pair within the gripper's 85 mm. Its flat base lets the
+# receiver take it on their palms (support from below).
+CRATE = """\
+id: crate
+name: Crate
+mass: 1.2
+tags: [box, flat]
+geometry:
+  primitives:
+    - {shape: box, part: body, extents: [0.25, 0.3, 0.15], position: [0, 0, 0.075]}
+parts:
+  body: {tags: [body]}
+"""
+
+
+def kb_with_crate(root, squeeze_force):
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    (root / "objects" / "crate.yaml").write_text(CRATE)
+    path = root / "robots" / "idro.yaml"
+    spec = yaml.safe_load(path.read_text())
+    if squeeze_force is None:
+        spec.pop("squeeze_force", None)
+    else:
+        spec["squeeze_force"] = squeeze_force
+    path.write_text(yaml.safe_dump(spec))
+    return root
+
+
+@pytest.fixture(scope="module")
+def crate_plan(tmp_path_factory):
+    root = kb_with_crate(tmp_path_factory.mktemp("squeeze") / "kb", 30.0)
+    planner = Planner(kb=root, db=False)
+    return planner.kb, planner.plan("crate").to_dict()
+
+
+def test_a_crate_too_wide_for_one_gripper_is_squeezed_by_both_arms_and_holds(crate_plan):
+    kb, r = crate_plan
+    assert r["outcome"] == "handover" and r["mode"] == "H2G1", r["reason"]
+    grasps = r["robot_grasps"]
+    assert [g.get("hold") for g in grasps] == ["squeeze", "squeeze"]
+    assert {g["hand"] for g in grasps} == {"left", "right"}
+    assert all(g["arm"] in ("left", "right") and g["joints"] for g in grasps)  # IK solved
+    # the two presses push against each other, through the crate's centre
+    a = [np.asarray(g["pose"])[:3, 2] for g in grasps]
+    assert float(a[0] @ a[1]) < -0.99
+    # each gripper's friction at 30 N holds its half of the weight (x 1.4): 8.2 N of 15 N
+    weight = [e for e in r["trace"] if e["rule"] == "grip_holds_weight"]
+    assert len(weight) == 2 and all(e["status"] == "pass" for e in weight)
+    for e in weight:
+        assert e["holds"]["weight_n"] == pytest.approx(0.5 * 30.0)
+        assert e["measured"] == pytest.approx(0.5 * 1.2 * 9.81 * 1.4 / 15.0, rel=0.05)
+    checked = check_plan(kb, r)
+    assert checked.passed, checked.to_dict()["chosen"]["slip"]
+    nominal = checked.checked.result.nominal
+    assert nominal.max_translation_mm < 5.0 and nominal.max_rotation_deg < 5.0
+
+
+def test_the_receiver_takes_the_squeezed_crate_with_both_hands(crate_plan):
+    _, r = crate_plan
+    assert len(r["human_grasps"]) == 2
+    assert {h["hand"] for h in r["human_grasps"]} == {"left", "right"}
+
+
+def test_a_too_light_squeeze_cannot_carry_it_and_says_why(tmp_path):
+    root = kb_with_crate(tmp_path / "kb", 10.0)
+    r = Planner(kb=root, db=False).plan("crate").to_dict()
+    assert r["outcome"] == "infeasible"
+    # 10 N x 0.5 = 5 N per side, less than half the weight's 8.2 N (x 1.4)
+    assert "grip_holds_weight" in r["reason"]
+    assert "press 10 N each" in r["reason"]
+
+
+def test_a_robot_that_does_not_squeeze_has_no_grasp_for_it(tmp_path):
+    root = kb_with_crate(tmp_path / "kb", None)
+    kb = load_kb(root)
+    assert kb.robots["idro"].squeeze_force is None
+    r = Planner(kb=root, db=False).plan("crate").to_dict()
+    assert r["outcome"] == "infeasible"
+    assert "no geometric grasp" in r["reason"]
+
+
+def test_a_squeeze_must_also_hold_the_crates_turn_about_the_press_line(tmp_path):
+    # 30 x 40 x 20 cm pressed at its 30 x 20 cm faces: turning it at 41 rad/s^2 (the carry's
+    # shake) asks 1.2 x (0.3^2 + 0.2^2) / 12 x 41 = 0.53 N m about the press line, more than
+    # the two presses' fingertip torsion at 30 N (~0.44 N m); the weight alone (8 N of 15 N
+    # per press) would be held
+    root = kb_with_crate(tmp_path / "kb", 30.0)
+    (root / "objects" / "crate.yaml").write_text(CRATE.replace("[0.25, 0.3, 0.15]",
+                                                               "[0.3, 0.4, 0.2]"))
+    r = Planner(kb=root, db=False).plan("crate").to_dict()
+    assert r["outcome"] == "infeasible"
+    assert "press 30 N each" in r["reason"]
