@@ -2,7 +2,8 @@
 
 Hard rules run in the graph's order. Every hard rule is evaluated on all rows (a cheap
 indexing operation), except the expensive kinds (:data:`DEFERRED_KINDS`: the arms' reach,
-the collision rules), which run only on the rows that passed every hard rule before them.
+the collision and corridor rules), which run only on the rows that passed every hard rule
+before them.
 The first rule a row fails (``first_fail``, ``rejected_by``) is the same either way. Soft
 rules then score the survivors. That is the fast path of every plan.
 
@@ -44,7 +45,7 @@ __all__ = ["Decision", "evaluate", "evaluate_rule", "complete", "trace_row", "RO
 # Rows beyond this are a sign of a mis-set generator; the error says how to fix it.
 ROW_LIMIT = 5_000_000
 # The expensive kinds: judged only on the rows that passed every hard rule before them.
-DEFERRED_KINDS = ("reach", "collision")
+DEFERRED_KINDS = ("reach", "collision", "corridor")
 
 
 @dataclass

@@ -25,7 +25,7 @@ import numpy as np
 
 __all__ = ["DECIMALS", "to_jsonable", "dumps", "read_back", "stored_json", "robot_grasp_of",
            "human_grasp_of", "ArmJoints", "GraspSupport", "RobotGrasp",
-           "HandBox", "TakenGrasp", "ReachingArm", "HumanGrasp",
+           "Corridor", "HandBox", "TakenGrasp", "ReachingArm", "HumanGrasp",
            "PlacementSite"]
 
 DECIMALS = 6
@@ -118,6 +118,39 @@ class GraspSupport:
 
 
 @dataclass(frozen=True)
+class Corridor:
+    """One corridor of one grasp, for the result and the trace.
+
+    name : ``approach`` | ``lift`` | ``midair`` | ``retreat``. direction : (3,) unit, world,
+    the way the gripper moves along it (from the pre-grasp pose towards the grasp for an
+    approach, away from the grasp otherwise). distance : m, how far it goes. start, end :
+    (4, 4) grasp poses, world, where it begins and ends. free : nothing touched. reason :
+    one sentence (what it hits first and where, or that it is free). min_distance : m, the
+    least of it that must be free (MoveIt's ``min_distance``; None: all of it).
+    """
+
+    name: str
+    direction: np.ndarray
+    distance: float
+    start: np.ndarray
+    end: np.ndarray
+    free: bool
+    reason: str
+    min_distance: float | None = None
+
+    def to_dict(self) -> dict:
+        """``{"direction", "distance"[, "min_distance"], "poses"}`` as the result's JSON
+        carries it (poses: start and end, world)."""
+        out: dict = {"direction": [round(float(v), DECIMALS) for v in self.direction],
+                     "distance": round(float(self.distance), DECIMALS)}
+        if self.min_distance is not None:
+            out["min_distance"] = round(float(min(self.min_distance, self.distance)), DECIMALS)
+        out["poses"] = [np.round(self.start, DECIMALS).tolist(),
+                        np.round(self.end, DECIMALS).tolist()]
+        return out
+
+
+@dataclass(frozen=True)
 class RobotGrasp:
     """One of the robot's grasps, as the result's ``robot_grasps`` lists it.
 
@@ -135,7 +168,10 @@ class RobotGrasp:
     staged : the plan holds the object with different grasps at different stages (H2G2, a
     placement, a support), so the JSON names this grasp's ``stage``; a grasp that picks the
     object up and hands it over (H1G1, H2G1) has none there. supports : for a supporting
-    gripper, what it supports (:class:`GraspSupport`).
+    gripper, what it supports (:class:`GraspSupport`). approach, retreat : the straight
+    corridors the open gripper comes in along and withdraws along
+    (:class:`Corridor`, world; the approach of H2G2's second
+    grasp is its approach at the midair regrasp), None where the plan has none.
     """
 
     gripper: str
@@ -152,6 +188,8 @@ class RobotGrasp:
     roll_deg: float | None = None
     staged: bool = False
     supports: GraspSupport | None = None
+    approach: Corridor | None = None
+    retreat: Corridor | None = None
 
     @property
     def arm(self) -> str | None:
@@ -193,6 +231,10 @@ class RobotGrasp:
             out.update(self.arm_joints.to_dict())
         if self.staged and self.supports is None:
             out["stage"] = self.stage
+        for name in ("approach", "retreat"):
+            corridor = getattr(self, name)
+            if corridor is not None:
+                out[name] = corridor.to_dict()
         return to_jsonable(out)
 
 
