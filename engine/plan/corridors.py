@@ -33,14 +33,17 @@ if TYPE_CHECKING:
     from handover.engine.plan.phase import Hands, Phase
     from handover.geometry.corridor import CorridorHits
 
-__all__ = ["BITS", "CORRIDORS", "UP", "Corridor", "approach", "blocked", "chosen_corridors",
-           "corridors_of", "held_box", "lift", "midair", "midair_pairs", "object_distance",
-           "object_hits", "retreat", "where"]
+__all__ = ["BITS", "CORRIDORS", "OBJECT_RESOLUTION", "UP", "Corridor", "approach", "blocked",
+           "chosen_corridors", "corridors_of", "held_box", "lift", "midair", "midair_pairs",
+           "object_distance", "object_hits", "retreat", "where"]
 
 from handover.engine.plan.records import Corridor
 from handover.engine.spec.kinds.corridor import CORRIDORS
 
 UP = np.array([0.0, 0.0, 1.0])
+OBJECT_RESOLUTION = 0.01
+"""m: the step at which a corridor is sampled against the object's mesh (the slowest test:
+one mesh query per sample; the boxes and bodies are tested exactly or at 5 mm)."""
 
 
 def _spec(ctx: PlanContext):
@@ -81,7 +84,7 @@ def object_hits(ctx: PlanContext, gi: np.ndarray) -> CorridorHits:
     poses = ctx.gripper_poses()[gi]
     return check_corridors(ctx.gripper, poses, ctx.candidates.width[gi], -poses[:, :3, 2],
                            max(spec.approach, spec.retreat), obj=ctx.collider,
-                           name="object")
+                           name="object", resolution=OBJECT_RESOLUTION)
 
 
 def object_distance(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
@@ -174,13 +177,26 @@ def midair_pairs(ctx: PlanContext, firsts: np.ndarray, seconds: np.ndarray,
     p = np.repeat(np.arange(len(f_idx)), k * k)
     mov = np.tile(np.repeat(np.arange(k), k), len(f_idx))
     fix = np.tile(np.arange(k), k * len(f_idx))
-    rot_m = posed.rotations[second[p]]
-    s = swept_box_contacts(posed.centres[second[p], mov], rot_m, posed.extents[mov],
-                           -rot_m[:, :, 2], np.full(len(p), _spec(ctx).retreat),
-                           posed.centres[first[p], fix], posed.rotations[first[p]],
-                           posed.extents[fix])
-    hit = np.isfinite(s).reshape(len(f_idx), k * k).any(axis=1)
-    out[f_idx, m_idx] = hit
+    length = _spec(ctx).retreat
+    # Broad phase: the segment swept by each moving box's centre against the fixed box's
+    # centre, within the sum of their bounding spheres; the exact test on the pairs left.
+    radius = 0.5 * np.linalg.norm(posed.extents, axis=1)  # (k,)
+    start = posed.centres[second[p], mov]
+    sweep = -length * posed.rotations[second[p], :, 2]
+    w = posed.centres[first[p], fix] - start
+    t = np.clip((w * sweep).sum(-1) / max(length * length, 1e-300), 0.0, 1.0)
+    near = np.flatnonzero(np.linalg.norm(w - t[:, None] * sweep, axis=1)
+                          <= radius[mov] + radius[fix] + 1e-9)
+    hit = np.zeros(len(p), dtype=bool)
+    if len(near):
+        q = p[near]
+        rot_m = posed.rotations[second[q]]
+        s = swept_box_contacts(start[near], rot_m, posed.extents[mov[near]],
+                               -rot_m[:, :, 2], np.full(len(q), length),
+                               posed.centres[first[q], fix[near]], posed.rotations[first[q]],
+                               posed.extents[fix[near]])
+        hit[near] = np.isfinite(s)
+    out[f_idx, m_idx] = hit.reshape(len(f_idx), k * k).any(axis=1)
     return out
 
 
