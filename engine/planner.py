@@ -39,14 +39,14 @@ if TYPE_CHECKING:
     from handover.engine.plan.place import PlacementPlan
     from handover.engine.report.result import PlanResult
 
-__all__ = ["plan", "decide", "Decided", "refusing_rules", "fallback_rules", "Planner", "Plan",
-           "Query", "QUERY_FIELDS", "query_of", "RobotGrasp", "HumanGrasp", "Robot",
-           "RobotArm"]
+__all__ = ["plan", "add_motion", "decide", "Decided", "refusing_rules", "fallback_rules",
+           "Planner", "Plan", "Query", "QUERY_FIELDS", "query_of", "RobotGrasp", "HumanGrasp",
+           "Robot", "RobotArm"]
 
 
 def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
          mesh: trimesh.Trimesh | None = None, what_if: bool = False,
-         arms_cache: LRU | None = None) -> Plan:
+         arms_cache: LRU | None = None, motion: bool = False) -> Plan:
     """Plan a handover, choosing the mode (``auto``) or using the forced one; or, when the
     rules say so, set the object down or refuse (see :func:`decide`).
 
@@ -56,6 +56,9 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
     feasible (``result.what_if``, :mod:`handover.engine.plan.whatif`).
     arms_cache : where the robot's arms are kept between plans (a :class:`Planner`'s); None:
     this process's (:data:`handover.engine.assets.robot.PLAN_ARMS`).
+    motion : plan the arms' motion between the stages of a feasible handover
+    (:mod:`handover.engine.plan.motion`): each robot grasp's ``trajectory`` and the result's
+    ``motion`` block (the CLI and the service do, unless ``--no-motion``).
     Returns the :class:`Plan` (any outcome) with its context and chosen attempt.
     """
     from handover.engine.plan.prepare import prepare
@@ -69,9 +72,28 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
         from handover.engine.plan.whatif import what_if as changes
 
         result.what_if = changes(kb, query, ctx, d.attempt, d.tried, db=db, mesh=mesh)
+    if motion and d.outcome == "handover" and ctx.arms is not None:
+        add_motion(result, ctx, d.attempt)
     if d.placement is not None and d.placement.feasible:
         return Plan(result, d.placement.context, d.placement.attempt)
     return Plan(result, ctx, d.attempt)
+
+
+def add_motion(result: PlanResult, ctx: PlanContext, attempt: Attempt) -> None:
+    """Plan the arms' motion of a feasible handover (:func:`handover.engine.plan.motion.
+    motion_plan`) into ``result``: each robot grasp's ``trajectory`` and ``result.motion``
+    (``{planned, segments, duration, failure}``; a failure names the segment, and its
+    sentence joins the warnings)."""
+    from handover.engine.plan.motion import motion_plan
+
+    found = motion_plan(ctx, attempt, result.robot_grasps)
+    result.motion = found.to_dict()
+    if found.failure is not None:
+        result.warnings = [*result.warnings, found.failure.sentence()]
+        return
+    result.robot_grasps = [replace(g, trajectory=t) if t else g
+                           for g, t in zip(result.robot_grasps, found.trajectories,
+                                           strict=False)]
 
 
 @dataclass

@@ -171,7 +171,10 @@ class RobotGrasp:
     gripper, what it supports (:class:`GraspSupport`). approach, retreat : the straight
     corridors the open gripper comes in along and withdraws along
     (:class:`Corridor`, world; the approach of H2G2's second
-    grasp is its approach at the midair regrasp), None where the plan has none.
+    grasp is its approach at the midair regrasp), None where the plan has none. trajectory :
+    its arm's motion, one :class:`~handover.geometry.motion.planner.Segment` per stage to
+    the next (rest, pregrasp, grasp, lift, ..., rest; :mod:`handover.engine.plan.motion`),
+    empty where no motion was planned.
     """
 
     gripper: str
@@ -190,6 +193,7 @@ class RobotGrasp:
     supports: GraspSupport | None = None
     approach: Corridor | None = None
     retreat: Corridor | None = None
+    trajectory: tuple = ()
 
     @property
     def arm(self) -> str | None:
@@ -235,6 +239,10 @@ class RobotGrasp:
             corridor = getattr(self, name)
             if corridor is not None:
                 out[name] = corridor.to_dict()
+        if self.trajectory:
+            out["trajectory"] = [{"segment": s.name, "joint_names": list(s.joint_names),
+                                  "positions": s.positions, "times": s.times}
+                                 for s in self.trajectory]
         return to_jsonable(out)
 
 

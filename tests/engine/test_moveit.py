@@ -234,7 +234,11 @@ def test_without_approach_or_retreat_the_gripper_comes_along_a_and_lifts(results
 
 @pytest.mark.parametrize("name", sorted(PLANS))
 def test_arm_trajectories_go_through_the_stage_joints(results, name, tmp_path):
-    result = results[name]
+    """Without planned motion (``--no-motion``), one trajectory per arm through its stages."""
+    result = copy.deepcopy(results[name])
+    result.pop("motion", None)
+    for g in result["robot_grasps"]:
+        g.pop("trajectory", None)
     messages = bag(result, tmp_path)[1]
     for g in result["robot_grasps"]:
         arm = result["robot"]["arms"][g["arm"]]
@@ -246,6 +250,22 @@ def test_arm_trajectories_go_through_the_stage_joints(results, name, tmp_path):
         seconds = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in traj.points]
         assert seconds == [2.0 * (k + 1) for k in range(len(stages))]
         assert traj.header.frame_id == "" and traj.header.stamp.sec == 0
+
+
+def test_planned_motion_gives_one_trajectory_per_segment(results, tmp_path):
+    """With the arms' motion planned, each segment of a grasp's ``trajectory`` is one
+    JointTrajectory on its arm's topic, in order, its points the segment's samples."""
+    result = next(r for r in results.values() if r.get("motion", {}).get("planned"))
+    messages = bag(result, tmp_path)[1]
+    for arm in {g["arm"] for g in result["robot_grasps"] if g.get("trajectory")}:
+        segments = [s for g in result["robot_grasps"] if g.get("arm") == arm
+                    for s in g.get("trajectory", [])]
+        got = [m for topic, _, m in messages if topic == f"/handover/trajectory/{arm}"]
+        assert len(got) == len(segments) > 1
+        for msg, seg in zip(got, segments, strict=True):
+            assert msg.joint_names == seg["joint_names"]
+            assert len(msg.points) == len(seg["positions"])
+            assert list(msg.points[-1].positions) == seg["positions"][-1]
 
 
 def test_the_same_plan_gives_a_byte_identical_bag(results, tmp_path):
@@ -335,7 +355,7 @@ def test_a_floating_gripper_s_grasp_pose_is_the_grasp_frame(results):
     result = copy.deepcopy(results["knife"])
     result["robot"] = None
     for g in result["robot_grasps"]:
-        for key in ("arm", "joints", "fingers_swapped"):
+        for key in ("arm", "joints", "fingers_swapped", "trajectory"):
             g.pop(key, None)
     plan = moveit_messages(result)
     assert plan.trajectories == ()
