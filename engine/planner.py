@@ -400,7 +400,8 @@ class Planner:
         self.arms_cache: LRU[tuple, RobotArms] = LRU(ARMS_KEPT)
 
     def plan(self, query: Query | str | Path | trimesh.Trimesh | None = None, /, *,
-             why_not: tuple[int, ...] = (), what_if: bool = False, **fields: Any) -> Plan:
+             why_not: tuple[int, ...] = (), what_if: bool = False, motion: bool = False,
+             **fields: Any) -> Plan:
         """Plan a handover of ``query``: a :class:`Query`, or the object (an object id of the
         KB, a mesh file, or a ``trimesh.Trimesh`` in metres) with the query's other fields as
         keywords (:data:`QUERY_FIELDS`: ``receiver``, ``culture``, ``task``, ``scene``,
@@ -408,10 +409,12 @@ class Planner:
         default (adult, common, the object's default task, the table scene, ``auto``). With a
         Query, the keywords given change its fields. why_not : candidate ids to explain.
         what_if : an infeasible plan lists the verified changes that would make it feasible
-        (``to_dict()["what_if"]``). Raises ValueError for a keyword that is no query field."""
+        (``to_dict()["what_if"]``). motion : plan the arms' motion of a handover (each robot
+        grasp's ``trajectory``, ``to_dict()["motion"]``; what ``handover plan`` does unless
+        ``--no-motion``). Raises ValueError for a keyword that is no query field."""
         asked, mesh = query_of(query, **fields)
         return plan(self.kb, asked, why_not=tuple(why_not), db=self.db, mesh=mesh,
-                    what_if=what_if, arms_cache=self.arms_cache)
+                    what_if=what_if, arms_cache=self.arms_cache, motion=motion)
 
 
 QUERY_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclass_fields(Query))

@@ -217,7 +217,9 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
 
     add("rest", rest, False, "pickup")
     midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
-    if grasp.picks_up:  # from the table
+    joins = "pickup" not in q_of and "midair" not in q_of  # takes hold at the handover
+    grasp_stage, object_pose = 0, np.asarray(grasp.pose_world @ np.linalg.inv(grasp.pose))
+    if "pickup" in q_of:  # from the table
         q_grasp = q_of["pickup"]
         tool = arms.fk(side, q_grasp[None])[0]
         distance = spec.approach if grasp.approach is None else grasp.approach.distance
@@ -233,7 +235,7 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
         grasp_stage = len(names) - 1
         object_pose = ctx.initial
         add("lift", up, True, "pickup")
-    else:  # H2G2's second grasp: taken at the midair regrasp
+    elif not joins:  # H2G2's second grasp: taken at the midair regrasp
         q_mid = q_of["midair"]
         tool = arms.fk(side, q_mid[None])[0]
         pre = backed("pregrasp", tool, (spec.retreat, spec.approach_min, least), q_mid, "midair",
@@ -247,17 +249,19 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
     if "handover" in q_of:
         q_hand = q_of["handover"]
         tool = arms.fk(side, q_hand[None])[0]
-        near = solve("approach", _backed(tool, spec.approach), q_hand, "handover", True)
+        near = solve("approach", _backed(tool, spec.approach), q_hand, "handover", not joins)
         if isinstance(near, MotionFailure):
             return near
         back = backed("retreat", tool, (spec.retreat, spec.approach_min, least), q_hand,
                       "handover", False)
         if isinstance(back, MotionFailure):
             return back
-        add("approach", near, True, "handover")
-        add("handover", q_hand, True, "handover")
+        add("approach", near, not joins, "handover")
+        add("handover", q_hand, not joins, "handover")
+        if joins:
+            grasp_stage = len(names) - 1
         add("retreat", back, False, "handover")
-    elif "midair" in q_of and grasp.picks_up:  # H2G2's first grasp lets go at midair
+    elif "midair" in q_of and "pickup" in q_of:  # H2G2's first grasp lets go at midair
         q_mid = q_of["midair"]
         tool = arms.fk(side, q_mid[None])[0]
         back = backed("release", tool, (spec.retreat, spec.approach_min, least), q_mid,
@@ -334,10 +338,11 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
         open_boxes = ctx.gripper.boxes(float(grasp.width))
         closed = ctx.gripper.boxes(max(float(grasp.width) - 2 * ctx.gripper.clearance, 0.0))
         # The object's box in the tool frame, where the gripper closes on it.
-        taking = "pickup" if grasp.picks_up else "midair"
+        taking = next(s for s in ("pickup", "midair", "handover") if s in grasp.joints)
         midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
-        object_pose = ctx.initial if grasp.picks_up else (
-            np.eye(4) if midair_at is None else np.asarray(midair_at, dtype=float))
+        object_pose = {"pickup": ctx.initial,
+                       "midair": np.eye(4) if midair_at is None else np.asarray(midair_at),
+                       "handover": grasp.pose_world @ np.linalg.inv(grasp.pose)}[taking]
         q_take = np.array([grasp.joints[taking][n] for n in a.chain.joint_names])
         tool = ctx.arms.fk(side, q_take[None])[0]
         ((_, ext, box),) = held_box(ctx, object_pose)

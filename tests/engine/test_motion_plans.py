@@ -213,3 +213,20 @@ def test_a_segment_that_cannot_be_planned_is_named(kb, monkeypatch):
     assert failure["arm"] in ("left", "right")
     assert any(f"segment {failure['segment']}" in w for w in result["warnings"])
     assert not any("trajectory" in g for g in result["robot_grasps"])
+
+
+def test_the_recording_animates_the_arm_on_a_motion_timeline(kb, tmp_path):
+    from rerun.chunk import RrdReader
+
+    planned = plan(kb, Query(object="hammer"), motion=True)
+    segments = [s for g in planned.result.robot_grasps for s in g.trajectory]
+    path = planned.record(tmp_path / "hammer.rrd")
+    chunks = RrdReader(str(path)).stream().to_chunks()
+    on_motion = {c.entity_path for c in chunks if "motion" in c.timeline_names}
+    arm = planned.result.robot_grasps[0].arm
+    assert f"/world/motion/{arm}/capsules" in on_motion
+    assert "/world/motion/object" in on_motion
+    logged = [t for c in chunks if c.entity_path == "/log/motion"
+              for t in c.to_record_batch().column("TextLog:text").to_pylist()]
+    assert len(logged) == len(segments)
+    assert all(s.name in str(t) for s, t in zip(segments, logged, strict=True))
