@@ -202,12 +202,14 @@ def midair_pairs(ctx: PlanContext, firsts: np.ndarray, seconds: np.ndarray,
 
 def retreat(ctx: PlanContext, hands: Hands, gi: np.ndarray, pk: np.ndarray) -> list:
     """The retreat corridors of rows ``(gi, pk)`` (R,) int at the handover against the
-    receiver's hands, the scene and both bodies (the object: :func:`object_distance`): one
-    ``(rows, CorridorHits)`` per presentation among ``pk`` (rows: indices into ``gi``). The
-    targets move into the object frame and only those within reach of the corridors are
-    tested (the same geometry as in the world, fewer primitives)."""
+    receiver's hands (the grasp each hand takes with the robot's gripper at that row:
+    :func:`~handover.engine.plan.hand_features.receiver_choice`), the scene and both bodies
+    (the object: :func:`object_distance`): one ``(rows, CorridorHits)`` per presentation and
+    choice of the hands among the rows (rows: indices into ``gi``). The targets move into the
+    object frame and only those within reach of the corridors are tested (the same geometry
+    as in the world, fewer primitives)."""
     from handover.engine.plan.features import gripper_spheres, handover_targets
-    from handover.engine.plan.hand_features import receiver_hand_boxes
+    from handover.engine.plan.hand_features import hand_model, receiver_choice
     from handover.geometry.collision import BoxWorld
     from handover.geometry.corridor import check_corridors
 
@@ -215,10 +217,13 @@ def retreat(ctx: PlanContext, hands: Hands, gi: np.ndarray, pk: np.ndarray) -> l
     origin, g_reach = gripper_spheres(ctx)
     length = _spec(ctx).retreat
     poses = ctx.gripper_poses()
+    choice = receiver_choice(ctx, hands, gi, pk) if len(gi) else np.zeros((0, 0), np.int64)
+    keys = np.concatenate([pk[:, None], choice], axis=1)
     out = []
-    for k in np.unique(pk):
-        rows = np.flatnonzero(pk == k)
-        pose = hands.poses[int(k)]
+    for key in np.unique(keys, axis=0):
+        rows = np.flatnonzero((keys == key).all(axis=1))
+        k = int(key[0])
+        pose = hands.poses[k]
         sel = gi[rows]
         reach = float(np.linalg.norm(origin[sel], axis=1).max()) + g_reach + length
         local = None
@@ -226,7 +231,12 @@ def retreat(ctx: PlanContext, hands: Hands, gi: np.ndarray, pk: np.ndarray) -> l
             near = bodies.point_distances(pose[:3, 3][None])[0] <= reach
             if near.any():
                 local = bodies.subset(near).moved(np.linalg.inv(pose))
-        boxes = receiver_hand_boxes(ctx, hands, int(k))
+        boxes = []
+        for sites, j in zip(hands.sites, key[1:], strict=True):
+            if sites.options is not None and j < 0:
+                continue  # the gripper leaves this hand no grasp: judged by hand_fit
+            boxes += hand_model(ctx, hands.region, sites, k, pose,
+                                None if sites.options is None else int(j))
         world = BoxWorld(boxes).moved(np.linalg.inv(pose)) if boxes else None
         hits = check_corridors(ctx.gripper, poses[sel], ctx.candidates.width[sel],
                                -poses[sel, :3, 2], length, world=world, bodies=local,
