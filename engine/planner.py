@@ -39,14 +39,15 @@ if TYPE_CHECKING:
     from handover.engine.plan.place import PlacementPlan
     from handover.engine.report.result import PlanResult
 
-__all__ = ["plan", "decide", "Decided", "refusing_rules", "fallback_rules", "Planner", "Plan",
-           "Query", "QUERY_FIELDS", "query_of", "RobotGrasp", "HumanGrasp", "Robot",
-           "RobotArm"]
+__all__ = ["plan", "add_motion", "decide", "Decided", "refusing_rules", "fallback_rules",
+           "Planner", "Plan", "Query", "QUERY_FIELDS", "query_of", "RobotGrasp", "HumanGrasp",
+           "Robot", "RobotArm"]
 
 
 def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
          mesh: trimesh.Trimesh | None = None, what_if: bool = False,
-         arms_cache: LRU | None = None, passed_over: dict[int, str] | None = None) -> Plan:
+         arms_cache: LRU | None = None, passed_over: dict[int, str] | None = None,
+         motion: bool = False) -> Plan:
     """Plan a handover, choosing the mode (``auto``) or using the forced one; or, when the
     rules say so, set the object down or refuse (see :func:`decide`).
 
@@ -58,6 +59,9 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
     this process's (:data:`handover.engine.assets.robot.PLAN_ARMS`).
     passed_over : candidate ids no mode may choose, each with why (the physics check saw
     them fail: ``handover plan --physics`` plans again without them).
+    motion : plan the arms' motion between the stages of a feasible handover
+    (:mod:`handover.engine.plan.motion`): each robot grasp's ``trajectory`` and the result's
+    ``motion`` block (the CLI and the service do, unless ``--no-motion``).
     Returns the :class:`Plan` (any outcome) with its context and chosen attempt.
     """
     from handover.engine.plan.prepare import prepare
@@ -72,9 +76,28 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
         from handover.engine.plan.whatif import what_if as changes
 
         result.what_if = changes(kb, query, ctx, d.attempt, d.tried, db=db, mesh=mesh)
+    if motion and d.outcome == "handover" and ctx.arms is not None:
+        add_motion(result, ctx, d.attempt)
     if d.placement is not None and d.placement.feasible:
         return Plan(result, d.placement.context, d.placement.attempt)
     return Plan(result, ctx, d.attempt)
+
+
+def add_motion(result: PlanResult, ctx: PlanContext, attempt: Attempt) -> None:
+    """Plan the arms' motion of a feasible handover (:func:`handover.engine.plan.motion.
+    motion_plan`) into ``result``: each robot grasp's ``trajectory`` and ``result.motion``
+    (``{planned, segments, duration, failure}``; a failure names the segment, and its
+    sentence joins the warnings)."""
+    from handover.engine.plan.motion import motion_plan
+
+    found = motion_plan(ctx, attempt, result.robot_grasps)
+    result.motion = found.to_dict()
+    if found.failure is not None:
+        result.warnings = [*result.warnings, found.failure.sentence()]
+        return
+    result.robot_grasps = [replace(g, trajectory=t) if t else g
+                           for g, t in zip(result.robot_grasps, found.trajectories,
+                                           strict=False)]
 
 
 @dataclass
@@ -381,7 +404,8 @@ class Planner:
         self.arms_cache: LRU[tuple, RobotArms] = LRU(ARMS_KEPT)
 
     def plan(self, query: Query | str | Path | trimesh.Trimesh | None = None, /, *,
-             why_not: tuple[int, ...] = (), what_if: bool = False, **fields: Any) -> Plan:
+             why_not: tuple[int, ...] = (), what_if: bool = False, motion: bool = False,
+             **fields: Any) -> Plan:
         """Plan a handover of ``query``: a :class:`Query`, or the object (an object id of the
         KB, a mesh file, or a ``trimesh.Trimesh`` in metres) with the query's other fields as
         keywords (:data:`QUERY_FIELDS`: ``receiver``, ``culture``, ``task``, ``scene``,
@@ -389,10 +413,12 @@ class Planner:
         default (adult, common, the object's default task, the table scene, ``auto``). With a
         Query, the keywords given change its fields. why_not : candidate ids to explain.
         what_if : an infeasible plan lists the verified changes that would make it feasible
-        (``to_dict()["what_if"]``). Raises ValueError for a keyword that is no query field."""
+        (``to_dict()["what_if"]``). motion : plan the arms' motion of a handover (each robot
+        grasp's ``trajectory``, ``to_dict()["motion"]``; what ``handover plan`` does unless
+        ``--no-motion``). Raises ValueError for a keyword that is no query field."""
         asked, mesh = query_of(query, **fields)
         return plan(self.kb, asked, why_not=tuple(why_not), db=self.db, mesh=mesh,
-                    what_if=what_if, arms_cache=self.arms_cache)
+                    what_if=what_if, arms_cache=self.arms_cache, motion=motion)
 
 
 QUERY_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclass_fields(Query))

@@ -275,16 +275,19 @@ def check_corridors(
         bc = np.concatenate([x[0] for x in b_parts])
         br = np.concatenate([x[1] for x in b_parts])
         be = np.concatenate([x[2] for x in b_parts])
-        # Broad phase: the segment swept by each moving box's centre against each fixed
-        # box's bounding sphere.
+        # Broad phase, in each fixed box's own frame: the segment swept by each moving box's
+        # centre, grown by the moving box's bounding sphere, against the fixed box itself
+        # (its half extents), so a long flat box such as a table is treated as the box it is
+        # and not as its bounding sphere.
         rad_m = 0.5 * np.linalg.norm(m_ext, axis=1)  # (K,)
-        rad_b = 0.5 * np.linalg.norm(be, axis=1)  # (B,)
-        start = m_centres[:, :, None, :]  # (n, K, 1, 3)
-        sweep = (length[:, None] * d)[:, None, None, :]
-        w = bc[None, None] - start
-        t = np.clip((w * sweep).sum(-1) / np.maximum((sweep * sweep).sum(-1), 1e-300), 0, 1)
-        near = np.linalg.norm(w - t[..., None] * sweep, axis=-1) <= (
-            rad_m[None, :, None] + rad_b[None, None, :] + 1e-9)  # fmt: skip
+        half_b = 0.5 * be  # (B, 3)
+        rel = m_centres[:, :, None, :] - bc[None, None]  # (n, K, B, 3)
+        p0 = np.einsum("nkbi,bij->nkbj", rel, br)  # start in each fixed box's frame
+        step = np.einsum("ni,bij->nbj", length[:, None] * d, br)[:, None]  # (n, 1, B, 3)
+        lo = np.minimum(p0, p0 + step)
+        hi = np.maximum(p0, p0 + step)
+        grow = rad_m[None, :, None, None] + 1e-9
+        near = ((lo - grow <= half_b[None, None]) & (hi + grow >= -half_b[None, None])).all(-1)
         rows, parts, boxes = np.nonzero(near)
         for s0 in range(0, len(rows), _PAIRS):
             i, k, j = rows[s0:s0 + _PAIRS], parts[s0:s0 + _PAIRS], boxes[s0:s0 + _PAIRS]

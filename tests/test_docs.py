@@ -40,6 +40,7 @@ MARKED = {
     "own-robot": "tests/engine/test_user_robot.py: planned beside the URDF the test writes",
     "korean-bends": "here: it is the rule of etiquette/korean.yaml",
     "gripper-meshes": "here: the built-in gripper with it and two mesh files validates",
+    "gripper-corridors": "tests/engine/test_corridors.py: the built-in gripper's corridors",
 }
 MODELINE = re.compile(r"^# yaml-language-server: \$schema=\.\./schema/(?P<kind>\w+)\.json$")
 PATH_COMMENT = re.compile(r"^# (?P<path>\w+/[\w.-]+\.yaml)$")

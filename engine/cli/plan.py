@@ -27,13 +27,13 @@ def check_mesh_scale(mesh_scale: float) -> float:
 
 
 def _request(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0,
-             robot=None, why_not=(), what_if=False, fmt="json", physics=False):
+             robot=None, why_not=(), what_if=False, fmt="json", physics=False, motion=True):
     from handover.engine.tools.answer import PlanRequest
 
     return PlanRequest(object=object_, task=task, receiver=receiver, culture=culture,
                        scene=scene, mode=mode or "auto", gripper=gripper, robot=robot,
                        mesh_scale=check_mesh_scale(mesh_scale), why_not=tuple(why_not),
-                       what_if=what_if, physics=physics, format=fmt)
+                       what_if=what_if, physics=physics, motion=motion, format=fmt)
 
 
 def _query(object_: str, task, receiver, culture, scene, mode, gripper, mesh_scale=1.0,
@@ -69,6 +69,9 @@ def plan(
     physics: bool = typer.Option(
         False, "--physics", help="Check the chosen grasps in MuJoCo (close, lift, carry, hold, "
         "shake; the robustness ensemble); when they fail, the next best candidates too."),
+    no_motion: bool = typer.Option(
+        False, "--no-motion", help="Skip the arms' motion between the stages (each robot "
+        "grasp's trajectory), for callers that plan motion themselves."),
     rrd: Path | None = typer.Option(None, "--rrd", help="Write a rerun recording here."),
     mcap: Path | None = typer.Option(
         None, "--mcap", help="Write the plan's ROS 2 messages here as an MCAP bag."),
@@ -99,7 +102,7 @@ def plan(
     if json_out:
         fmt = "json"
     request = _request(object_, task, receiver, culture, scene, mode, gripper, mesh_scale,
-                       robot, why_not, what_if, physics=physics)
+                       robot, why_not, what_if, physics=physics, motion=not no_motion)
     grasp_db = open_db(db, disabled=no_db)
     kb = load_kb_cached(state.kb_dir, None if grasp_db is None else kb_cache_dir(grasp_db.root))
     planned = plan_request(kb, request, grasp_db)

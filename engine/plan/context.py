@@ -102,6 +102,10 @@ class Memo:
     surface_samples: Any = None  # geometry.penetration.SurfaceSamples of the object
     forbidden_samples: dict[tuple, Any] = field(default_factory=dict)  # by tags
     receiver_choice: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N*K, H) int64
+    # plan.corridors: per grasp ("approach", "lift", ("midair", other)), (N,) int8 -1 unknown;
+    # per row under the hands' key (the retreat), (N*K,) int64
+    corridor_grasp: dict[Any, np.ndarray] = field(default_factory=dict)
+    corridor_retreat: dict[tuple, np.ndarray] = field(default_factory=dict)
     # plan.arms
     arm_shoulders: dict[str, np.ndarray] = field(default_factory=dict)
     arm_checks: dict[tuple, Any] = field(default_factory=dict)  # arms.stages.ArmCheck
@@ -115,8 +119,7 @@ class Memo:
 
     GRASP_ONLY: ClassVar[tuple[str, ...]] = (
         "poses", "pad_patches", "gripper_boxes", "gripper_spheres", "collision_scene",
-        "keep_out_gripper",
-        "interior", "world", "locations", "arms")
+        "keep_out_gripper", "interior", "world", "locations", "arms", "corridor_grasp")
     """Fields that depend on the grasps only, not on the presentations' rotations."""
 
     def grasp_only(self) -> Memo:

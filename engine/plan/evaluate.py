@@ -2,7 +2,8 @@
 
 Hard rules run in the graph's order. Every hard rule is evaluated on all rows (a cheap
 indexing operation), except the expensive kinds (:data:`DEFERRED_KINDS`: the arms' reach,
-the collision rules), which run only on the rows that passed every hard rule before them.
+the collision and corridor rules), which run only on the rows that passed every hard rule
+before them.
 The first rule a row fails (``first_fail``, ``rejected_by``) is the same either way. Soft
 rules then score the survivors. That is the fast path of every plan.
 
@@ -39,12 +40,16 @@ if TYPE_CHECKING:
     from handover.engine.plan.phase import Phase
 
 __all__ = ["Decision", "evaluate", "evaluate_rule", "complete", "trace_row", "ROW_LIMIT",
-           "DEFERRED_KINDS"]
+           "DEFERRED_KINDS", "ALONE_KINDS"]
 
 # Rows beyond this are a sign of a mis-set generator; the error says how to fix it.
 ROW_LIMIT = 5_000_000
 # The expensive kinds: judged only on the rows that passed every hard rule before them.
-DEFERRED_KINDS = ("reach", "collision")
+DEFERRED_KINDS = ("reach", "collision", "corridor")
+# Kinds an explanation judges only on the rows no other hard rule fails: the corridors
+# (a row another rule removes is explained by that rule; sweeping the gripper out of every
+# such row would cost more than the plan).
+ALONE_KINDS = ("corridor",)
 
 
 @dataclass
@@ -163,12 +168,14 @@ def complete(decision: Decision, ctx: PlanContext, phase: Phase) -> Decision:
     A row whose known failures already hold, as a proper part, the whole failure pattern
     of a fully judged row cannot be minimal whatever it would still fail: it is left as it
     is. The rows that fail fewest known rules are completed first; the patterns they give
-    (with those of the rows the fast path judged fully) then leave out the rest."""
+    (with those of the rows the fast path judged fully) then leave out the rest. The kinds of
+    :data:`ALONE_KINDS` (the corridors) are judged only on the rows no other rule fails."""
     fails, checked = decision.fails.copy(), decision.checked.copy()
     unknown, unknown_why = decision.unknown.copy(), dict(decision.unknown_why)
     measured = dict(decision.measured)
     n_rows, n_hard = fails.shape
-    todo_rows = ~checked.all(axis=1)
+    alone = np.array([c.rule.kind in ALONE_KINDS for c in decision.hard], dtype=bool)
+    todo_rows = ~(checked | alone).all(axis=1)
     if not todo_rows.any() or decision.kept.any():  # a kept row: no set blocks anything
         return decision
     known = (fails & checked).sum(axis=1)
@@ -180,7 +187,7 @@ def complete(decision: Decision, ctx: PlanContext, phase: Phase) -> Decision:
     for batch in ([levels[:1], levels[1:]] if len(levels) > 1 else [levels]):
         rows = np.flatnonzero(todo_rows & np.isin(known, batch))
         if weights is not None:
-            done = np.flatnonzero(checked.all(axis=1) & fails.any(axis=1))
+            done = np.flatnonzero((checked | alone).all(axis=1) & fails.any(axis=1))
             full = np.unique(fails[done].astype(np.int64) @ weights)
             if len(full) and len(rows):
                 codes, inverse = np.unique((fails[rows] & checked[rows]).astype(np.int64)
@@ -190,6 +197,9 @@ def complete(decision: Decision, ctx: PlanContext, phase: Phase) -> Decision:
                 rows = rows[~covered[np.asarray(inverse).ravel()]]
         for h, c in enumerate(decision.hard):
             todo = rows[~checked[rows, h]]
+            if c.rule.kind in ALONE_KINDS and len(todo):
+                others = np.arange(n_hard) != h
+                todo = todo[~(fails[todo][:, others] & checked[todo][:, others]).any(axis=1)]
             if not len(todo):
                 continue
             out = evaluate_rule(c, ctx, phase, decision.gi[todo], decision.pk[todo])

@@ -27,7 +27,7 @@ __all__ = ["infeasible_reason", "PHYSICAL_KINDS"]
 
 # Rule kinds that state what is physically possible (the gripper, the receiver's hand and
 # the world's bodies), not what is proper: a set of only these is a geometric cause.
-PHYSICAL_KINDS = ("collision", "hand_fit")
+PHYSICAL_KINDS = ("collision", "corridor", "hand_fit")
 
 def infeasible_reason(decision: Decision, mode: str, quick: bool = False) -> str:
     """One sentence: why no row of ``decision`` survived, from the :meth:`Decision.exact`
@@ -128,21 +128,28 @@ def _pickup_hits(ctx: PlanContext, gi: np.ndarray) -> dict[str, int]:
 
 def _set_hits(exact: Decision, rules: list[CompiledRule], rows: np.ndarray,
               names: tuple[str, ...], ctx: PlanContext | None = None) -> str:
-    """What the collision rules of a blocking set hit on its rows: ``target (count)``; with
-    the plan's context ``ctx``, what is hit at pick-up is named by the scene's box
-    (``scene:shelf at pick-up``)."""
+    """What the collision and corridor rules of a blocking set hit on its rows: ``target
+    (count)`` (a corridor: ``approach corridor (count)``); with the plan's context ``ctx``,
+    what is hit at pick-up is named by the scene's box (``scene:shelf at pick-up``)."""
+    from handover.engine.plan.corridors import BITS
+
     tally: dict[str, int] = {}
     for c in rules:
-        if c.rule.kind != "collision" or c.id not in exact.measured:
+        if c.rule.kind not in ("collision", "corridor") or c.id not in exact.measured:
             continue
         measured = exact.measured[c.id][rows]
         codes, counts = np.unique(measured, return_counts=True)
         for code, count in zip(codes, counts, strict=True):
-            for target in collision_targets(float(code), names):
-                if target == LABELS["scene"] and ctx is not None:
+            if c.rule.kind == "corridor":
+                bits = int(code) if np.isfinite(code) else 0
+                hit = [f"{name} corridor" for name, bit in BITS.items() if bits & bit]
+            else:
+                hit = collision_targets(float(code), names)
+            for target in hit:
+                if target == LABELS["scene"] and ctx is not None and c.rule.kind == "collision":
                     continue
                 tally[target] = tally.get(target, 0) + int(count)
-        if ctx is not None:
+        if ctx is not None and c.rule.kind == "collision":
             bits = np.where(np.isfinite(measured), measured, 0).astype(np.int64)
             picked = exact.gi[rows][(bits & COLLISION_BITS["scene"]) > 0]
             for target, count in _pickup_hits(ctx, picked).items():

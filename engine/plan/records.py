@@ -25,7 +25,7 @@ import numpy as np
 
 __all__ = ["DECIMALS", "to_jsonable", "dumps", "read_back", "stored_json", "robot_grasp_of",
            "human_grasp_of", "ArmJoints", "GraspSupport", "RobotGrasp",
-           "HandBox", "TakenGrasp", "ReachingArm", "HumanGrasp",
+           "Corridor", "HandBox", "TakenGrasp", "ReachingArm", "HumanGrasp",
            "PlacementSite"]
 
 DECIMALS = 6
@@ -118,6 +118,39 @@ class GraspSupport:
 
 
 @dataclass(frozen=True)
+class Corridor:
+    """One corridor of one grasp, for the result and the trace.
+
+    name : ``approach`` | ``lift`` | ``midair`` | ``retreat``. direction : (3,) unit, world,
+    the way the gripper moves along it (from the pre-grasp pose towards the grasp for an
+    approach, away from the grasp otherwise). distance : m, how far it goes. start, end :
+    (4, 4) grasp poses, world, where it begins and ends. free : nothing touched. reason :
+    one sentence (what it hits first and where, or that it is free). min_distance : m, the
+    least of it that must be free (MoveIt's ``min_distance``; None: all of it).
+    """
+
+    name: str
+    direction: np.ndarray
+    distance: float
+    start: np.ndarray
+    end: np.ndarray
+    free: bool
+    reason: str
+    min_distance: float | None = None
+
+    def to_dict(self) -> dict:
+        """``{"direction", "distance"[, "min_distance"], "poses"}`` as the result's JSON
+        carries it (poses: start and end, world)."""
+        out: dict = {"direction": [round(float(v), DECIMALS) for v in self.direction],
+                     "distance": round(float(self.distance), DECIMALS)}
+        if self.min_distance is not None:
+            out["min_distance"] = round(float(min(self.min_distance, self.distance)), DECIMALS)
+        out["poses"] = [np.round(self.start, DECIMALS).tolist(),
+                        np.round(self.end, DECIMALS).tolist()]
+        return out
+
+
+@dataclass(frozen=True)
 class RobotGrasp:
     """One of the robot's grasps, as the result's ``robot_grasps`` lists it.
 
@@ -137,7 +170,13 @@ class RobotGrasp:
     object up and hands it over (H1G1, H2G1) has none there. supports : for a supporting
     gripper, what it supports (:class:`GraspSupport`). squeeze : the gripper holds by
     pressing its closed jaws on a face (two arms squeeze the object between them; the JSON
-    then says ``"hold": "squeeze"``), not by closing them across it.
+    then says ``"hold": "squeeze"``), not by closing them across it. approach, retreat : the
+    straight corridors the open gripper comes in along and withdraws along
+    (:class:`Corridor`, world; the approach of H2G2's second
+    grasp is its approach at the midair regrasp), None where the plan has none. trajectory :
+    its arm's motion, one :class:`~handover.geometry.motion.planner.Segment` per stage to
+    the next (rest, pregrasp, grasp, lift, ..., rest; :mod:`handover.engine.plan.motion`),
+    empty where no motion was planned.
     """
 
     gripper: str
@@ -155,6 +194,9 @@ class RobotGrasp:
     staged: bool = False
     supports: GraspSupport | None = None
     squeeze: bool = False
+    approach: Corridor | None = None
+    retreat: Corridor | None = None
+    trajectory: tuple = ()
 
     @property
     def arm(self) -> str | None:
@@ -198,6 +240,14 @@ class RobotGrasp:
             out.update(self.arm_joints.to_dict())
         if self.staged and self.supports is None:
             out["stage"] = self.stage
+        for name in ("approach", "retreat"):
+            corridor = getattr(self, name)
+            if corridor is not None:
+                out[name] = corridor.to_dict()
+        if self.trajectory:
+            out["trajectory"] = [{"segment": s.name, "joint_names": list(s.joint_names),
+                                  "positions": s.positions, "times": s.times}
+                                 for s in self.trajectory]
         return to_jsonable(out)
 
 
@@ -344,8 +394,39 @@ def robot_grasp_of(data: dict) -> RobotGrasp:
         parts=tuple(data["parts"]), score=data["score"], stage=data.get("stage", "handover"),
         arm_joints=held, id=data.get("id"), quality=data.get("quality"),
         roll_deg=data.get("roll_deg"), staged="stage" in data, supports=supports,
-        squeeze=data.get("hold") == "squeeze")
+        squeeze=data.get("hold") == "squeeze",
+        approach=_corridor_of("approach", data.get("approach")),
+        retreat=_corridor_of("retreat", data.get("retreat")),
+        trajectory=_trajectory_of(data.get("trajectory") or []))
     return read_back(record, data)
+
+
+READ_BACK = "read back from a plan's JSON"
+"""What a corridor's reason and a segment's planner say when read from a result's JSON, which
+keeps neither."""
+
+
+def _corridor_of(name: str, data: dict | None) -> Corridor | None:
+    """A ``robot_grasps[i].approach`` or ``.retreat`` entry as its record (planned, so free)."""
+    if data is None:
+        return None
+    start, end = (np.asarray(p, dtype=float) for p in data["poses"])
+    return Corridor(name, np.asarray(data["direction"], dtype=float), float(data["distance"]),
+                    start, end, True, READ_BACK, data.get("min_distance"))
+
+
+def _trajectory_of(data: list[dict]) -> tuple:
+    """A ``robot_grasps[i].trajectory`` as its segments (their checked waypoints unknown)."""
+    if not data:
+        return ()
+    from handover.geometry.motion.planner import Segment
+
+    out = []
+    for s in data:
+        positions = np.asarray(s["positions"], dtype=float).reshape(-1, len(s["joint_names"]))
+        out.append(Segment(s["segment"], tuple(s["joint_names"]), positions,
+                           np.asarray(s["times"], dtype=float), positions[:0], READ_BACK))
+    return tuple(out)
 
 
 def human_grasp_of(data: dict) -> HumanGrasp:

@@ -6,7 +6,7 @@ warnings, and ``--why-not`` answers. :func:`build_result` calls one function per
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -284,6 +284,7 @@ def robot_grasps(shown: Shown) -> list[RobotGrasp]:
     of a plan held in stages (H2G2, a placement) name theirs."""
     a, sctx = shown.attempt, shown.ctx
     from handover.engine.plan.arms.solve import arm_joints
+    from handover.engine.plan.corridors import chosen_corridors
 
     staged = any(c.stage != "handover" for c in a.chosen)
     out = [grasp_record(sctx, c.gripper, c.grasp,
@@ -292,6 +293,10 @@ def robot_grasps(shown: Shown) -> list[RobotGrasp]:
                         arm_joints=arm_joints(sctx, c.phase, c.grasp, c.presentation)
                         if a.feasible else None)
            for c in a.chosen]
+    if a.feasible:  # the approach and retreat corridors of each
+        midair = None if a.notes.midair is None else a.notes.midair.pose
+        out = [replace(g, **chosen_corridors(sctx, c.phase, c.grasp, c.presentation, midair))
+               for g, c in zip(out, a.chosen, strict=True)]
     if a.notes.support is not None:
         out.append(a.notes.support.grasp)
     return out

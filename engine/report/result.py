@@ -127,6 +127,7 @@ class PlanResult:
     what_if: list[dict] | None = None
     robot: dict | None = None
     physics: dict | None = None
+    motion: dict | None = None
 
     def __post_init__(self) -> None:
         if not self.outcome:  # a result built without one: from ``feasible``
@@ -180,6 +181,8 @@ class PlanResult:
             out["what_if"] = self.what_if
         if self.physics is not None:
             out["physics"] = self.physics
+        if self.motion is not None:
+            out["motion"] = self.motion
         return to_jsonable(out)
 
     def to_json(self) -> str:

@@ -76,6 +76,13 @@ def render_plan(result: dict, console, explain: bool = False) -> None:
     console.print(head)
     for w in result.get("warnings", []):
         console.print(f"[bold yellow]warning[/]: {escape(w)}")
+    motion = result.get("motion")
+    if motion is not None and motion["planned"]:
+        console.print(f"motion: {motion['segments']} segments, {motion['duration']:.1f} s")
+    elif motion is not None:  # its sentence is among the warnings
+        f = motion["failure"]
+        console.print(f"[bold red]no motion[/]: segment {escape(f['segment'])} of the "
+                      f"{f['arm']} arm (grasp {f['grasp']}) failed")
     for tried in result.get("modes_tried", []):
         mark = "[green]feasible[/]" if tried["feasible"] else "[red]infeasible[/]"
         note = f": {escape(tried['reason'])}" if tried.get("reason") else ""

@@ -120,14 +120,15 @@ class Client:
              culture: str | None = None, task: str | None = None, scene: str | None = None,
              mode: str = "auto", gripper: str | None = None, robot: str | None = None,
              mesh_scale: float = 1.0, why_not: tuple[int, ...] = (),
-             what_if: bool = False) -> Plan:
+             what_if: bool = False, motion: bool = False) -> Plan:
         """Plan as :meth:`handover.Planner.plan` does, on the service (``obj``: an object
-        id of the service's KB)."""
+        id of the service's KB); ``motion`` as there (off unless asked, as the Planner)."""
         from handover.engine.planner import Plan
         from handover.engine.report.result import PlanResult
 
         body = self._query(obj, receiver, culture, task, scene, mode, gripper, robot,
                            mesh_scale, why_not, what_if, "json")
+        body["motion"] = bool(motion)
         data = json.loads(self._call("POST", "/v1/plan", body))
         return Plan(PlanResult.from_dict(data), None, None)  # type: ignore[arg-type]
 

@@ -68,6 +68,7 @@ __all__ = [
     "DIRECTIONS",
     "Culture",
     "ReceiverProfile",
+    "CorridorSpec",
     "GripperSpec",
     "HumanHandSpec",
     "HandGraspSpec",
@@ -368,9 +369,33 @@ class GripperMeshes(KBModel):
     scale: Positive = 1.0
 
 
+class CorridorSpec(KBModel):
+    """How far the open gripper travels before and after a grasp, m (the corridors judged by
+    the ``corridor`` rule kind; MoveIt's ``pre_grasp_approach`` and ``post_grasp_retreat``).
+
+    approach : the pre-grasp pose lies this far back along ``-a`` from the grasp.
+    approach_min : the least free approach accepted where something stands within
+    ``approach`` (the pre-grasp pose then moves in to the free length); at most ``approach``.
+    lift : straight up after closing, the object carried. retreat : back along ``-a`` after
+    the receiver takes the object (and, at a midair regrasp, the second gripper's approach).
+    """
+
+    approach: Positive = 0.10
+    approach_min: Positive = 0.08
+    lift: Positive = 0.05
+    retreat: Positive = 0.10
+
+    @model_validator(mode="after")
+    def _least(self) -> CorridorSpec:
+        if self.approach_min > self.approach:
+            raise ValueError("approach_min must not exceed approach")
+        return self
+
+
 class GripperSpec(KBModel):
     """A parallel-jaw gripper (the paper's F_grasp: origin between the fingertips, ``a`` along
-    the fingers, ``o`` the closing direction). Lengths in metres.
+    the fingers, ``o`` the closing direction). Lengths in metres. ``corridors``: the approach,
+    lift and retreat distances (:class:`CorridorSpec`).
 
     grip_force : N, the continuous force each jaw presses with (the physics check's
     actuators; the default 70 N is the Franka Hand's continuous force). torsional_friction :
@@ -393,6 +418,7 @@ class GripperSpec(KBModel):
     min_overlap_area: NonNegative = 0.0
     roll_step_deg: Annotated[float, Field(gt=0, le=180)] = 15.0
     meshes: GripperMeshes | None = None
+    corridors: CorridorSpec = Field(default_factory=CorridorSpec)
 
     @model_validator(mode="after")
     def _opening(self) -> GripperSpec:

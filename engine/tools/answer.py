@@ -52,7 +52,9 @@ class PlanRequest:
     culture, scene, gripper, robot : ids, None for the defaults. mode : ``auto`` or a
     mode. mesh_scale : a mesh file's units to metres. why_not : candidate ids to explain.
     what_if : list the verified changes of an infeasible plan. physics : check the chosen
-    grasps in MuJoCo (the result's ``physics``). format : one of :data:`FORMATS`.
+    grasps in MuJoCo (the result's ``physics``). motion : plan the arms' motion between the
+    stages (each robot grasp's ``trajectory``, the result's ``motion``; ``--no-motion``
+    skips it). format : one of :data:`FORMATS`.
     """
 
     object: str
@@ -67,6 +69,7 @@ class PlanRequest:
     why_not: tuple[int, ...] = ()
     what_if: bool = False
     physics: bool = False
+    motion: bool = True
     format: str = "json"
 
     def __post_init__(self) -> None:
@@ -110,7 +113,7 @@ class PlanRequest:
             raise UsageError(f"'why-not' must be a candidate id or a list of them, got "
                              f"{why_not!r}")
         values["why_not"] = tuple(why_not)
-        for flag in ("what_if", "physics"):
+        for flag in ("what_if", "physics", "motion"):
             if not isinstance(values.get(flag, False), bool):
                 raise UsageError(f"'{flag.replace('_', '-')}' must be true or false, got "
                                  f"{values[flag]!r}")
@@ -136,7 +139,8 @@ class PlanRequest:
         why-not, what-if and the format."""
         q = self.query()
         return (q.object, q.task, q.receiver, q.culture, q.scene, q.mode, q.gripper, q.robot,
-                q.mesh_scale, self.why_not, self.what_if, self.physics, self.format)
+                q.mesh_scale, self.why_not, self.what_if, self.physics, self.motion,
+                self.format)
 
 
 def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
@@ -144,7 +148,7 @@ def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
     from handover.engine.planner import plan
 
     planned = plan(kb, request.query(), why_not=request.why_not, db=db,
-                   what_if=request.what_if)
+                   what_if=request.what_if, motion=request.motion)
     if request.physics and request.object not in kb.objects:
         raise UsageError(f"--physics checks objects of the knowledge base; '{request.object}' "
                          "is not one")
@@ -204,7 +208,8 @@ def physics_plan(kb: KB, request: PlanRequest, planned: Plan, db=None,
         passed_over.update(with_site(failing_grasps(group)))
     for _ in range(FALLBACKS if rounds is None else rounds):
         again = plan(kb, request.query(), why_not=request.why_not, db=db,
-                     what_if=request.what_if, passed_over=passed_over)
+                     what_if=request.what_if, passed_over=passed_over,
+                     motion=request.motion)
         if again.outcome != "handover":
             break
         try:

@@ -6,8 +6,8 @@ Each grasp pose in the bag is checked against the JSON: the quaternion is turned
 matrix here (the textbook formula), the tip link is carried to the grasp frame by the JSON's
 ``tcp``, and the result must be the nearest rotation (SVD, here) to the JSON's stage pose to
 1e-9; independently, yourdfpy's forward kinematics of the JSON's joints must put the arm's
-tip link at the message's pose. Results edited in the tests carry the ``approach``,
-``retreat`` and ``trajectory`` fields the planner does not produce yet.
+tip link at the message's pose. Results edited in the tests carry the ``trajectory`` field
+the planner does not produce yet (and ``approach`` and ``retreat`` of their own).
 """
 
 from __future__ import annotations
@@ -212,8 +212,9 @@ def test_a_grip_force_in_the_result_is_the_effort_and_the_force_limit(results):
 
 
 def test_without_approach_or_retreat_the_gripper_comes_along_a_and_lifts(results, tmp_path):
-    result = results["knife"]
+    result = copy.deepcopy(results["knife"])
     (g,) = result["robot_grasps"]
+    g.pop("approach"), g.pop("retreat")  # the planner gives both: take them away
     (msg,) = grasps_of(bag(result, tmp_path)[1])
     gr = result["gripper"]
     a = rigid(closing_stage(result, g)[1])[:3, 2]
@@ -235,7 +236,11 @@ def test_without_approach_or_retreat_the_gripper_comes_along_a_and_lifts(results
 
 @pytest.mark.parametrize("name", sorted(PLANS))
 def test_arm_trajectories_go_through_the_stage_joints(results, name, tmp_path):
-    result = results[name]
+    """Without planned motion (``--no-motion``), one trajectory per arm through its stages."""
+    result = copy.deepcopy(results[name])
+    result.pop("motion", None)
+    for g in result["robot_grasps"]:
+        g.pop("trajectory", None)
     messages = bag(result, tmp_path)[1]
     for g in result["robot_grasps"]:
         arm = result["robot"]["arms"][g["arm"]]
@@ -247,6 +252,22 @@ def test_arm_trajectories_go_through_the_stage_joints(results, name, tmp_path):
         seconds = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in traj.points]
         assert seconds == [2.0 * (k + 1) for k in range(len(stages))]
         assert traj.header.frame_id == "" and traj.header.stamp.sec == 0
+
+
+def test_planned_motion_gives_one_trajectory_per_segment(results, tmp_path):
+    """With the arms' motion planned, each segment of a grasp's ``trajectory`` is one
+    JointTrajectory on its arm's topic, in order, its points the segment's samples."""
+    result = next(r for r in results.values() if r.get("motion", {}).get("planned"))
+    messages = bag(result, tmp_path)[1]
+    for arm in {g["arm"] for g in result["robot_grasps"] if g.get("trajectory")}:
+        segments = [s for g in result["robot_grasps"] if g.get("arm") == arm
+                    for s in g.get("trajectory", [])]
+        got = [m for topic, _, m in messages if topic == f"/handover/trajectory/{arm}"]
+        assert len(got) == len(segments) > 1
+        for msg, seg in zip(got, segments, strict=True):
+            assert msg.joint_names == seg["joint_names"]
+            assert len(msg.points) == len(seg["positions"])
+            assert list(msg.points[-1].positions) == seg["positions"][-1]
 
 
 def test_the_same_plan_gives_a_byte_identical_bag(results, tmp_path):
@@ -337,7 +358,7 @@ def test_a_floating_gripper_s_grasp_pose_is_the_grasp_frame(results):
     result = copy.deepcopy(results["knife"])
     result["robot"] = None
     for g in result["robot_grasps"]:
-        for key in ("arm", "joints", "fingers_swapped"):
+        for key in ("arm", "joints", "fingers_swapped", "trajectory"):
             g.pop(key, None)
     plan = moveit_messages(result)
     assert plan.trajectories == ()

@@ -32,14 +32,16 @@ FIRST_TRIES = 12
 
 def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.ndarray,
                      seconds: np.ndarray, presentations: np.ndarray, free: np.ndarray,
-                     limit: int | None = None) -> tuple[tuple | None, list[str]]:
+                     limit: int | None = None, clear=None) -> tuple[tuple | None, list[str]]:
     """H2G2's first feasible pair whose arms hold both grasps exactly: the second grasp (the
     columns of ``free`` (F, M) in order: ``seconds`` (M,) grasps in ``presentations`` (M,))
     by one arm at the midair regrasp and the handover, the first grasp (``firsts`` (F,), in
     order, those its map's core holds first, then those only its whole map holds) by the
     other arm at
     pick-up and midair. Returns ((column, first grasp, first arm, second arm) or None,
-    failures met); at most ``limit`` exact checks."""
+    failures met); at most ``limit`` exact checks. ``clear(m, partners) -> (P,) bool``:
+    which of the first grasps ``partners`` column ``m`` may be paired with beyond ``free``
+    (asked only of the columns the search reaches: the second gripper's approach)."""
     limit = CONFIRM_LIMIT if limit is None else limit
     sides = ctx.arms.sides
     failures: list[str] = []
@@ -52,6 +54,12 @@ def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.n
         gi2, pk2 = np.array([i2]), np.array([k])
         _, mapped2 = screen(ctx, second, gi2, pk2, whole=True)
         partners = firsts[free[:, m]]
+        if clear is not None:
+            partners = partners[clear(int(m), partners)]
+            if not len(partners):
+                failures.append(f"grasp {i2}: its approach at the midair pose touches "
+                                "every first grasp")
+                continue
         for side2 in preferred_sides(ctx, second, i2, k):
             if tried >= limit:
                 return None, failures

@@ -51,7 +51,7 @@ def first_rules(hard: list[CompiledRule]) -> list[CompiledRule]:
     keep = []
     for c in hard:
         kind = c.rule.kind
-        if kind in ("quality", "torque", "collision", "reach", "pinch"):
+        if kind in ("quality", "torque", "collision", "corridor", "reach", "pinch"):
             keep.append(c)
         elif kind == "contact" and c.rule.who == "giver" and c.rule.safety:
             keep.append(c)
@@ -134,6 +134,7 @@ def plan_h2g2(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
 
 def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
     """H2G2 with the receiver's hands (and the handover locations) ``hands``."""
+    from handover.engine.plan.corridors import midair_pairs
     from handover.geometry.collision import grippers_collide
 
     # The second hand hands over: it never takes the object off the table. The first picks
@@ -167,6 +168,16 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
                                        hitting_in_midair=int((free & ~clear).sum()),
                                        midair_hits=midair_hits))
     free &= clear
+    corridor = next((c for c in cg.hard if c.rule.kind == "corridor"
+                     and "midair" in c.rule.of), None)
+    clear_approach = None
+    if corridor is not None:  # the second gripper comes in clear of the first
+
+        def clear_approach(m: int, partners: np.ndarray) -> np.ndarray:
+            """(P,) bool: second grasp ``seconds[m]``'s approach at the midair regrasp
+            touches none of the first grasps ``partners`` (P,)."""
+            ones = np.ones((len(partners), 1), dtype=bool)
+            return ~midair_pairs(ctx, partners, seconds[m:m + 1], ones)[:, 0]
     col = np.flatnonzero(free.any(axis=0))
     other = next((c for c in cg.hard if c.rule.kind == "collision"
                   and "other_gripper" in c.rule.against), None)
@@ -185,7 +196,7 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
     arm1 = arm2 = None
     if reach_rule(cg, ctx) is not None:  # arms that hold both grasps exactly
         found, failures = choose_pair_h2g2(ctx, first, second, firsts, seconds,
-                                           decision.pk[pool], free)
+                                           decision.pk[pool], free, clear=clear_approach)
         if found is None:
             rule = reach_rule(cg, ctx).id
             said = "; ".join(failures[:3]) or "no arm's map holds a feasible pair"
@@ -194,8 +205,19 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
                            notes=replace(notes, arm_failures=tuple(failures)))
         m, f, arm1, arm2 = found
     else:
-        m = int(col[0])
-        f = int(firsts[int(np.argmax(free[:, m]))])
+        m = f = -1
+        for c in col:  # the first column with a first grasp clear of its approach
+            partners = firsts[free[:, c]]
+            ok = clear_approach(int(c), partners) if clear_approach else np.ones(1, bool)
+            if ok.any():
+                m, f = int(c), int(partners[int(np.argmax(ok))])
+                break
+        if m < 0:
+            return Attempt("H2G2", False,
+                           f"H2G2: at the midair pose the second gripper's approach touches "
+                           f"the first gripper for every pair of the best {len(pool)} second "
+                           f"grasps ({corridor.id}: midair corridor)", cg, decision, second,
+                           notes=notes)
     row = int(pool[m])
     i2, k = int(decision.gi[row]), int(decision.pk[row])
     first_gripper = arm1 or gripper_at(ctx.initial, ctx.candidates.centre[f])

@@ -442,6 +442,11 @@ def _write(result: PlanResult, ctx: PlanContext, attempt: Attempt | None, tmp: P
 
         log_physics(rec, ctx, result, mesh, physics)
 
+    if any(g.trajectory for g in result.robot_grasps):
+        from handover.engine.report.rerun.motion import log_motion
+
+        log_motion(rec, ctx, result, mesh)
+
     # -- the trace: one batch
     if log:
         rec.send_columns(

@@ -50,6 +50,8 @@ FEATURES: dict[str, tuple[float, str, str]] = {
     "collision_other_gripper": (100.0, "grasp pair", "gripper against the other gripper"),
     "collision_handover": (100.0, "grasp x presentation",
                            "gripper against table, obstacles and bodies at the handover"),
+    "corridors": (120.0, "grasp x presentation",
+                  "the open gripper swept along its approach, lift and retreat"),
 }
 
 

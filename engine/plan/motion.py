@@ -1,0 +1,399 @@
+"""The arms' motion between the stages of a feasible plan: joint-space paths per arm, planned
+with OMPL (:func:`handover.geometry.motion.planner.plan_segment`), the project's link model as
+the validity checker, timed under the URDF's velocity limits (ruckig).
+
+A grasp that picks the object up moves its arm through
+
+    rest -> pregrasp -> grasp -> lift -> approach -> handover -> retreat -> rest
+
+(``approach``: the handover pose backed off along ``-a`` by the gripper's
+``corridors.approach``; ``retreat``: backed off by ``corridors.retreat`` after release). H2G2's
+first grasp goes ``... -> lift -> midair -> release -> rest`` (``release``: backed off from the
+midair pose once the second gripper holds the object), its second ``rest -> pregrasp ->
+midair -> approach -> handover -> retreat -> rest`` (its pregrasp backed off from the midair
+pose). The stage joints are the plan's (:class:`~handover.engine.plan.records.ArmJoints`);
+the poses in between are solved by inverse kinematics from the neighbouring stage's joints,
+each from the tool pose the arm has there (so a grasp held with its fingers swapped stays so).
+
+What each segment is checked against (:func:`segment_targets`): the world the plan's arm checks
+use at the stage it goes to or comes from (:func:`~handover.engine.plan.arms.links.link_targets`:
+the table and obstacles, the receiver's body, at the handover without the arms that take the
+object, the robot's body, the other arm at rest where it waits), the other arm's links at its
+own stage joints where it works at the same time (H2G1; H2G2 at the midair regrasp); the open
+gripper's boxes carried in the tool frame, and while the object is held, the gripper closed on
+it and the object's bounding box (attached; lifted off the table it rests on, that pair is
+allowed for the lift). Arms are planned one at a time, each against the other at a fixed
+configuration per segment (not coordinated in time). The object, when not held, is not an
+obstacle to the arm (the corridors judge the gripper's way in and out against its mesh).
+
+Deterministic: OMPL is seeded per segment and iteration-bounded, so the same plan gives the same
+trajectories, bit for bit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from handover.engine.plan.records import RobotGrasp
+
+if TYPE_CHECKING:
+    from handover.engine.plan.attempt import Attempt
+    from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
+    from handover.geometry.motion.planner import PlannerSettings, Segment
+
+__all__ = ["MotionFailure", "MotionPlan", "StagePlan", "motion_plan", "stage_plan",
+           "segment_targets", "SETTINGS", "IK_ANSWERS", "IK_STEP", "SHORTEST"]
+
+
+def _settings() -> PlannerSettings:
+    from handover.geometry.motion.planner import PlannerSettings
+
+    return PlannerSettings(max_iterations=5_000, timeout=5.0, seed=1)
+
+
+IK_ANSWERS = 16
+"""Answers of inverse kinematics tried for a pose between stages where the straight steps do
+not give collision-free joints."""
+
+SHORTEST = 0.05
+"""m: the shortest back-off tried for a midair pre-grasp, a release or a retreat where the
+corridor's full distance leaves the arm no collision-free joints (then ``approach_min``,
+then this)."""
+
+IK_STEP = 0.01
+"""m: the step along a straight tool motion (approach, lift, retreat) at which the joints
+between two stages are solved, each from the last."""
+
+SETTINGS = None
+"""The planner's settings (None: :func:`_settings`, RRTConnect seeded 1, at most 5,000
+iterations per segment, 0.02 rad resolution)."""
+
+
+@dataclass(frozen=True)
+class StagePlan:
+    """One arm's motion as a sequence of stages: ``names`` (k,), ``q`` (k, dof) rad, and per
+    segment between stage i and i + 1: ``holding[i]`` (the object carried) and ``world[i]``
+    (the plan stage whose world it is checked in: ``pickup``, ``midair`` or ``handover``)."""
+
+    side: str
+    names: tuple[str, ...]
+    q: np.ndarray
+    holding: tuple[bool, ...]
+    world: tuple[str, ...]
+    object_pose: np.ndarray  # (4, 4) world, the object where this arm takes hold of it
+    grasp_stage: int  # the index of the stage where the gripper closes on the object
+
+
+@dataclass(frozen=True)
+class MotionFailure:
+    """Why a grasp's arm has no motion: the ``grasp`` (candidate id), its ``arm``, the
+    ``segment`` (``lift->approach``, ...; a stage's name where its joints were not found) and
+    one sentence ``reason``."""
+
+    grasp: int | None
+    arm: str
+    segment: str
+    reason: str
+
+    def to_dict(self) -> dict:
+        return {"grasp": self.grasp, "arm": self.arm, "segment": self.segment,
+                "reason": self.reason}
+
+    def sentence(self) -> str:
+        return (f"no motion for grasp {self.grasp} ({self.arm} arm): segment {self.segment}: "
+                f"{self.reason}")
+
+
+@dataclass(frozen=True)
+class MotionPlan:
+    """The motion of a plan: per robot grasp (in the result's order) its segments, or the
+    first failure (then ``failure`` says which segment failed, and no grasp has any)."""
+
+    trajectories: tuple[tuple[Segment, ...], ...]
+    failure: MotionFailure | None = None
+
+    @property
+    def planned(self) -> bool:
+        return self.failure is None
+
+    def to_dict(self) -> dict:
+        """The result's ``motion`` block: ``{planned, segments, duration, failure}``
+        (``duration``: s, the arms' motions one after the other)."""
+        segments = [s for t in self.trajectories for s in t]
+        return {"planned": self.planned, "segments": len(segments),
+                "duration": round(sum(s.duration for s in segments), 6),
+                "failure": None if self.failure is None else self.failure.to_dict()}
+
+
+def _backed(pose: np.ndarray, distance: float, direction: np.ndarray | None = None
+            ) -> np.ndarray:
+    """``pose`` (4, 4) translated by ``distance`` m along ``direction`` (default: ``-a``)."""
+    out = np.array(pose, dtype=float)
+    d = -out[:3, 2] if direction is None else np.asarray(direction, dtype=float)
+    out[:3, 3] += distance * d
+    return out
+
+
+def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp,
+               valid=None) -> StagePlan | MotionFailure:
+    """The stages of robot grasp ``grasp`` (the ``index``-th chosen of ``attempt``) and their
+    joints: the plan's at pick-up, midair and handover, inverse kinematics between.
+    ``valid(q (dof,), where, holding) -> bool``: whether joints found between the stages are
+    collision-free in plan stage ``where`` (None: not checked); joints that are not are
+    replaced by other answers of inverse kinematics, the nearest valid one."""
+    from handover.engine.plan.corridors import lift
+
+    arms = ctx.arms
+    side = grasp.arm
+    arm = arms.arm(side)
+    chosen = attempt.chosen[index]
+    spec = ctx.situation.gripper.corridors
+    joints = grasp.joints
+    q_of = {s: np.array([v[n] for n in arm.chain.joint_names]) for s, v in joints.items()}
+    rest = arm.rest
+    if rest is None:
+        return MotionFailure(grasp.id, side, "rest", f"the {side} arm has no rest "
+                             "configuration in the robot's YAML to start from")
+    names: list[str] = []
+    qs: list[np.ndarray] = []
+    holding: list[bool] = []
+    world: list[str] = []
+
+    def solve(name: str, pose: np.ndarray, seed: np.ndarray, where: str, carried: bool
+              ) -> np.ndarray | MotionFailure:
+        """Joints for ``pose`` near ``seed``: the tool moved there in steps of at most
+        :data:`IK_STEP` m along the straight line, each solved from the last (no restarts,
+        so the arm stays on its branch); where that fails or touches something, the nearest
+        (in joints) valid answer of :data:`IK_ANSWERS` from the start library."""
+        q = np.asarray(seed, dtype=float)
+        start = arms.fk(side, q[None])[0]
+        steps = max(1, int(np.ceil(np.linalg.norm(pose[:3, 3] - start[:3, 3]) / IK_STEP)))
+        for t in np.arange(1, steps + 1) / steps:
+            target = pose.copy()
+            target[:3, 3] = start[:3, 3] + t * (pose[:3, 3] - start[:3, 3])
+            found = arms.solve(side, target[None], q0=q, restarts=0)
+            if not found.ok[0]:
+                break
+            q = found.q[0]
+        else:
+            if valid is None or valid(q, where, carried):
+                return q
+        many = arms.solve_each(side, pose[None], IK_ANSWERS)
+        answers = [a for a, ok in zip(many.q[0], many.ok[0], strict=True)
+                   if ok and (valid is None or valid(a, where, carried))]
+        if not answers:
+            said = ""
+            if valid is not None and hasattr(valid, "contacts"):
+                touch = valid.contacts(q, where, carried)
+                said = (" (on the straight way there, " + ", ".join(
+                    f"{a} touches {b}" for a, b in touch[:3]) + ")") if touch else ""
+            return MotionFailure(grasp.id, side, name, "inverse kinematics found no "
+                                 f"collision-free joints for the {name} pose{said}")
+        return min(answers, key=lambda a: float(np.abs(a - seed).max()))
+
+    def backed(name: str, tool: np.ndarray, distances, seed: np.ndarray, where: str,
+               carried: bool) -> np.ndarray | MotionFailure:
+        """Joints for ``tool`` backed off along ``-a`` by the first of ``distances`` (m)
+        that has collision-free joints."""
+        found: np.ndarray | MotionFailure = MotionFailure(grasp.id, side, name, "no distance")
+        for d in dict.fromkeys(float(x) for x in distances):
+            found = solve(name, _backed(tool, d), seed, where, carried)
+            if not isinstance(found, MotionFailure):
+                return found
+        return found
+
+    least = min(spec.approach_min, SHORTEST)
+
+    def add(name: str, q: np.ndarray, carried: bool, where: str) -> None:
+        if names:
+            holding.append(carried)
+            world.append(where)
+        names.append(name)
+        qs.append(np.asarray(q, dtype=float))
+
+    add("rest", rest, False, "pickup")
+    midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
+    joins = "pickup" not in q_of and "midair" not in q_of  # takes hold at the handover
+    grasp_stage, object_pose = 0, np.asarray(grasp.pose_world @ np.linalg.inv(grasp.pose))
+    if "pickup" in q_of:  # from the table
+        q_grasp = q_of["pickup"]
+        tool = arms.fk(side, q_grasp[None])[0]
+        distance = spec.approach if grasp.approach is None else grasp.approach.distance
+        pre = backed("pregrasp", tool, (distance, spec.approach_min), q_grasp, "pickup", False)
+        if isinstance(pre, MotionFailure):
+            return pre
+        _, directions = lift(ctx, np.array([chosen.grasp]))
+        up = solve("lift", _backed(tool, spec.lift, directions[0]), q_grasp, "pickup", True)
+        if isinstance(up, MotionFailure):
+            return up
+        add("pregrasp", pre, False, "pickup")
+        add("grasp", q_grasp, False, "pickup")
+        grasp_stage = len(names) - 1
+        object_pose = ctx.initial
+        add("lift", up, True, "pickup")
+    elif not joins:  # H2G2's second grasp: taken at the midair regrasp
+        q_mid = q_of["midair"]
+        tool = arms.fk(side, q_mid[None])[0]
+        pre = backed("pregrasp", tool, (spec.retreat, spec.approach_min, least), q_mid, "midair",
+                     False)
+        if isinstance(pre, MotionFailure):
+            return pre
+        add("pregrasp", pre, False, "midair")
+        add("midair", q_mid, False, "midair")
+        grasp_stage = len(names) - 1
+        object_pose = np.eye(4) if midair_at is None else np.asarray(midair_at, dtype=float)
+    if "handover" in q_of:
+        q_hand = q_of["handover"]
+        tool = arms.fk(side, q_hand[None])[0]
+        near = solve("approach", _backed(tool, spec.approach), q_hand, "handover", not joins)
+        if isinstance(near, MotionFailure):
+            return near
+        back = backed("retreat", tool, (spec.retreat, spec.approach_min, least), q_hand,
+                      "handover", False)
+        if isinstance(back, MotionFailure):
+            return back
+        add("approach", near, not joins, "handover")
+        add("handover", q_hand, not joins, "handover")
+        if joins:
+            grasp_stage = len(names) - 1
+        add("retreat", back, False, "handover")
+    elif "midair" in q_of and "pickup" in q_of:  # H2G2's first grasp lets go at midair
+        q_mid = q_of["midair"]
+        tool = arms.fk(side, q_mid[None])[0]
+        back = backed("release", tool, (spec.retreat, spec.approach_min, least), q_mid,
+                      "midair", False)
+        if isinstance(back, MotionFailure):
+            return back
+        add("midair", q_mid, True, "pickup")  # the second arm waits until it is there
+        add("release", back, False, "midair")
+    add("rest", rest, False, "pickup")
+    return StagePlan(side, tuple(names), np.array(qs), tuple(holding), tuple(world),
+                     np.asarray(object_pose, dtype=float), grasp_stage)
+
+
+def _phase_stage(phase: Phase, where: str) -> str:
+    from handover.engine.plan.arms.stages import stages
+
+    held = stages(phase)
+    return where if where in held else held[0]
+
+
+def segment_targets(ctx: PlanContext, attempt: Attempt, index: int, side: str, where: str,
+                    others: dict[str, np.ndarray]):
+    """What the arm on ``side`` must not touch on a segment checked in the plan stage
+    ``where`` (``pickup`` | ``midair`` | ``handover``):
+    :class:`~handover.geometry.armcollision.Targets` of the plan's link world there and of the
+    other arm at ``others[side]`` (its joints at that stage) where it works at the same time."""
+    from handover.engine.plan.arms.links import link_targets
+    from handover.engine.plan.arms.stages import other_arm_idle
+    from handover.geometry.motion import ArmModel, obstacles
+
+    phase = attempt.chosen[index].phase
+    stage = _phase_stage(phase, where)
+    body = link_targets(ctx, phase, side, stage)
+    extra = []
+    if not other_arm_idle(phase, stage):
+        for other, q in others.items():
+            if other == side:
+                continue
+            a = ctx.arms.arm(other)
+            extra.append(ArmModel(a.kin, a.shapes, a.base).targets(q, f"arm:{other}:"))
+    return obstacles(bodies=[body], others=extra)
+
+
+def _other_joints(grasps: list[RobotGrasp], side: str, where: str) -> dict[str, np.ndarray]:
+    """The other arms' joints at plan stage ``where`` (``pickup`` | ``midair`` |
+    ``handover``), those that hold a grasp there."""
+    out = {}
+    for g in grasps:
+        if g.arm is None or g.arm == side or where not in g.joints:
+            continue
+        out[g.arm] = np.array(list(g.joints[where].values()), dtype=float)
+    return out
+
+
+def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
+                settings: PlannerSettings | None = None) -> MotionPlan:
+    """The arms' motion for the robot grasps ``grasps`` of a feasible ``attempt`` (the
+    result's records, the chosen grasps first, in ``attempt.chosen``'s order): one tuple of
+    :class:`~handover.geometry.motion.planner.Segment` per grasp (empty for a supporting
+    gripper or a grasp without an arm), or the first failure."""
+    from handover.geometry.motion import ArmModel, ValidityChecker, plan_segment
+
+    settings = settings or SETTINGS or _settings()
+    from handover.engine.plan.corridors import held_box
+
+    out: list[tuple[Segment, ...]] = []
+    for index, grasp in enumerate(grasps):
+        if index >= len(attempt.chosen) or grasp.arm is None or grasp.supports is not None:
+            out.append(())
+            continue
+        side = grasp.arm
+        a = ctx.arms.arm(side)
+        model = ArmModel(a.kin, a.shapes, a.base)
+        open_boxes = ctx.gripper.boxes(float(grasp.width))
+        closed = ctx.gripper.boxes(max(float(grasp.width) - 2 * ctx.gripper.clearance, 0.0))
+        # The object's box in the tool frame, where the gripper closes on it.
+        taking = next(s for s in ("pickup", "midair", "handover") if s in grasp.joints)
+        midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
+        object_pose = {"pickup": ctx.initial,
+                       "midair": np.eye(4) if midair_at is None else np.asarray(midair_at),
+                       "handover": grasp.pose_world @ np.linalg.inv(grasp.pose)}[taking]
+        q_take = np.array([grasp.joints[taking][n] for n in a.chain.joint_names])
+        tool = ctx.arms.fk(side, q_take[None])[0]
+        ((_, ext, box),) = held_box(ctx, object_pose)
+        held = [("held object", ext, np.linalg.inv(tool) @ box)]
+        checkers: dict = {}
+
+        def checker(where: str, carried: bool, start: str = "", *, _side=side, _model=model,
+                    _open=open_boxes, _closed=closed, _held=held, _memo=checkers,
+                    _index=index, _q_take=q_take) -> ValidityChecker:
+            key = (where, carried, start == "grasp")
+            if key not in _memo:
+                targets = segment_targets(ctx, attempt, _index, _side, where,
+                                          _other_joints(grasps, _side, where))
+                allowed = []
+                if carried:  # another gripper may hold it; it leaves the table
+                    allowed = [("held object", t) for t in targets.names
+                               if t.startswith("arm:") or (start == "grasp" and "table" in t)]
+                    # what its bounding box (coarser than the object) touches where the
+                    # gripper takes it, as MoveIt's allowed collision matrix would
+                    taken = ValidityChecker(_model, targets, attached=[*_closed, *_held])
+                    allowed += [(link, t) for link, t in taken.contacts(_q_take)
+                                if link == "held object" and (link, t) not in allowed]
+                _memo[key] = ValidityChecker(_model, targets,
+                                             attached=[*_closed, *_held] if carried
+                                             else _open, allowed=allowed)
+            return _memo[key]
+
+        class _Valid:
+            """Whether joints are collision-free in a plan stage (and what they touch)."""
+
+            def __init__(self, make) -> None:
+                self.make = make
+
+            def __call__(self, q: np.ndarray, where: str, carried: bool) -> bool:
+                return bool(self.make(where, carried).valid(q[None])[0])
+
+            def contacts(self, q: np.ndarray, where: str, carried: bool) -> list:
+                return self.make(where, carried).contacts(q)
+
+        valid = _Valid(checker)
+
+        plan = stage_plan(ctx, attempt, index, grasp, valid)
+        if isinstance(plan, MotionFailure):
+            return MotionPlan((), plan)
+        segments = []
+        for i in range(len(plan.names) - 1):
+            name = f"{plan.names[i]}->{plan.names[i + 1]}"
+            check = checker(plan.world[i], plan.holding[i], plan.names[i])
+            seg = plan_segment(check, plan.q[i], plan.q[i + 1], name=name, settings=settings)
+            if not hasattr(seg, "positions"):
+                return MotionPlan((), MotionFailure(grasp.id, plan.side, name, seg.reason))
+            segments.append(seg)
+        out.append(tuple(segments))
+    return MotionPlan(tuple(out))

@@ -1,0 +1,232 @@
+"""The arms' motion in the built-in plans, checked independently of the planner's link model:
+every sample of every trajectory posed with yourdfpy from the robot's URDF, its links'
+collision geometry (the URDF's own cylinders, spheres and boxes) tested with python-fcl against
+the table and the receiver's body as the result gives them; within the URDF's joint limits, in
+steps no larger than the planner's resolution, each segment ending at its stage's joints; the
+same JSON run to run; ``motion=False`` (``--no-motion``) plans none; a segment that cannot be
+planned is named."""
+
+from importlib.resources import files
+
+import fcl
+import numpy as np
+import pytest
+import yourdfpy
+
+from handover.engine.load.loader import load_kb
+from handover.engine.planner import plan
+from handover.engine.spec.query import Query
+from handover.geometry.frames import frame_from_o_a
+from handover.geometry.motion import DEFAULT_RESOLUTION, PlannerSettings
+
+OBJECTS = ("ball", "book", "bottle", "hammer", "knife", "mug", "pen", "scissors",
+           "screwdriver", "tray")
+# The receiver's arms reach for the object at the handover: the corridors and the collision
+# rules judge the gripper against their hands; the arm's links are tested against the rest.
+REACHING = ("upper_arm", "forearm", "hand")
+
+
+@pytest.fixture(scope="module")
+def kb():
+    return load_kb()
+
+
+@pytest.fixture(scope="module")
+def planned(kb):
+    """The built-in objects handed to the default adult, with motion: object -> result."""
+    return {o: plan(kb, Query(object=o), motion=True).result.to_dict() for o in OBJECTS}
+
+
+@pytest.fixture(scope="module")
+def urdf(planned):
+    robot = next(r["robot"] for r in planned.values() if r.get("robot"))
+    path = files("handover.kb") / robot["urdf"]
+    return yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False,
+                              build_collision_scene_graph=False, load_collision_meshes=False)
+
+
+def _moving(urdf, joint_names):
+    """The links the joints ``joint_names`` move (children, recursively)."""
+    children = {}
+    for j in urdf.robot.joints:
+        children.setdefault(j.parent, []).append(j)
+    out, todo = [], [j.child for j in urdf.robot.joints if j.name in joint_names]
+    while todo:
+        link = todo.pop()
+        if link not in out:
+            out.append(link)
+            todo += [j.child for j in children.get(link, [])]
+    return out
+
+
+def _fcl_shape(geometry):
+    if geometry.cylinder is not None:
+        return fcl.Cylinder(geometry.cylinder.radius, geometry.cylinder.length)
+    if geometry.sphere is not None:
+        return fcl.Sphere(geometry.sphere.radius)
+    if geometry.box is not None:
+        return fcl.Box(*geometry.box.size)
+    raise AssertionError("the test robot's URDF has only primitive collision geometry")
+
+
+def _obstacles(result):
+    """fcl objects of the result's table and receiver's body (but the reaching arms)."""
+    out = []
+    for box in result["scene"]["boxes"]:
+        pose = np.asarray(box["pose"], dtype=float)
+        out.append((f"scene:{box['id']}", fcl.CollisionObject(
+            fcl.Box(*box["extents"]), fcl.Transform(pose[:3, :3], pose[:3, 3]))))
+    for part in result["bodies"]["receiver"]:
+        if any(word in part["name"] for word in REACHING):
+            continue
+        if part["shape"] == "capsule":
+            p0, p1 = np.asarray(part["p0"], float), np.asarray(part["p1"], float)
+            axis = p1 - p0
+            length = float(np.linalg.norm(axis))
+            if length < 1e-9:
+                geom, frame = fcl.Sphere(part["radius"]), np.eye(3)
+            else:
+                side = np.cross(axis, [0, 0, 1])
+                frame = frame_from_o_a(side if np.linalg.norm(side) > 1e-9 else [1, 0, 0],
+                                       axis)
+                geom = fcl.Capsule(part["radius"], length)
+            out.append((f"receiver:{part['name']}", fcl.CollisionObject(
+                geom, fcl.Transform(frame, (p0 + p1) / 2))))
+        else:
+            pose = np.asarray(part["pose"], dtype=float)
+            out.append((f"receiver:{part['name']}", fcl.CollisionObject(
+                fcl.Box(*part["extents"]), fcl.Transform(pose[:3, :3], pose[:3, 3]))))
+    return out
+
+
+def _trajectories(planned):
+    for obj, result in planned.items():
+        for grasp in result["robot_grasps"]:
+            for segment in grasp.get("trajectory", []):
+                yield obj, result, grasp, segment
+
+
+def test_the_built_in_plans_have_motion(planned):
+    """Most built-in handovers get a trajectory for each of their arms; a plan without one
+    says which segment failed."""
+    with_motion = [o for o, r in planned.items() if r.get("motion", {}).get("planned")]
+    assert len(with_motion) >= len(OBJECTS) // 2, {o: r.get("motion") for o, r in
+                                                   planned.items()}
+    for obj, result in planned.items():
+        motion = result["motion"]
+        if motion["planned"]:
+            assert all(g.get("trajectory") for g in result["robot_grasps"]
+                       if g.get("arm") and g.get("stage") != "support"), obj
+        else:
+            assert "->" in motion["failure"]["segment"] or motion["failure"]["segment"]
+            assert any(motion["failure"]["segment"] in w for w in result["warnings"])
+
+
+def test_every_sample_is_clear_of_the_table_and_the_receivers_body(planned, urdf):
+    request = fcl.CollisionRequest()
+    checked = 0
+    for obj, result, _, segment in _trajectories(planned):
+        names = segment["joint_names"]
+        moving = _moving(urdf, names)
+        base = np.asarray(result["robot"]["base_pose"], dtype=float)
+        obstacles = _obstacles(result)
+        fixed = {j: 0.0 for j in urdf.actuated_joint_names if j not in names}
+        for k, q in enumerate(segment["positions"]):
+            urdf.update_cfg({**fixed, **dict(zip(names, q, strict=True))})
+            for link in moving:
+                world = base @ urdf.get_transform(link, urdf.base_link)
+                for col in urdf.link_map[link].collisions:
+                    pose = world @ (np.eye(4) if col.origin is None else col.origin)
+                    part = fcl.CollisionObject(_fcl_shape(col.geometry),
+                                               fcl.Transform(pose[:3, :3], pose[:3, 3]))
+                    for name, other in obstacles:
+                        assert not fcl.collide(part, other, request, fcl.CollisionResult()), (
+                            f"{obj}: {segment['segment']} sample {k}: {link} touches {name}")
+            checked += 1
+    assert checked > 1000
+
+
+def test_every_sample_is_within_the_joint_limits_in_small_steps(planned, urdf):
+    limits = {j.name: j.limit for j in urdf.robot.joints if j.limit is not None}
+    for obj, _, _, segment in _trajectories(planned):
+        q = np.asarray(segment["positions"], dtype=float)
+        lower = np.array([limits[n].lower for n in segment["joint_names"]])
+        upper = np.array([limits[n].upper for n in segment["joint_names"]])
+        assert (q >= lower - 1e-6).all() and (q <= upper + 1e-6).all(), (obj, segment["segment"])
+        # rounded to 1e-6 rad in the JSON
+        assert np.abs(np.diff(q, axis=0)).max() <= DEFAULT_RESOLUTION + 2e-6, (
+            obj, segment["segment"])
+        t = np.asarray(segment["times"], dtype=float)
+        assert t[0] == 0.0 and (np.diff(t) > 0).all() and len(t) == len(q)
+
+
+STAGE_OF = {"grasp": "pickup", "midair": "midair", "handover": "handover"}
+
+
+def test_segments_join_up_and_end_at_the_stages_joints(planned):
+    for obj, result in planned.items():
+        for grasp in result["robot_grasps"]:
+            segments = grasp.get("trajectory", [])
+            if not segments:
+                continue
+            rest = result["robot"]["arms"][grasp["arm"]]["rest"]
+            for before, after in zip(segments[:-1], segments[1:], strict=True):
+                assert before["segment"].split("->")[1] == after["segment"].split("->")[0]
+                np.testing.assert_allclose(before["positions"][-1], after["positions"][0],
+                                           atol=1e-6)
+            assert segments[0]["segment"].startswith("rest->")
+            assert segments[-1]["segment"].endswith("->rest")
+            for segment in segments:
+                goal = segment["segment"].split("->")[1]
+                names = segment["joint_names"]
+                if goal == "rest":
+                    want = [rest[n] for n in names]
+                elif goal in STAGE_OF and STAGE_OF[goal] in grasp["joints"]:
+                    want = [grasp["joints"][STAGE_OF[goal]][n] for n in names]
+                else:
+                    continue
+                np.testing.assert_allclose(segment["positions"][-1], want, atol=1e-6,
+                                           err_msg=f"{obj} {segment['segment']}")
+
+
+def test_the_motion_is_the_same_run_to_run(kb, planned):
+    again = plan(kb, Query(object="hammer"), motion=True).result.to_dict()
+    assert again["robot_grasps"] == planned["hammer"]["robot_grasps"]
+    assert again["motion"] == planned["hammer"]["motion"]
+
+
+def test_without_motion_no_trajectory(kb):
+    result = plan(kb, Query(object="hammer")).result.to_dict()
+    assert "motion" not in result
+    assert not any("trajectory" in g for g in result["robot_grasps"])
+
+
+def test_a_segment_that_cannot_be_planned_is_named(kb, monkeypatch):
+    """With a search budget of one iteration, the first segment that needs a search fails:
+    the result says which, the warnings repeat it, and no grasp carries a trajectory."""
+    import handover.engine.plan.motion as motion
+
+    monkeypatch.setattr(motion, "SETTINGS", PlannerSettings(max_iterations=1))
+    result = plan(kb, Query(object="hammer"), motion=True).result.to_dict()
+    failure = result["motion"]["failure"]
+    assert result["motion"]["planned"] is False and "->" in failure["segment"]
+    assert failure["arm"] in ("left", "right")
+    assert any(f"segment {failure['segment']}" in w for w in result["warnings"])
+    assert not any("trajectory" in g for g in result["robot_grasps"])
+
+
+def test_the_recording_animates_the_arm_on_a_motion_timeline(kb, tmp_path):
+    from rerun.chunk import RrdReader
+
+    planned = plan(kb, Query(object="hammer"), motion=True)
+    segments = [s for g in planned.result.robot_grasps for s in g.trajectory]
+    path = planned.record(tmp_path / "hammer.rrd")
+    chunks = RrdReader(str(path)).stream().to_chunks()
+    on_motion = {c.entity_path for c in chunks if "motion" in c.timeline_names}
+    arm = planned.result.robot_grasps[0].arm
+    assert f"/world/motion/{arm}/capsules" in on_motion
+    assert "/world/motion/object" in on_motion
+    logged = [t for c in chunks if c.entity_path == "/log/motion"
+              for t in c.to_record_batch().column("TextLog:text").to_pylist()]
+    assert len(logged) == len(segments)
+    assert all(s.name in str(t) for s, t in zip(segments, logged, strict=True))
