@@ -523,6 +523,21 @@ class PartMesh:
             raise ValueError("a PartMesh without labels needs the face of each point")
         return self.face_part[np.asarray(faces, dtype=np.int64).reshape(-1)]
 
+    def part_under(self, points: np.ndarray) -> np.ndarray:
+        """(n,) int: the part index at the surface point nearest each of ``points`` (n, 3),
+        m, object frame (a point inside the object, such as a hand's site on a handle's
+        axis, takes the part of the surface closest to it): the point is moved onto the
+        mesh's surface, then labelled as a contact there is (:meth:`part_at`)."""
+        import trimesh
+
+        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        if not len(pts):
+            return np.zeros(0, dtype=np.int64)
+        if not np.isfinite(pts).all():
+            raise ValueError("part_under needs finite points")
+        closest, _, faces = trimesh.proximity.closest_point(self.mesh, pts)
+        return self.part_at(closest, faces)
+
     def part_faces(self, part: str) -> np.ndarray:
         """(k,) int: indices of the faces of ``part`` (empty if it has none)."""
         if part not in self.part_names:

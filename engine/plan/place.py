@@ -463,8 +463,8 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
                 continue
             phase = phase.but(arm=check.side)
         m = sel[decision.pk[row]]
-        site = (sites.site[m], ctx.part_mesh.part_names[int(sites.part[m])]) \
-            if sites.valid[m] else None
+        site = (sites.site[m], ctx.part_mesh.part_names[int(ctx.part_mesh.part_under(
+            sites.site[m])[0])]) if sites.valid[m] else None
         return _chosen(cg, judged, because, rctx, phase, decision, row, site,
                        float(tips[rest_of[m]]), com, considered)
     reason = last_reason or "no orientation could be placed"
