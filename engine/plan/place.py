@@ -480,7 +480,7 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
                 phase = phase.but(arm=check.side)
             m = sel[decision.pk[row]]
             site = (sites.site[m], ctx.part_mesh.part_names[int(ctx.part_mesh.part_under(
-                sites.site[m])[0])]) if sites.valid[m] else None
+                sites.site[m], np.unique(region.parts))[0])]) if sites.valid[m] else None
             considered["robot_reach_cap"] = cap
             return _chosen(cg, judged, because, rctx, phase, decision, row, site,
                            float(tips[rest_of[m]]), com, considered)
