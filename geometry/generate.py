@@ -8,7 +8,14 @@
    degrees): the approach ``a`` is the site's reference approach rotated by the roll about
    the closing direction ``o``; ``n = o x a``. Rolls 180 degrees apart approach from
    opposite sides and are distinct candidates. Each roll is tried at two depths
-   (:func:`contact_offsets`): contacts at the pads' centres, and near the fingertips.
+   (:func:`contact_offsets`): contacts at the pads' centres, and near the fingertips. Where
+   the object ends less than ``TIP_MARGIN`` beyond the contacts along ``a`` (a coin or a
+   tablet pinched by its rim from above), the fingertips at that depth would reach past it
+   (into the table it lies on): its sites also get rows approaching across the object's
+   thinnest direction with the fingertips ``FLUSH_GAP`` short of its far side
+   (:func:`flush_rows`), how a person's fingertips pick a coin off a table. They follow
+   every other row (their ``roll`` is the approach's angle about ``o``, not one of the
+   site's roll steps).
    Each contact is labelled with the part at its point (``PartMesh.part_at``: the region
    box or primitive surface it lies in), not the part of the face it lies on.
 4. With a collider, candidates whose gripper (open at ``width + 2 * clearance``) touches
@@ -36,6 +43,8 @@ from handover.geometry.facets import facet_sites
 from handover.geometry.quality import ContactPairs, antipodal_quality, com_distance
 
 if TYPE_CHECKING:
+    import trimesh
+
     from handover.geometry.collision import ObjectCollider
     from handover.geometry.gripper import Gripper
     from handover.geometry.mesh import PartMesh
@@ -48,11 +57,22 @@ __all__ = [
     "min_overlap_area",
     "expand_rolls",
     "contact_offsets",
+    "flush_rows",
     "TIP_MARGIN",
+    "FLUSH_GAP",
+    "FLUSH_TILT_DEG",
+    "thinnest_direction",
+    "default_spacing",
+    "SMALL_SAMPLES",
 ]
 
 # Contacts this far (m) from the fingertips at the pulled-back depth (contact_offsets).
 TIP_MARGIN = 0.006
+FLUSH_GAP = 0.0002
+FLUSH_TILT_DEG = 5.0
+"""deg: how far from level a site's closing direction may be for a flush grasp."""
+"""m: at a flush depth (:func:`flush_rows`) the fingertips stop this short of the object's
+far side along the approach (the side it rests on when picked from above)."""
 
 
 @dataclass
@@ -119,6 +139,82 @@ def contact_offsets(gripper: Gripper) -> np.ndarray:
     them: how a thin object is pinched off a table, or a large one reached around)."""
     tip = gripper.finger_depth - min(TIP_MARGIN, gripper.finger_depth / 2.0)
     return np.array([0.0, tip]) if tip > 1e-6 else np.array([0.0])
+
+
+SMALL_SAMPLES = 4.0
+"""An object is sampled at least this many times along its longest extent (a tablet, a
+coin: half a finger's width apart would leave one or two grasp sites on them)."""
+
+
+def default_spacing(mesh: trimesh.Trimesh, gripper: Gripper) -> float:
+    """m: the default spacing of antipodal samples on ``mesh``: half the finger width, or
+    less on an object shorter than :data:`SMALL_SAMPLES` times that along its longest
+    extent (its bounding box's largest side over ``SMALL_SAMPLES``)."""
+    longest = float(np.ptp(np.asarray(mesh.vertices, dtype=float), axis=0).max())
+    return min(gripper.finger_width / 2.0, longest / SMALL_SAMPLES)
+
+
+def thinnest_direction(hull: np.ndarray) -> tuple[np.ndarray, float]:
+    """The direction (3,) unit, object frame, across which the convex hull of ``hull`` (H,
+    3) m is thinnest, among its faces' normals, and that width (m): the way up of a coin or
+    a tablet lying on a table."""
+    import trimesh
+
+    solid = trimesh.convex.convex_hull(np.asarray(hull, dtype=float))
+    normals = np.asarray(solid.face_normals, dtype=float)
+    span = np.ptp(np.asarray(solid.vertices) @ normals.T, axis=0)  # (F,)
+    k = int(np.argmin(np.round(span, 12)))  # the first of equal widths: deterministic
+    return normals[k], float(span[k])
+
+
+def flush_rows(candidates: CandidateSet, hull: np.ndarray, gripper: Gripper
+               ) -> CandidateSet:
+    """The flush grasps of a thin object (see the module docstring, 3): new rows.
+
+    candidates : every row of :func:`expand_rolls`. hull : (H, 3) m, object frame, the
+    object's convex hull vertices. Across the hull's thinnest direction ``t``
+    (:func:`thinnest_direction`), for each site whose closing direction ``o`` lies within
+    :data:`FLUSH_TILT_DEG` of the plane normal to ``t``, the gripper approaches along ``t``
+    and along ``-t`` (made normal to ``o``) where the object reaches only ``e`` beyond the
+    contacts along that approach, ``FLUSH_GAP < e < TIP_MARGIN``: the fingertips at the
+    usual fingertip depth would pass its far side (into the table it lies on). The row's
+    offset puts the fingertips ``FLUSH_GAP`` short of that side, ``finger_depth - e +
+    FLUSH_GAP``; the pads press on the object's side from its near face to the fingertips.
+    Returns the new rows (each a copy of its site's first row with the new ``n``, ``a``,
+    ``roll`` and ``offset``), site-major, ``-t`` before ``+t``; empty when the object is not
+    thin."""
+    if not len(candidates) or len(contact_offsets(gripper)) < 2:
+        return candidates.take(np.zeros(0, dtype=np.int64))
+    t, _ = thinnest_direction(hull)
+    pts = np.asarray(hull, dtype=float).reshape(-1, 3)
+    _, first = np.unique(candidates.site, return_index=True)
+    base = candidates.take(np.sort(first))
+    o = base.o
+    level = np.abs(o @ t) <= np.sin(np.radians(FLUSH_TILT_DEG))
+    reach = gripper.finger_depth - contact_offsets(gripper)[-1]
+    out = []
+    for sign in (-1.0, 1.0):  # -t first: from above, for a rest on the face whose normal is t
+        a = sign * t - (o @ (sign * t))[:, None] * o
+        a /= np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-12)
+        e = (pts @ a.T).max(axis=0) - np.einsum("nk,nk->n", base.centre, a)
+        ok = level & (e > FLUSH_GAP + 1e-9) & (e < reach - 1e-9)
+        rows = base.take(ok)
+        turn = np.arctan2(np.einsum("nk,nk->n", np.cross(rows.a, a[ok]), rows.o),
+                          np.einsum("nk,nk->n", rows.a, a[ok]))  # about o, from the first roll
+        rows.roll = np.mod(rows.roll + turn, 2.0 * np.pi)
+        rows.a = a[ok]
+        rows.n = np.cross(rows.o, rows.a)
+        rows.offset = gripper.finger_depth - e[ok] + FLUSH_GAP
+        out.append((np.flatnonzero(ok), rows))
+    order = np.argsort(np.concatenate([idx for idx, _ in out]), kind="stable")
+    return _stacked([r for _, r in out]).take(order)
+
+
+def _stacked(sets: list[CandidateSet]) -> CandidateSet:
+    """The rows of ``sets`` in order, each keeping its ``site`` index."""
+    out = CandidateSet.concatenate(sets)
+    out.site = np.concatenate([c.site for c in sets]).astype(np.int64)
+    return out
 
 
 def expand_rolls(
@@ -188,14 +284,14 @@ def generate_with_stats(
     roll_step_deg : degrees between roll angles (default ``gripper.roll_step_deg``).
     collider : built on ``part_mesh.mesh``; drops colliding candidates (None: keep all).
     seed : antipodal sampling seed. antipodal_spacing : m between antipodal samples
-        (default half the finger width).
+        (default :func:`default_spacing`).
     Returns ``(candidates, stats)``; see the module docstring for the row order.
     """
     start = time.perf_counter()
     mesh = part_mesh.mesh
     step = gripper.roll_step_deg if roll_step_deg is None else float(roll_step_deg)
     rolls = roll_angles(step)
-    spacing = gripper.finger_width / 2.0 if antipodal_spacing is None else antipodal_spacing
+    spacing = default_spacing(mesh, gripper) if antipodal_spacing is None else antipodal_spacing
     tol = np.deg2rad(gripper.parallel_tol_deg)
     stats = GenerationStats(faces=len(mesh.faces), rolls_per_site=len(rolls))
 
@@ -256,6 +352,8 @@ def generate_with_stats(
         sites, rolls, site_parts.reshape(-1, 2), part_mesh.part_names, gripper.friction,
         part_mesh.mass_centre, offsets,
     )  # fmt: skip
+    flush = flush_rows(candidates, np.asarray(mesh.convex_hull.vertices, dtype=float), gripper)
+    candidates = _stacked([candidates, flush])
     stats.before_collision = len(candidates)
     stats.seconds["frames"] = time.perf_counter() - t
 

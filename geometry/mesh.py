@@ -523,6 +523,32 @@ class PartMesh:
             raise ValueError("a PartMesh without labels needs the face of each point")
         return self.face_part[np.asarray(faces, dtype=np.int64).reshape(-1)]
 
+    def part_under(self, points: np.ndarray, parts: np.ndarray | None = None) -> np.ndarray:
+        """(n,) int: the part index at the surface point nearest each of ``points`` (n, 3),
+        m, object frame (a point inside the object, such as a hand's site on a handle's
+        axis, takes the part of the surface closest to it): the point is moved onto the
+        mesh's surface, then labelled as a contact there is (:meth:`part_at`). ``parts``
+        (k,) int: only the faces of these parts count (the parts a hand may hold), and the
+        point takes the part of the nearest of them; None: every face."""
+        import trimesh
+
+        pts = np.asarray(points, dtype=float).reshape(-1, 3)
+        if not len(pts):
+            return np.zeros(0, dtype=np.int64)
+        if not np.isfinite(pts).all():
+            raise ValueError("part_under needs finite points")
+        faces = np.arange(len(self.mesh.faces))
+        if parts is not None:
+            faces = np.flatnonzero(np.isin(self.face_part, np.asarray(parts, dtype=np.int64)))
+            if not len(faces):
+                raise ValueError(f"part_under: no face belongs to the parts {list(parts)}")
+        mesh = self.mesh if len(faces) == len(self.mesh.faces) else trimesh.Trimesh(
+            self.mesh.vertices, self.mesh.faces[faces], process=False)
+        closest, _, tri = trimesh.proximity.closest_point(mesh, pts)
+        if parts is not None:  # the part of the nearest allowed face, not a neighbour's label
+            return self.face_part[faces[tri]]
+        return self.part_at(closest, faces[tri])
+
     def part_faces(self, part: str) -> np.ndarray:
         """(k,) int: indices of the faces of ``part`` (empty if it has none)."""
         if part not in self.part_names:

@@ -86,6 +86,10 @@ MAX_LEAN_DEG = 45.0
 """deg: the furthest a receiver bends their trunk forward to take an object off a table.
 EN 1005-4:2005 (table 1) and ISO 11226:2000 (4.2.2) rate trunk flexion of 20 to 60 degrees
 acceptable for infrequent movements; taking one object off a table is one movement."""
+ROBOT_CAPS = (1.0, 0.8, 0.6)
+"""Fractions of the robot's reach the places are kept within, pass by pass
+(:func:`_positions`' ``robot_cap``): its whole reach first; where no arm held the object
+at any place tried, nearer places (the receiver leans further), the least lean first."""
 LEAN_STEPS = np.arange(0.0, MAX_LEAN_DEG + 1e-9, 5.0)
 """deg: the leans tried, smallest first (the receiver leans no further than they must)."""
 
@@ -184,9 +188,13 @@ def _leaning_reach(lm: Landmarks, hand: str, points: np.ndarray, hard: list
 
 
 def _positions(ctx: PlanContext, cg: ConstraintGraph, rotations: np.ndarray,
-               sites: np.ndarray, valid: np.ndarray, hull: np.ndarray, com: np.ndarray
-               ) -> dict:
+               sites: np.ndarray, valid: np.ndarray, hull: np.ndarray, com: np.ndarray,
+               robot_cap: float = 1.0) -> dict:
     """Where each orientation can be set down (see the module docstring, 3).
+
+    robot_cap : the places are within this fraction of the robot's reach (1: its whole
+    reach; less, for when no arm holds the object at the places further out, so the
+    receiver leans further for it, within :data:`MAX_LEAN_DEG`).
 
     rotations : (M, 3, 3); sites : (M, 3) object frame, the receiver's site (``valid``
     (M,) bool; elsewhere the centre of mass counts); hull : (H, 3) the convex hull's
@@ -230,8 +238,7 @@ def _positions(ctx: PlanContext, cg: ConstraintGraph, rotations: np.ndarray,
             np.linalg.norm(grid - robot_axis(s.robot), axis=1) / s.robot.reach,
             (m_count, len(grid))),
     }
-    ok = on_top & (measures["receiver_reach"] <= 1.0 + 1e-9) \
-        & (measures["robot_reach"] <= 1.0 + 1e-9)
+    ok = on_top & (measures["receiver_reach"] <= 1.0 + 1e-9)
     for c in hard:
         ok &= c.rule.judge(measures[c.rule.measure])[0]
     total = sum(c.rule.weight for c in soft)
@@ -243,6 +250,9 @@ def _positions(ctx: PlanContext, cg: ConstraintGraph, rotations: np.ndarray,
                                             dtype=bool))
     chosen = np.full(m_count, -1, dtype=np.int64)
     hits: list[tuple[str, ...]] = [() for _ in range(m_count)]
+    if not 0.0 < robot_cap <= 1.0:
+        raise ValueError(f"robot_cap must be a fraction in (0, 1], got {robot_cap!r}")
+    ok &= measures["robot_reach"] <= robot_cap + 1e-9
     orders = [np.flatnonzero(ok[m])[np.lexsort((np.flatnonzero(ok[m]), -score[m][ok[m]],
                                                 lean[m][ok[m]]))] for m in range(m_count)]
 
@@ -429,44 +439,52 @@ def plan_placement(kb: KB, ctx: PlanContext, because: list[CompiledRule]) -> Pla
                               -np.round(score[order], 9)))]
     hull = np.asarray(solid_hull(vertices).vertices, dtype=float)  # rests exist: so does the hull
     edges = np.cumsum((0, *ROUNDS))
-    last_reason = None
+    reasons: dict[int, str] = {}  # how far a round went (0 no place, 1 rules, 2 arms): why
     placed_any = 0
-    for rnd in range(len(edges)):
-        stop = edges[rnd + 1] if rnd + 1 < len(edges) else len(order)
-        sel = order[edges[rnd]:stop]
-        if not len(sel):
-            break
-        where = _positions(ctx, cg, rotations[sel], sites.site[sel], sites.valid[sel], hull, com)
-        found = where["found"]
-        placed_any += int(found.sum())
-        if not found.any():
-            last_reason = f"the best orientation: {where['why'][0]}"
-            continue
-        sel, poses = sel[found], where["poses"][found]
-        measured = {k: v[found] for k, v in where["measured"].items()}
-        rctx = _place_context(ctx, rotations[sel])
-        phase = Phase("place", hands=_placement_hands(poses, measured, np.ones(len(sel), bool)))
-        decision = evaluate(replace(cg, order=judged), rctx, phase)
-        ranking = decision.ranking()
-        if not len(ranking):
-            last_reason = infeasible_reason(decision, "place").removeprefix("place: ")
-            continue
-        considered |= {"placed_orientations": placed_any, "rows": int(decision.n_rows),
-                       "kept": int(decision.kept.sum())}
-        row = int(ranking[0])
-        if reach_rule(cg, ctx) is not None:  # the best row an arm holds exactly, and that arm
-            row, check, failures = choose_row(rctx, phase, decision, ranking)
-            if row is None:
-                last_reason = (f"no arm holds any of the best {min(len(ranking), CONFIRM_LIMIT)} "
-                               f"grasps ({reach_rule(cg, ctx).id}): "
-                               + ("; ".join(failures[:3]) or "no arm's map holds them"))
+    for cap in ROBOT_CAPS:
+        if cap != ROBOT_CAPS[0] and 2 not in reasons:
+            break  # the places nearer the robot help only where no arm held it
+        for rnd in range(len(edges)):
+            stop = edges[rnd + 1] if rnd + 1 < len(edges) else len(order)
+            sel = order[edges[rnd]:stop]
+            if not len(sel):
+                break
+            where = _positions(ctx, cg, rotations[sel], sites.site[sel], sites.valid[sel], hull,
+                               com, cap)
+            found = where["found"]
+            placed_any += int(found.sum())
+            if not found.any():
+                reasons.setdefault(0, f"the best orientation: {where['why'][0]}")
                 continue
-            phase = phase.but(arm=check.side)
-        m = sel[decision.pk[row]]
-        site = (sites.site[m], ctx.part_mesh.part_names[int(sites.part[m])]) \
-            if sites.valid[m] else None
-        return _chosen(cg, judged, because, rctx, phase, decision, row, site,
-                       float(tips[rest_of[m]]), com, considered)
+            sel, poses = sel[found], where["poses"][found]
+            measured = {k: v[found] for k, v in where["measured"].items()}
+            rctx = _place_context(ctx, rotations[sel])
+            phase = Phase("place", hands=_placement_hands(poses, measured,
+                                                          np.ones(len(sel), bool)))
+            decision = evaluate(replace(cg, order=judged), rctx, phase)
+            ranking = decision.ranking()
+            if not len(ranking):
+                reasons.setdefault(1, infeasible_reason(decision, "place").removeprefix("place: "))
+                continue
+            considered |= {"placed_orientations": placed_any, "rows": int(decision.n_rows),
+                           "kept": int(decision.kept.sum())}
+            row = int(ranking[0])
+            if reach_rule(cg, ctx) is not None:  # the best row an arm holds exactly, and its arm
+                row, check, failures = choose_row(rctx, phase, decision, ranking)
+                if row is None:
+                    reasons.setdefault(2, (
+                        f"no arm holds any of the best {min(len(ranking), CONFIRM_LIMIT)} "
+                        f"grasps ({reach_rule(cg, ctx).id}): "
+                        + ("; ".join(failures[:3]) or "no arm's map holds them")))
+                    continue
+                phase = phase.but(arm=check.side)
+            m = sel[decision.pk[row]]
+            site = (sites.site[m], ctx.part_mesh.part_names[int(ctx.part_mesh.part_under(
+                sites.site[m], np.unique(region.parts))[0])]) if sites.valid[m] else None
+            considered["robot_reach_cap"] = cap
+            return _chosen(cg, judged, because, rctx, phase, decision, row, site,
+                           float(tips[rest_of[m]]), com, considered)
+    last_reason = reasons[max(reasons)] if reasons else None
     reason = last_reason or "no orientation could be placed"
     if placed_any == 0:
         reason = f"nowhere on the table top: {reason}"

@@ -33,10 +33,11 @@ def human_record(ctx: PlanContext, k: int, hand: str, hands: Hands,
     pose = hands.poses[k]
     opts = sites.options
     j = int(primary_options(sites)[k]) if option is None or option < 0 else int(option)
-    if opts is None or j < 0:
-        site, part = sites.site[k], int(sites.part[k])
-    else:
-        site, part = opts.site[k, j], int(opts.part[k, j])
+    site = sites.site[k] if opts is None or j < 0 else opts.site[k, j]
+    # labelled by the part under the site among those the hand may hold, as a robot contact
+    # is by the part it lies on
+    allowed = None if hands.region is None or hands.region.empty else np.unique(hands.region.parts)
+    part = int(ctx.part_mesh.part_under(site, allowed)[0])
     model = tuple(HandBox(name, ext, box)
                   for name, ext, box in hand_model(ctx, hands.region, sites, k, pose,
                                                    None if opts is None or j < 0 else j))

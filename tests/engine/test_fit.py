@@ -174,6 +174,36 @@ def test_the_trace_shows_the_giver_contacts_and_their_parts(planner):
     assert entry["contact_parts"] == grasp["parts"]
 
 
+def _glass_part_on_axis(z: float) -> str | None:
+    """The wine glass's part at height ``z`` (m) on its axis, from the primitives written in
+    WINE_GLASS: the foot's disc fills 0-4 mm, the stem 4-84 mm, the bowl (its 2 mm bottom
+    included) 84-184 mm. None within 2 mm of a joint, where the nearest surface may be
+    either part's."""
+    for name, lo, hi in (("foot", 0.0, 0.004), ("stem", 0.004, 0.084), ("bowl", 0.084, 0.184)):
+        if lo + (0.002 if lo > 0 else -1e-9) <= z <= hi - (0.002 if hi < 0.184 else 0.0):
+            return name
+    return None
+
+
+@pytest.mark.parametrize("receiver", ["child", "seated_adult", "wrap_only"])
+def test_the_wine_glass_receiver_site_is_labelled_by_the_part_under_it(planner, receiver):
+    """The part a receiver's site is labelled with is the one under the point (on the
+    glass's axis: the part that fills that height), not the part most of the band across the
+    glass belongs to (a wrap round the stem or the bowl was labelled foot)."""
+    plan = planner.plan("wine_glass", receiver=receiver)
+    hands = plan.to_dict()["human_grasps"]
+    assert hands, plan.reason
+    judged = 0
+    for h in hands:
+        site = np.asarray(h["position"], dtype=float)
+        assert np.linalg.norm(site[:2]) <= 0.002  # every hand's site is on the glass's axis
+        expected = _glass_part_on_axis(float(site[2]))
+        if expected is not None:
+            assert h["part"] == expected, (h["part"], site)
+            judged += 1
+    assert judged
+
+
 @pytest.mark.parametrize("receiver", ["adult", "wrap_only"])
 def test_the_wine_glass_receiver_site_is_on_its_stem_bowl_or_foot(kb_dir, planner, receiver):
     """On the stem's axis or within 1 mm of the glass's surface: a wrap round the stem, the

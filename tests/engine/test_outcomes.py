@@ -491,9 +491,6 @@ def test_a_box_rests_on_its_largest_face_first_and_a_ball_nowhere():
     assert len(resting_rotations(ball.vertices, np.zeros(3))[0]) == 0
 
 
-@pytest.mark.xfail(strict=True, reason="with the hazard vocabulary and the openings merged, the "
-                   "toy is offered nowhere (the receiver's hand hits the table wherever the "
-                   "toddler could take it) and is not set down either: to fix, not to accept")
 def test_a_toddler_gets_a_toy_within_reach_set_down_or_handed_low(kb_dir, planner):
     """A 0.95 m toddler, whose shoulder (0.78 m) is hardly above the 0.75 m table: the toy
     is either set down where their arm reaches, or handed where their grasp site is within

@@ -18,6 +18,8 @@ from handover.geometry.frames import (
     transform_vectors,
 )
 from handover.geometry.generate import (
+    FLUSH_GAP,
+    TIP_MARGIN,
     contact_offsets,
     generate_candidates,
     generate_with_stats,
@@ -211,3 +213,32 @@ def test_a_moved_cube_has_the_same_grasps_moved(axis, angle, shift):
     assert dist[np.arange(len(here)), match].max() < 1e-8  # overlays snap to 1e-10 x size
     assert len(set(match.tolist())) == len(here)
     assert_allclose(there.width[match], here.width)
+
+
+def test_a_coin_is_pinched_at_the_fingertips_from_either_face_and_a_ball_is_not():
+    """A 2.33 mm coin lying on a table: at the usual fingertip depth the fingertips would
+    reach TIP_MARGIN (6 mm) past the contacts, 4.8 mm into the table. Flush rows approach
+    along the coin's axis with the fingertips FLUSH_GAP short of its far face, the contacts
+    on the pads; a 4 cm ball has none (its contacts pass through its centre, its far side
+    2 cm beyond them)."""
+    coin = gm.PartMesh.single(gm.cylinder(0.011625, 0.00233, 48))
+    c = generate_candidates(coin, GRIPPER, collider=ObjectCollider(coin.mesh))
+    flush = ~np.isin(np.round(c.offset, 12), np.round(contact_offsets(GRIPPER), 12))
+    assert flush.any()
+    a = c.a[flush]
+    assert_allclose(np.abs(a[:, 2]), 1.0, atol=1e-9)  # along the coin's axis
+    assert (np.abs(c.o[flush, 2]) < np.sin(np.radians(5.0)) + 1e-9).all()  # closing level
+    # the fingertips (half a finger beyond the pose's origin) stop FLUSH_GAP short of the
+    # face the approach points at: z = -1.165 mm approaching down, +1.165 mm up
+    tips = c.poses()[flush, :3, 3] + GRIPPER.finger_depth * a
+    far = np.sign(a[:, 2]) * 0.00233 / 2.0
+    assert_allclose(tips[:, 2], far - np.sign(a[:, 2]) * FLUSH_GAP, atol=1e-9)
+    # the contacts lie between the fingertips and the palm
+    depth = np.einsum("ij,ij->i", tips - c.centre[flush], a)
+    assert ((depth > 0) & (depth < TIP_MARGIN)).all()
+    # every row's frame is still a right-handed grasp frame at its depth
+    assert_allclose(c.n, np.cross(c.o, c.a), atol=1e-12)
+    assert_allclose(c.poses()[:, :3, 3], c.centre - c.offset[:, None] * c.a, atol=1e-12)
+    thick = gm.PartMesh.single(gm.icosphere(0.02, 3))
+    t = generate_candidates(thick, GRIPPER, collider=ObjectCollider(thick.mesh))
+    assert set(np.round(t.offset, 12)) <= set(np.round(contact_offsets(GRIPPER), 12))

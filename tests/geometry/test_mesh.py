@@ -290,3 +290,22 @@ def test_distance_to_faces_by_hand():
     points = np.array([[0.2, 0.2, 0.5], [2.0, 0.0, 0.0], [0.25, 0.25, 0.0]])
     faces = np.array([0, 0, 0])  # the triangle in z = 0
     assert_allclose(gm.distance_to_faces(m, points, faces), [0.5, 1.0, 0.0], atol=1e-15)
+
+
+def test_the_part_under_a_point_is_the_part_of_the_nearest_surface():
+    """A handle (a thin bar) joined to a body (a block): a point on the bar's axis, inside
+    it, is under the handle; one deep inside the block is under the body, whatever their
+    order; on the surface it is the contact's own label."""
+    body = trimesh.creation.box((0.08, 0.08, 0.08))
+    handle = trimesh.creation.box((0.10, 0.01, 0.01), transform=transform_from(
+        np.eye(3), [0.09, 0.0, 0.0]))
+    pm = gm.compose([("body", body), ("handle", handle)])
+    points = np.array([[0.10, 0.0, 0.0],    # on the bar's axis, 5 mm below its faces
+                       [-0.01, 0.0, 0.0],   # in the block, 3 cm from its nearest face
+                       [0.0, 0.0, 0.04],    # on the block's top face
+                       [0.13, 0.0, 0.005]])  # on the bar's top face
+    names = [pm.part_names[i] for i in pm.part_under(points)]
+    assert names == ["handle", "body", "body", "handle"]
+    assert pm.part_under(np.zeros((0, 3))).shape == (0,)
+    with pytest.raises(ValueError, match="finite"):
+        pm.part_under([[np.nan, 0.0, 0.0]])
