@@ -270,7 +270,7 @@ def test_the_facade_s_json_is_the_cli_s_byte_for_byte(capsys, args):
     code = main(["plan", *args, "--json"])
     out, err = capsys.readouterr()
     kwargs = dict(zip((a.lstrip("-") for a in args[1::2]), args[2::2], strict=True))
-    plan = Planner().plan(args[0], **kwargs)
+    plan = Planner().plan(args[0], motion=True, **kwargs)  # as the CLI, unless --no-motion
     assert out == plan.to_json()
     assert code == (0 if plan.feasible else 4)
 
