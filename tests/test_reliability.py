@@ -300,7 +300,9 @@ def test_an_object_wider_than_any_opening(capsys, kb_copy):
     code, out, err = run(capsys, "--kb", str(root), "plan", "crate", "--json")
     assert code == EXIT_INFEASIBLE
     result = json.loads(out)
-    assert "the object has no geometric grasp for this gripper" in result["reason"]
+    # no gripper spans it: the two grippers would squeeze it (H2G1), but a 40 cm cube is
+    # nothing a receiver's hand takes (no edge, no handle, nothing flat to lay on the palm)
+    assert result["reason"].startswith("H2G1") and "nowhere to offer it" in result["reason"]
     tried = {t["mode"]: t["reason"] for t in result["modes_tried"]}
     assert "two_hands_if_wide" in tried["H1G1"]  # one hand cannot span it: both are needed
     assert_clean(err)
@@ -457,10 +459,20 @@ def test_plan_says_which_safety_rule_was_overridden_and_by_what(capsys):
     assert "sharp_tip_away" in {e["rule"] for e in result["trace"]}
 
 
-def test_an_infeasible_plan_still_reports_the_override(capsys):
-    # scissors between two grippers leave the receiver no room
-    code, out, _ = run(capsys, "plan", "scissors", "--culture", "japanese", "--mode", "h2g1",
-                       "--json")  # fmt: skip
+FAR_RECEIVER = """\
+id: far
+name: The receiver 2.5 m away
+why: Nowhere they reach is within the robot's reach.
+support: {position: [0.55, 0.0, 0.75], size: [0.5, 1.0], thickness: 0.03}
+receiver: {position: [2.5, 0.0, 0.0], facing: [-1.0, 0.0, 0.0]}
+object: {position: [0.33, 0.0]}
+"""
+
+
+def test_an_infeasible_plan_still_reports_the_override(capsys, kb_copy):
+    root = kb_copy({"scenes/far.yaml": FAR_RECEIVER})
+    code, out, _ = run(capsys, "--kb", str(root), "plan", "knife", "--culture", "japanese",
+                       "--scene", "far", "--no-motion", "--json")  # fmt: skip
     result = json.loads(out)
     assert code == EXIT_INFEASIBLE, result["reason"]
     assert any("safety rule sharp_tip_away overridden" in w for w in result["warnings"])

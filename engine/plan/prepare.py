@@ -108,8 +108,9 @@ def with_squeeze_sites(situation: Situation, part_mesh: PartMesh, gripper: Gripp
                        candidates: CandidateSet) -> CandidateSet:
     """``candidates`` with the object's squeeze sites after them
     (:func:`handover.geometry.squeeze.squeeze_sites`) when the robot squeezes (its
-    ``squeeze_force``), has two hands and no candidate lies within the gripper's opening:
-    an object no single gripper spans is then carried between two grippers, jaws closed,
+    ``squeeze_force``), has two hands, no candidate lies within the gripper's opening and
+    the object is wider than that opening every way (its oriented bounding box's smallest
+    extent): an object no single gripper spans is then carried between two grippers, jaws closed,
     pressing opposite sides (H2G1). Otherwise ``candidates`` as they are."""
     from handover.geometry.candidates import CandidateSet as Rows
     from handover.geometry.squeeze import squeeze_sites
@@ -119,5 +120,8 @@ def with_squeeze_sites(situation: Situation, part_mesh: PartMesh, gripper: Gripp
         return candidates
     if len(candidates) and (candidates.width <= gripper.max_opening + 1e-12).any():
         return candidates
+    extents = part_mesh.mesh.bounding_box_oriented.primitive.extents
+    if float(min(extents)) <= gripper.max_opening:  # too small or too thin for the jaws, not too
+        return candidates                      # wide: two grippers pressing it is no answer
     sites = squeeze_sites(part_mesh, gripper, gripper.friction)
     return Rows.concatenate([candidates, sites]) if len(candidates) else sites
