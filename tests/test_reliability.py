@@ -542,8 +542,13 @@ def assert_no_timings(data, path="") -> None:
     """No wall-clock value in the JSON: no key with a word naming seconds, time or duration
     (``generation.seconds`` was one; ``regrasp.second`` is the second grasp)."""
     timing = {"seconds", "sec", "ms", "time", "times", "timing", "timings", "duration", "elapsed"}
+    # the planned motion's own clock: when each sample of a trajectory is reached, and how
+    # long the motion takes (seeded, the same every run), not how long planning took
+    planned = {".robot_grasps.trajectory.times", ".motion.duration"}
     if isinstance(data, dict):
         for key, value in data.items():
+            if f"{path}.{key}" in planned:
+                continue
             assert not timing & set(key.lower().split("_")), f"{path}.{key}"
             assert_no_timings(value, f"{path}.{key}")
     elif isinstance(data, list):
@@ -601,7 +606,7 @@ def test_batch_rows_hold_the_grasps_plan_prints(capsys, tmp_path):
     assert code == EXIT_OK
     rows = {r["object"]: r for r in read_rows(out)}
     for obj in ("knife", "hammer"):
-        _, printed, _ = run(capsys, "plan", obj, "--json", "--no-db")
+        _, printed, _ = run(capsys, "plan", obj, "--json", "--no-db", "--no-motion")
         assert json.loads(rows[obj]["grasps"]) == json.loads(printed)["robot_grasps"]
 
 
