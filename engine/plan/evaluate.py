@@ -46,10 +46,11 @@ __all__ = ["Decision", "evaluate", "evaluate_rule", "complete", "trace_row", "RO
 ROW_LIMIT = 5_000_000
 # The expensive kinds: judged only on the rows that passed every hard rule before them.
 DEFERRED_KINDS = ("reach", "collision", "corridor")
-# Kinds an explanation judges only on the rows no other hard rule fails: the corridors
-# (a row another rule removes is explained by that rule; sweeping the gripper out of every
-# such row would cost more than the plan).
-ALONE_KINDS = ("corridor",)
+# Kinds an explanation would judge only on the rows no other hard rule fails. None: a
+# blocking set must be one whose lifting lets a row through, so a row another rule removes
+# is judged by the corridors too (with them left out, lifting a reported set {collision_free}
+# let nothing through: the corridors, never swept there, blocked the rows).
+ALONE_KINDS: tuple[str, ...] = ()
 
 
 @dataclass
