@@ -62,6 +62,7 @@ __all__ = [
     "FLUSH_GAP",
     "FLUSH_TILT_DEG",
     "thinnest_direction",
+    "thinnest_directions",
     "default_spacing",
     "SMALL_SAMPLES",
 ]
@@ -157,14 +158,27 @@ def default_spacing(mesh: trimesh.Trimesh, gripper: Gripper) -> float:
 def thinnest_direction(hull: np.ndarray) -> tuple[np.ndarray, float]:
     """The direction (3,) unit, object frame, across which the convex hull of ``hull`` (H,
     3) m is thinnest, among its faces' normals, and that width (m): the way up of a coin or
-    a tablet lying on a table."""
+    a tablet lying on a table (the first of :func:`thinnest_directions`)."""
+    dirs, width = thinnest_directions(hull)
+    return dirs[0], width
+
+
+def thinnest_directions(hull: np.ndarray) -> tuple[np.ndarray, float]:
+    """Every direction (D, 3) unit, object frame, across which the convex hull of ``hull``
+    (H, 3) m is thinnest (its faces' normals whose widths equal the least within 1e-9 m, one
+    of each opposite pair), and that width (m). A cube has three: taking only the first would
+    make the grasps depend on the frame its file is written in."""
     import trimesh
 
     solid = trimesh.convex.convex_hull(np.asarray(hull, dtype=float))
     normals = np.asarray(solid.face_normals, dtype=float)
     span = np.ptp(np.asarray(solid.vertices) @ normals.T, axis=0)  # (F,)
-    k = int(np.argmin(np.round(span, 12)))  # the first of equal widths: deterministic
-    return normals[k], float(span[k])
+    least = float(span.min())
+    kept: list[np.ndarray] = []
+    for k in np.flatnonzero(span <= least + 1e-9):
+        if all(abs(float(normals[k] @ t)) < 1.0 - 1e-9 for t in kept):
+            kept.append(normals[k])
+    return np.array(kept), least
 
 
 def flush_rows(candidates: CandidateSet, hull: np.ndarray, gripper: Gripper
@@ -173,7 +187,8 @@ def flush_rows(candidates: CandidateSet, hull: np.ndarray, gripper: Gripper
 
     candidates : every row of :func:`expand_rolls`. hull : (H, 3) m, object frame, the
     object's convex hull vertices. Across the hull's thinnest direction ``t``
-    (:func:`thinnest_direction`), for each site whose closing direction ``o`` lies within
+    (:func:`thinnest_directions`: each of them where several tie), for each site whose
+    closing direction ``o`` lies within
     :data:`FLUSH_TILT_DEG` of the plane normal to ``t``, the gripper approaches along ``t``
     and along ``-t`` (made normal to ``o``) where the object reaches only ``e`` beyond the
     contacts along that approach, ``FLUSH_GAP < e < TIP_MARGIN``: the fingertips at the
@@ -185,15 +200,16 @@ def flush_rows(candidates: CandidateSet, hull: np.ndarray, gripper: Gripper
     thin."""
     if not len(candidates) or len(contact_offsets(gripper)) < 2:
         return candidates.take(np.zeros(0, dtype=np.int64))
-    t, _ = thinnest_direction(hull)
     pts = np.asarray(hull, dtype=float).reshape(-1, 3)
     _, first = np.unique(candidates.site, return_index=True)
     base = candidates.take(np.sort(first))
     o = base.o
-    level = np.abs(o @ t) <= np.sin(np.radians(FLUSH_TILT_DEG))
     reach = gripper.finger_depth - contact_offsets(gripper)[-1]
     out = []
-    for sign in (-1.0, 1.0):  # -t first: from above, for a rest on the face whose normal is t
+    directions, _ = thinnest_directions(hull)
+    for t, sign in ((t, sign) for t in directions for sign in (-1.0, 1.0)):
+        # -t first: from above, for a rest on the face whose normal is t
+        level = np.abs(o @ t) <= np.sin(np.radians(FLUSH_TILT_DEG))
         a = sign * t - (o @ (sign * t))[:, None] * o
         a /= np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-12)
         e = (pts @ a.T).max(axis=0) - np.einsum("nk,nk->n", base.centre, a)
