@@ -61,7 +61,6 @@ __all__ = [
     "TIP_MARGIN",
     "FLUSH_GAP",
     "FLUSH_TILT_DEG",
-    "thinnest_direction",
     "thinnest_directions",
     "default_spacing",
     "SMALL_SAMPLES",
@@ -153,14 +152,6 @@ def default_spacing(mesh: trimesh.Trimesh, gripper: Gripper) -> float:
     extent (its bounding box's largest side over ``SMALL_SAMPLES``)."""
     longest = float(np.ptp(np.asarray(mesh.vertices, dtype=float), axis=0).max())
     return min(gripper.finger_width / 2.0, longest / SMALL_SAMPLES)
-
-
-def thinnest_direction(hull: np.ndarray) -> tuple[np.ndarray, float]:
-    """The direction (3,) unit, object frame, across which the convex hull of ``hull`` (H,
-    3) m is thinnest, among its faces' normals, and that width (m): the way up of a coin or
-    a tablet lying on a table (the first of :func:`thinnest_directions`)."""
-    dirs, width = thinnest_directions(hull)
-    return dirs[0], width
 
 
 def thinnest_directions(hull: np.ndarray) -> tuple[np.ndarray, float]:
