@@ -91,5 +91,33 @@ def resting_rotations(vertices: np.ndarray, com: np.ndarray,
         tips[f] = np.degrees(np.arctan2(d, max(float(height[f]), 1e-12)))
     stable = np.flatnonzero(tips >= MIN_TIP_DEG)
     order = stable[np.lexsort((stable, -np.round(tips[stable], 9)))][:limit]
-    rotations = np.array([down_rotation(n[f]) for f in order]).reshape(-1, 3, 3)
+    rotations = np.array([_turned_to_shape(down_rotation(n[f]), hv, com)
+                          for f in order]).reshape(-1, 3, 3)
     return rotations, tips[order]
+
+
+def _turned_to_shape(down: np.ndarray, hull_vertices: np.ndarray, com: np.ndarray
+                     ) -> np.ndarray:
+    """``down`` (3, 3) turned about the vertical so that the object's own long direction on
+    the table lies along +x: the principal axis of its hull vertices ((H, 3) m, object frame)
+    seen from above, pointing where they reach farther from the centre of mass ``com``.
+    Where seen from above the shape has no long axis (a square, a disc), its farthest hull
+    vertex is along +x. So a rest, and the turns about the vertical counted from it, are the
+    shape's, not those of the frame its mesh file is written in (``down`` alone, the smallest
+    rotation to the table, turns about the vertical as that frame happens to lie)."""
+    flat = ((hull_vertices - com) @ down.T)[:, :2]
+    evals, evecs = np.linalg.eigh(flat.T @ flat / len(flat))
+    if evals[1] - evals[0] > 1e-6 * max(evals[1], 1e-12):
+        axis = evecs[:, 1]
+        along = flat @ axis
+        skew = float(np.sum(along**3))
+        if abs(skew) > 1e-9 * float(np.sum(np.abs(along) ** 3)):
+            axis = axis if skew > 0 else -axis  # where the shape reaches farther
+        else:
+            axis = axis if axis[np.argmax(np.abs(axis))] > 0 else -axis
+    else:
+        reach = np.linalg.norm(flat, axis=1)
+        axis = flat[np.flatnonzero(reach >= reach.max() * (1 - 1e-9))[0]] / reach.max()
+    c, s = axis
+    turn = np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])  # takes axis to +x
+    return turn @ down

@@ -65,7 +65,8 @@ def _face_directions(mesh, min_area: float) -> np.ndarray:
 
 
 def squeeze_sites(part_mesh: PartMesh, gripper: Gripper, friction: float,
-                  directions: int = 48, rolls: int = 4) -> CandidateSet:
+                  directions: int = 48, rolls: int = 4,
+                  frame: np.ndarray | None = None) -> CandidateSet:
     """The object's squeeze sites (module docstring) for ``gripper``'s closed jaws.
 
     part_mesh : the object (its mesh, parts and centre of mass). friction : the pads'
@@ -74,7 +75,10 @@ def squeeze_sites(part_mesh: PartMesh, gripper: Gripper, friction: float,
     jaws' turns about the press, half a turn divided evenly (the jaws are symmetric under
     half a turn). Rows are ordered by press line, then side, then roll. Quality is the
     friction cone's margin (1 - angle / atan(friction)); com_distance the press line's
-    distance from the centre of mass (0: lines pass through it).
+    distance from the centre of mass (0: lines pass through it). frame : (3, 3) rotation,
+    object -> world, of the object as it lies: the press lines and the jaws' first roll are
+    spread in the world, so the sites are the same physical presses whatever frame the mesh
+    file is written in (None: spread in the object frame).
     """
     from handover.geometry.mesh import ray_first_hits
 
@@ -85,7 +89,9 @@ def squeeze_sites(part_mesh: PartMesh, gripper: Gripper, friction: float,
     mesh = part_mesh.mesh
     com = np.asarray(part_mesh.mass_centre, dtype=float)
     tip_area = gripper.finger_width * 2.0 * gripper.finger_thickness
-    lines = np.concatenate([_face_directions(mesh, tip_area), fibonacci_half_sphere(directions)])
+    world = np.eye(3) if frame is None else np.asarray(frame, dtype=float)
+    spread = fibonacci_half_sphere(directions) @ world  # rows: world directions, object frame
+    lines = np.concatenate([_face_directions(mesh, tip_area), spread])
     far = 2.0 * float(np.linalg.norm(mesh.extents)) + 1.0
     press = np.concatenate([-lines, lines])  # side 0 presses along -d from the +d side
     origins = com - far * press
@@ -103,7 +109,7 @@ def squeeze_sites(part_mesh: PartMesh, gripper: Gripper, friction: float,
     if len(keep) == 0:
         return CandidateSet.empty(part_mesh.part_names)
     a = press[keep]
-    ref = unit(perpendicular(a))
+    ref = unit(perpendicular(a @ world.T)) @ world  # chosen in the world, like the lines
     turns = np.arange(rolls) * np.pi / rolls
     rows = np.repeat(np.arange(len(keep)), rolls)
     roll = np.tile(turns, len(keep))

@@ -150,10 +150,16 @@ def around_variants(region: ReceiverRegion, rotations: np.ndarray, toward: np.nd
         ext = region.points @ axes.T  # (M, K)
         lo, hi = ext.min(axis=0) + shape.width / 2.0, ext.max(axis=0) - shape.width / 2.0
         room = hi > lo + 1e-9
-        # which end is the receiver's: further along robot->receiver, else the lower one
+        # which end is the receiver's: further along robot->receiver, else the lower one,
+        # else (a part lying across) the one on their right; a rounding's worth of a
+        # direction is none (else the frame's sign of the axis would choose)
         d_obj = np.einsum("kji,j->ki", rotations, toward)
         up_obj = rotations[:, 2, :]
-        rank = np.einsum("ki,ki->k", axes, d_obj) * 1e3 - np.einsum("ki,ki->k", axes, up_obj)
+        right_obj = np.einsum("kji,j->ki", rotations, np.cross([0.0, 0.0, 1.0], toward))
+        along, down, right = (np.einsum("ki,ki->k", axes, v) for v in (d_obj, -up_obj,
+                                                                        right_obj))
+        along, down = (np.where(np.abs(v) < 1e-9, 0.0, v) for v in (along, down))
+        rank = along * 1e3 + down + right * 1e-3
         near = np.where(rank >= 0, hi, lo)
         far = np.where(rank >= 0, lo, hi)
         for label, along in (("slid to the receiver's end", near), ("slid to the far end", far)):
@@ -241,8 +247,10 @@ def _front(region: ReceiverRegion, a: np.ndarray, mask: np.ndarray
     front = (s >= s_max[None, :] - EDGE_BAND) & mask
     count = front.sum(axis=0)
     mean = (front.T.astype(float) @ pts) / np.maximum(count, 1)[:, None]
-    gap = (pts * pts).sum(axis=1)[:, None] - 2.0 * pts @ mean.T  # (M, K), + |mean|^2 per k
-    nearest = pts[np.argmin(np.where(front, gap, np.inf), axis=0)]
+    gap = np.where(front, np.linalg.norm(pts[:, None, :] - mean[None, :, :], axis=2), np.inf)
+    # the first sample within rounding of the nearest (two rim samples are equally near
+    # their mean: rounding alone would choose, and differently in each frame)
+    nearest = pts[np.argmax(gap <= gap.min(axis=0)[None, :] + 1e-12, axis=0)]
     return count > 0, mean, nearest
 
 

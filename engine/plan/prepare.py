@@ -7,7 +7,7 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from handover.engine.plan.context import PlanContext, build_context
+from handover.engine.plan.context import PlanContext, build_context, initial_pose
 from handover.engine.plan.situation import resolve_situation
 from handover.engine.spec.query import Query
 
@@ -123,5 +123,6 @@ def with_squeeze_sites(situation: Situation, part_mesh: PartMesh, gripper: Gripp
     extents = part_mesh.mesh.bounding_box_oriented.primitive.extents
     if float(min(extents)) <= gripper.max_opening:  # too small or too thin for the jaws, not too
         return candidates                      # wide: two grippers pressing it is no answer
-    sites = squeeze_sites(part_mesh, gripper, gripper.friction)
+    lying = initial_pose(situation, part_mesh.mesh.vertices)[:3, :3]
+    sites = squeeze_sites(part_mesh, gripper, gripper.friction, frame=lying)
     return Rows.concatenate([candidates, sites]) if len(candidates) else sites
