@@ -36,6 +36,7 @@ if TYPE_CHECKING:
     from handover.engine.load.loader import KB
     from handover.engine.plan.compiler import CompiledRule, ConstraintGraph
     from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.motion import MotionPlan
     from handover.engine.plan.place import PlacementPlan
     from handover.engine.report.result import PlanResult
 
@@ -77,27 +78,72 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
 
         result.what_if = changes(kb, query, ctx, d.attempt, d.tried, db=db, mesh=mesh)
     if motion and d.outcome == "handover" and ctx.arms is not None:
-        add_motion(result, ctx, d.attempt)
+        d, result = _with_motion(kb, query, ctx, d, result, why_not)
     if d.placement is not None and d.placement.feasible:
         return Plan(result, d.placement.context, d.placement.attempt)
     return Plan(result, ctx, d.attempt)
 
 
-def add_motion(result: PlanResult, ctx: PlanContext, attempt: Attempt) -> None:
+MOTION_TRIES = 3
+"""How many plans the motion planner tries: the chosen one, then (each time an arm has no
+motion) the plan the modes choose without the grasp whose arm failed."""
+
+
+def _with_motion(kb: KB, query: Query, ctx: PlanContext, d: Decided, result: PlanResult,
+                 why_not: tuple[int, ...]) -> tuple[Decided, PlanResult]:
+    """The handover ``d`` (its ``result``) with the arms' motion (:func:`add_motion`); where
+    a segment cannot be planned, the next plan without the grasp whose arm failed (passed over
+    like a grasp the physics check saw slip), up to :data:`MOTION_TRIES` plans. The result
+    says which grasps were passed over and why (``motion.passed_over``, a warning); when no
+    plan tried has its motion, the first one is kept, with its failure."""
+    from handover.engine.report.assemble import build_result
+
+    first, first_result = d, result
+    before = dict(ctx.passed_over)
+    failures = []
+    for _ in range(MOTION_TRIES):
+        found = add_motion(result, ctx, d.attempt)
+        if found.failure is None:
+            break
+        failures.append(found.failure)
+        if found.failure.grasp is None:
+            break
+        ctx.passed_over[int(found.failure.grasp)] = f"no motion: {found.failure.sentence()}"
+        again = decide(kb, ctx, query.mode)
+        if again.outcome != "handover":
+            break
+        d = again
+        result = build_result(ctx, d.attempt, d.tried, d.mode_reason, why_not,
+                              outcome=d.outcome)
+    else:
+        found = None
+    if found is None or found.failure is not None:  # no plan tried moves: the first, as it was
+        ctx.passed_over = before
+        d, result = first, first_result
+        failures = failures[:1]
+    elif failures:
+        result.motion["passed_over"] = [f.to_dict() for f in failures]
+        result.warnings = [*result.warnings, *(
+            f"{f.sentence()}; planned with the next grasp instead" for f in failures)]
+    return d, result
+
+
+def add_motion(result: PlanResult, ctx: PlanContext, attempt: Attempt) -> MotionPlan:
     """Plan the arms' motion of a feasible handover (:func:`handover.engine.plan.motion.
     motion_plan`) into ``result``: each robot grasp's ``trajectory`` and ``result.motion``
     (``{planned, segments, duration, failure}``; a failure names the segment, and its
-    sentence joins the warnings)."""
+    sentence joins the warnings). Returns what the motion planner found."""
     from handover.engine.plan.motion import motion_plan
 
     found = motion_plan(ctx, attempt, result.robot_grasps)
     result.motion = found.to_dict()
     if found.failure is not None:
         result.warnings = [*result.warnings, found.failure.sentence()]
-        return
+        return found
     result.robot_grasps = [replace(g, trajectory=t) if t else g
                            for g, t in zip(result.robot_grasps, found.trajectories,
                                            strict=False)]
+    return found
 
 
 @dataclass

@@ -78,7 +78,9 @@ def render_plan(result: dict, console, explain: bool = False) -> None:
         console.print(f"[bold yellow]warning[/]: {escape(w)}")
     motion = result.get("motion")
     if motion is not None and motion["planned"]:
-        console.print(f"motion: {motion['segments']} segments, {motion['duration']:.1f} s")
+        over = [str(f["grasp"]) for f in motion.get("passed_over", [])]
+        after = f", after passing over grasp {', '.join(over)} (no motion)" if over else ""
+        console.print(f"motion: {motion['segments']} segments, {motion['duration']:.1f} s{after}")
     elif motion is not None:  # its sentence is among the warnings
         f = motion["failure"]
         console.print(f"[bold red]no motion[/]: segment {escape(f['segment'])} of the "

@@ -215,6 +215,56 @@ def test_a_segment_that_cannot_be_planned_is_named(kb, monkeypatch):
     assert not any("trajectory" in g for g in result["robot_grasps"])
 
 
+def test_a_grasp_whose_arm_cannot_move_is_passed_over_for_the_next(kb, monkeypatch):
+    """Where the chosen grasp's arm has no motion, the planner plans again without that
+    grasp, and the next plan's arms move: the result says which grasp was passed over and
+    why, its chosen grasp is another one, and every arm of it carries a trajectory. The
+    first grasp's motion is made to fail here (a planner that finds nothing for it), since
+    which real scene blocks only the best grasp's path is the motion planner's to say."""
+    import handover.engine.plan.motion as motion
+
+    first = plan(kb, Query(object="hammer"), motion=True).result.to_dict()
+    assert first["motion"]["planned"], first["motion"]
+    blocked = first["robot_grasps"][0]["id"]
+    real = motion.motion_plan
+
+    def blocking(ctx, attempt, grasps, settings=None):
+        if any(g.id == blocked for g in grasps[:len(attempt.chosen)]):
+            failure = motion.MotionFailure(blocked, grasps[0].arm or "left", "rest->pregrasp",
+                                           "blocked for this test")
+            return motion.MotionPlan((), failure)
+        return real(ctx, attempt, grasps, settings)
+
+    monkeypatch.setattr(motion, "motion_plan", blocking)
+    result = plan(kb, Query(object="hammer"), motion=True).result.to_dict()
+    assert result["feasible"] and result["motion"]["planned"], result["motion"]
+    assert [f["grasp"] for f in result["motion"]["passed_over"]] == [blocked]
+    assert result["robot_grasps"][0]["id"] != blocked
+    assert all(g.get("trajectory") for g in result["robot_grasps"] if g.get("arm")
+               and g.get("stage") != "support")
+    assert any(f"grasp {blocked}" in w and "next grasp" in w for w in result["warnings"])
+
+
+def test_when_no_plan_tried_moves_the_first_is_kept_with_its_failure(kb, monkeypatch):
+    """Where no plan tried (``MOTION_TRIES``) has its motion, the result is the first plan,
+    the best one, with its failure: not a worse grasp that does not move either."""
+    import handover.engine.plan.motion as motion
+
+    first = plan(kb, Query(object="hammer")).result.to_dict()
+
+    def failing(ctx, attempt, grasps, settings=None):
+        g = grasps[0]
+        return motion.MotionPlan((), motion.MotionFailure(g.id, g.arm or "left",
+                                                          "rest->pregrasp", "blocked"))
+
+    monkeypatch.setattr(motion, "motion_plan", failing)
+    result = plan(kb, Query(object="hammer"), motion=True).result.to_dict()
+    assert result["feasible"] and not result["motion"]["planned"]
+    assert result["robot_grasps"][0]["id"] == first["robot_grasps"][0]["id"]
+    assert result["motion"]["failure"]["grasp"] == first["robot_grasps"][0]["id"]
+    assert "passed_over" not in result["motion"]
+
+
 def test_the_recording_animates_the_arm_on_a_motion_timeline(kb, tmp_path):
     from rerun.chunk import RrdReader
 
