@@ -85,7 +85,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import assume as _hypothesis_assume
 from hypothesis import event as _hypothesis_event
 from hypothesis import strategies as st
@@ -356,11 +356,6 @@ def check_invariance(tmp_path: Path, vertices, faces, transform) -> None:
 
 # ---------------------------------------------------------------- invariance
 
-FRAME_DEFECT = settings(FUZZ, phases=[Phase.explicit, Phase.reuse, Phase.generate])
-"""The fuzz settings without shrinking, for the frame tests that fail today (a strict
-expected failure): shrinking a failure takes Hypothesis five minutes."""
-
-
 @FUZZ
 @given(mesh=convex_hulls(), transform=exact_transforms())
 def test_a_convex_hull_plans_the_same_in_any_frame(tmp_path_factory, mesh, transform):
@@ -454,11 +449,7 @@ def test_a_wrap_slides_to_the_same_end_of_a_cylinder_lying_across(tmp_path):
     check_invariance(tmp_path, vertices, faces, (turn, np.array([-1.0, -1.0, 62.0]) * STEP))
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "a defect to fix: since this phase's merges (the receiver's repertoire, the holding "
-    "rules, the corridors, the flush grasps) some examples are planned differently in two "
-    "frames; not shrunk (FRAME_DEFECT), so it costs no more than the run"))
-@FRAME_DEFECT
+@FUZZ
 @given(mesh=cylinders(), transform=exact_transforms())
 def test_a_cylinder_plans_the_same_in_any_frame(tmp_path_factory, mesh, transform):
     check_invariance(tmp_path_factory.mktemp("cylinder"), *mesh, transform)
