@@ -98,34 +98,27 @@ def _with_motion(kb: KB, query: Query, ctx: PlanContext, d: Decided, result: Pla
     plan tried has its motion, the first one is kept, with its failure."""
     from handover.engine.report.assemble import build_result
 
-    first, first_result = d, result
-    before = dict(ctx.passed_over)
+    first, first_result, before = d, result, dict(ctx.passed_over)
     failures = []
-    for _ in range(MOTION_TRIES):
-        found = add_motion(result, ctx, d.attempt)
-        if found.failure is None:
+    while True:
+        failure = add_motion(result, ctx, d.attempt).failure
+        if failure is None:
+            if failures:
+                result.motion["passed_over"] = [f.to_dict() for f in failures]
+                result.warnings = [*result.warnings, *(
+                    f"{f.sentence()}; planned with the next grasp instead" for f in failures)]
+            return d, result
+        failures.append(failure)
+        if failure.grasp is None or len(failures) == MOTION_TRIES:
             break
-        failures.append(found.failure)
-        if found.failure.grasp is None:
+        ctx.passed_over[int(failure.grasp)] = f"no motion: {failure.sentence()}"
+        d = decide(kb, ctx, query.mode)
+        if d.outcome != "handover":
             break
-        ctx.passed_over[int(found.failure.grasp)] = f"no motion: {found.failure.sentence()}"
-        again = decide(kb, ctx, query.mode)
-        if again.outcome != "handover":
-            break
-        d = again
         result = build_result(ctx, d.attempt, d.tried, d.mode_reason, why_not,
                               outcome=d.outcome)
-    else:
-        found = None
-    if found is None or found.failure is not None:  # no plan tried moves: the first, as it was
-        ctx.passed_over = before
-        d, result = first, first_result
-        failures = failures[:1]
-    elif failures:
-        result.motion["passed_over"] = [f.to_dict() for f in failures]
-        result.warnings = [*result.warnings, *(
-            f"{f.sentence()}; planned with the next grasp instead" for f in failures)]
-    return d, result
+    ctx.passed_over = before  # no plan tried moves: the first, as it was, with its failure
+    return first, first_result
 
 
 def add_motion(result: PlanResult, ctx: PlanContext, attempt: Attempt) -> MotionPlan:
