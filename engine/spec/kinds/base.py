@@ -42,6 +42,8 @@ FEATURES: dict[str, tuple[float, str, str]] = {
     "hand_fit": (10.0, "presentation", "the receiver's hand on the object: site, palm, fingers"),
     "receiver_grasp": (10.0, "grasp x presentation",
                        "the receiver's grasp (wrap, pinch, ...) chosen for the row"),
+    "receiver_lever": (10.0, "grasp x presentation",
+                       "torque of the object's weight on the receiver's wrist where they take it"),
     "keep_out_gripper": (20.0, "grasp", "gripper boxes reaching into the object's opening"),
     "keep_out_receiver_hand": (20.0, "presentation",
                                "receiver's hand boxes reaching into the object's opening"),
