@@ -118,6 +118,10 @@ def _with_motion(kb: KB, query: Query, ctx: PlanContext, d: Decided, result: Pla
         result = build_result(ctx, d.attempt, d.tried, d.mode_reason, why_not,
                               outcome=d.outcome)
     ctx.passed_over = before  # no plan tried moves: the first, as it was, with its failure
+    if len(failures) > 1:
+        first_result.warnings = [*first_result.warnings, (
+            f"the next {len(failures) - 1} plans without the grasps that failed had no motion "
+            f"either ({'; '.join(f.sentence() for f in failures[1:])})")]
     return first, first_result
 
 

@@ -263,6 +263,7 @@ def test_when_no_plan_tried_moves_the_first_is_kept_with_its_failure(kb, monkeyp
     assert result["robot_grasps"][0]["id"] == first["robot_grasps"][0]["id"]
     assert result["motion"]["failure"]["grasp"] == first["robot_grasps"][0]["id"]
     assert "passed_over" not in result["motion"]
+    assert any("had no motion either" in w for w in result["warnings"])
 
 
 def test_the_recording_animates_the_arm_on_a_motion_timeline(kb, tmp_path):
