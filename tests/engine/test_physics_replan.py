@@ -78,6 +78,20 @@ def test_passed_over_grasps_are_never_chosen(weak_kb):
     assert data["robot_grasps"][0]["id"] != first
 
 
+def test_passed_over_grasps_are_never_chosen_in_a_midair_regrasp(weak_kb):
+    """Neither grasp of a midair regrasp is one passed over (its first grasp, chosen from a
+    list of its own, once ignored them), and the regrasp is planned with others."""
+    mode = "h2g2"
+    first = plan(weak_kb, Query("book", mode=mode)).result.to_dict()
+    assert first["outcome"] == "handover", first["reason"]
+    ids = [g["id"] for g in first["robot_grasps"]]
+    for passed in ids:
+        again = plan(weak_kb, Query("book", mode=mode), passed_over={passed: "test"})
+        data = again.result.to_dict()
+        assert data["outcome"] == "handover", data["reason"]
+        assert passed not in [g["id"] for g in data["robot_grasps"]], mode
+
+
 def test_when_nothing_found_holds_the_plan_keeps_its_grasps_and_says_so(weak_kb):
     without = plan(weak_kb, Query("board")).result.to_dict()
     r = plan_request(weak_kb, PlanRequest("board", physics=True)).result.to_dict()

@@ -99,7 +99,9 @@ def _clear_in_midair(ctx: PlanContext, hands, firsts: np.ndarray, seconds: np.nd
 def _feasible_firsts(ctx: PlanContext, rules: list[CompiledRule],
                      phase: Phase) -> tuple[np.ndarray, dict]:
     """Indices of candidates that pass every first-phase rule (ordered by quality desc, then
-    index) and the count each rule removed (first failure in order)."""
+    index), without those the context passes over (:attr:`PlanContext.passed_over
+    <handover.engine.plan.context.PlanContext.passed_over>`), and the count each rule removed
+    (first failure in order)."""
     alive = np.ones(ctx.n, dtype=bool)
     removed: dict[str, int] = {}
     gi = np.arange(ctx.n)
@@ -114,6 +116,8 @@ def _feasible_firsts(ctx: PlanContext, rules: list[CompiledRule],
             removed[c.id] = int(len(bad))
         alive[bad] = False
     idx = np.flatnonzero(alive)
+    if ctx.passed_over:
+        idx = idx[~np.isin(idx, np.fromiter(ctx.passed_over, dtype=np.int64))]
     order = np.lexsort((idx, -ctx.candidates.quality[idx]))
     return idx[order], removed
 
