@@ -299,12 +299,16 @@ def test_the_bag_is_a_ros2_bag_with_the_full_definitions(results, tmp_path):
         "geometry_msgs/Vector3", "trajectory_msgs/JointTrajectory",
         "trajectory_msgs/JointTrajectoryPoint", "builtin_interfaces/Duration"]
     assert "\n\n" + "=" * 80 + "\nMSG: geometry_msgs/PoseStamped\n" in text
-    # Log times from a fixed base, one millisecond apart, grasps first.
-    first, second = (g["arm"] for g in results["book"]["robot_grasps"])
-    assert [(t, s) for t, s, _ in messages] == [
-        ("/handover/grasps", 1_000_000_000), ("/handover/grasps", 1_001_000_000),
-        (f"/handover/trajectory/{first}", 1_002_000_000),
-        (f"/handover/trajectory/{second}", 1_003_000_000)]
+    # Log times from a fixed base, one millisecond apart, grasps first, then each arm's
+    # motion in the order of its grasp: a message per segment (one of the stage joints
+    # where the result has no motion).
+    grasps = results["book"]["robot_grasps"]
+    expected = ["/handover/grasps"] * len(grasps)
+    for g in grasps:
+        expected += [f"/handover/trajectory/{g['arm']}"] * max(len(g.get("trajectory", [])), 1)
+    assert [t for t, _, _ in messages] == expected
+    assert [s for _, s, _ in messages] == [1_000_000_000 + 1_000_000 * i
+                                           for i in range(len(expected))]
 
 
 @pytest.mark.parametrize("name", sorted(PLANS))
