@@ -52,8 +52,9 @@ def evaluate(rule: ReceiverLeverRule, ctx: PlanContext, phase: Phase, gi: np.nda
         return inapplicable(len(gi), "the receiver's hands are not there in this phase",
                             threshold, "N m")
     torque, valid = wrist_torque(ctx, phase, gi, pk)
-    ok = valid & (np.nan_to_num(torque, nan=np.inf) <= limit + 1e-9)
-    score = np.where(valid, np.clip(1.0 - np.nan_to_num(torque) / limit, 0.0, 1.0), 0.0)
+    # rows without a site are unknown: Outcome fails them and gives them no score
+    ok = np.nan_to_num(torque, nan=np.inf) <= limit + 1e-9
+    score = np.clip(1.0 - np.nan_to_num(torque) / limit, 0.0, 1.0)
     return Outcome(ok, torque, score, threshold, "N m", unknown=~valid,
                    unknown_why="the receiver has no grasp site on the object there, so the "
                    "lever of its weight cannot be measured (the receiver's hand rules and "

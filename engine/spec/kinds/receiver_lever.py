@@ -26,5 +26,5 @@ class ReceiverLeverRule(RuleBase):
     example = {"max_nm": 1.0}
 
     def describe(self) -> str:
-        return f"torque on the receiver's wrist {'<=' if self.hard else 'well within'} " \
-               f"{self.max_nm:g} N m"
+        verb = "at most" if self.hard else "scored against"
+        return f"torque of the weight on the receiver's wrist {verb} {self.max_nm:g} N m"
