@@ -24,7 +24,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from handover.engine.report.moveit import moveit_messages, write_mcap
+from handover.engine.report.moveit import moveit_messages
+from handover.engine.report.rosbag import write_mcap
 
 PLANS = {
     "knife": ["knife"],

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from handover.engine.plan.attempt import Attempt, AttemptNotes
-from handover.engine.plan.records import HumanGrasp, RobotGrasp
+from handover.engine.plan.records import HumanGrasp, Robot, RobotArm, RobotGrasp, robot_of
 from handover.engine.spec.query import Query
 
 if TYPE_CHECKING:
@@ -266,36 +266,6 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
     return Decided("infeasible", attempt, tried, why, fallback=fallback, placement=placement)
 
 
-@dataclass(frozen=True)
-class RobotArm:
-    """One arm of the plan's robot (the JSON ``robot.arms[side]``).
-
-    base_link, tip_link : the URDF chain. tcp : (4, 4) tip link -> grasp frame (m).
-    gripper : its gripper id. joints : the chain's moving joints, base to tip. rest : joint
-    name -> value (rad; m for a prismatic joint) where it waits while the other arm works,
-    or None (placed nowhere)."""
-
-    base_link: str
-    tip_link: str
-    tcp: np.ndarray
-    gripper: str
-    joints: tuple[str, ...]
-    rest: dict[str, float] | None = None
-
-
-@dataclass(frozen=True)
-class Robot:
-    """The plan's robot with arms (the JSON ``robot``). urdf : its URDF, posix path relative
-    to the KB folder. base_pose : (4, 4) the URDF's root link in the world (m). arms : side
-    -> :class:`RobotArm`. A grasp's pose at a stage is ``base_pose @ T(root <- tip_link at
-    joints) @ arms[arm].tcp`` (the URDF's forward kinematics from its root link)."""
-
-    id: str
-    urdf: str
-    base_pose: np.ndarray
-    arms: dict[str, RobotArm]
-
-
 class Plan:
     """A planned handover, a placement, a refusal or an infeasible query (``outcome``), with
     every decision explained.
@@ -345,16 +315,7 @@ class Plan:
     @property
     def robot(self) -> Robot | None:
         """The robot's arms and frames (the JSON ``robot``), None for a robot without arms."""
-        r = self.result.robot
-        if r is None:
-            return None
-        return Robot(id=r["id"], urdf=r["urdf"],
-                     base_pose=np.asarray(r["base_pose"], dtype=float),
-                     arms={side: RobotArm(base_link=a["base_link"], tip_link=a["tip_link"],
-                                          tcp=np.asarray(a["tcp"], dtype=float),
-                                          gripper=a["gripper"], joints=tuple(a["joints"]),
-                                          rest=a.get("rest"))
-                           for side, a in r["arms"].items()})
+        return None if self.result.robot is None else robot_of(self.result.robot)
 
     @property
     def human_grasps(self) -> list[HumanGrasp]:

@@ -527,7 +527,8 @@ class RobotArms:
     def describe(self) -> dict:
         """The result's ``robot`` field: ``{id, urdf (relative to the KB folder), base_pose
         (4x4 world), arms: {side: {base_link, tip_link, tcp (4x4, tip link -> grasp frame),
-        gripper, joints: [names], rest: {joint: value} or null}}}``, plain JSON types."""
+        gripper, joints: [names], rest: {joint: value} or null, finger_joints: [two names]}}}``,
+        plain JSON types."""
         return {
             "id": self.spec.id,
             "urdf": self.urdf,
@@ -540,6 +541,7 @@ class RobotArms:
                     "gripper": arm.gripper,
                     "joints": list(arm.chain.joint_names),
                     "rest": None if arm.rest is None else arm.chain.as_dict(arm.rest),
+                    "finger_joints": list(arm.finger_joints),
                 }
                 for side, arm in ((s, self.arms[s]) for s in self.sides)
             },

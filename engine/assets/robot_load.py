@@ -19,7 +19,7 @@ import numpy as np
 
 from handover.engine.assets.lru import LRU
 from handover.engine.errors import KBIssue
-from handover.engine.spec.robotspec import SIDES, FramePose, RobotSpec
+from handover.engine.spec.robotspec import SIDES, FramePose, RobotSpec, finger_joints
 from handover.geometry.bodies import robot_body
 from handover.geometry.frames import rotation_from_euler_deg, transform_from
 from handover.geometry.kinematics import Kinematics
@@ -120,7 +120,7 @@ class Arm:
     shapes : collision shapes of the links the joints move (indexed like ``chain.links``).
     mount : the link carrying the first joint (never tested against this arm's links).
     gripper : the gripper id. rest : (dof,) the joint values it waits at while the other arm
-    works, or None (placed nowhere).
+    works, or None (placed nowhere). finger_joints : the gripper's two finger joint names.
     """
 
     side: str
@@ -131,7 +131,8 @@ class Arm:
     shapes: LinkShapes
     mount: str
     gripper: str
-    rest: np.ndarray | None = None
+    rest: np.ndarray | None
+    finger_joints: tuple[str, str]
 
     @property
     def dof(self) -> int:
@@ -215,9 +216,15 @@ def assemble(kb: KB, spec: RobotSpec) -> tuple[tuple | None, list[KBIssue]]:
             issues.append(kb.issue(spec, f"robot '{spec.id}': the {side} arm's rest: {problem}",
                                    "arms", side, "rest"))
             continue
+        problem = _finger_problem(arm_spec.finger_joints, chain, model)
+        if problem:
+            issues.append(kb.issue(spec, f"robot '{spec.id}': the {side} arm's finger_joints: "
+                                   f"{problem}", "arms", side, "finger_joints"))
+            continue
         mount = model.urdf.joint_map[chain.joint_names[0]].parent
         gripper = arm_spec.gripper or spec.gripper
-        arms[side] = Arm(side, chain, kin, base, tcp, shapes, mount, gripper, rest)
+        arms[side] = Arm(side, chain, kin, base, tcp, shapes, mount, gripper, rest,
+                         finger_joints(side, arm_spec.finger_joints))
     try:
         capsules, boxes = yaml_body(spec) if spec.body is not None else urdf_body(model)
     except RobotModelError as exc:
@@ -254,6 +261,22 @@ def _rest(values: dict[str, float] | None, chain: Chain) -> tuple[np.ndarray | N
     if outside:
         return None, "beyond the joint limits: " + "; ".join(outside)
     return q, ""
+
+
+def _finger_problem(names: tuple[str, str] | None, chain: Chain, model) -> str:
+    """What is wrong with an arm's ``finger_joints`` ("" when nothing): a joint of the arm's
+    own chain cannot be a finger, and a finger joint the URDF holds must slide (prismatic).
+    Names the URDF does not hold are the gripper's own (its driver's), not checked."""
+    if names is None:
+        return ""
+    for name in names:
+        if name in chain.joint_names:
+            return f"{name!r} is a joint of the arm's chain, not of its gripper"
+        joint = model.urdf.joint_map.get(name)
+        if joint is not None and joint.type != "prismatic":
+            return (f"{name!r} is a {joint.type} joint of {model.path.name}; a parallel jaw's "
+                    "finger joints slide (prismatic)")
+    return ""
 
 
 def _horizontal_reach(arm: Arm, base_pose: np.ndarray) -> float:

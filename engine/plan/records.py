@@ -26,7 +26,7 @@ import numpy as np
 __all__ = ["DECIMALS", "to_jsonable", "dumps", "read_back", "stored_json", "robot_grasp_of",
            "human_grasp_of", "ArmJoints", "GraspSupport", "RobotGrasp",
            "Corridor", "HandBox", "TakenGrasp", "ReachingArm", "HumanGrasp",
-           "PlacementSite"]
+           "PlacementSite", "RobotArm", "Robot", "robot_of"]
 
 DECIMALS = 6
 """Decimals floats keep in the JSON result: micrometres and microradians."""
@@ -446,3 +446,46 @@ def _boxes(data: list[dict]) -> tuple[HandBox, ...]:
     return tuple(HandBox(b["name"], np.asarray(b["extents"], dtype=float),
                          np.asarray(b["pose"], dtype=float)) for b in data)
 
+
+@dataclass(frozen=True)
+class RobotArm:
+    """One arm of the plan's robot (the JSON ``robot.arms[side]``).
+
+    base_link, tip_link : the URDF chain. tcp : (4, 4) tip link -> grasp frame (m).
+    gripper : its gripper id. joints : the chain's moving joints, base to tip. rest : joint
+    name -> value (rad; m for a prismatic joint) where it waits while the other arm works,
+    or None (placed nowhere). finger_joints : its gripper's two finger joint names."""
+
+    base_link: str
+    tip_link: str
+    tcp: np.ndarray
+    gripper: str
+    joints: tuple[str, ...]
+    rest: dict[str, float] | None = None
+    finger_joints: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Robot:
+    """The plan's robot with arms (the JSON ``robot``). urdf : its URDF, posix path relative
+    to the KB folder. base_pose : (4, 4) the URDF's root link in the world (m). arms : side
+    -> :class:`RobotArm`. A grasp's pose at a stage is ``base_pose @ T(root <- tip_link at
+    joints) @ arms[arm].tcp`` (the URDF's forward kinematics from its root link)."""
+
+    id: str
+    urdf: str
+    base_pose: np.ndarray
+    arms: dict[str, RobotArm]
+
+
+def robot_of(record: dict) -> Robot:
+    """The JSON ``robot`` block (``{id, urdf, base_pose, arms: {side: {...}}}``) as a
+    :class:`Robot`."""
+    return Robot(id=record["id"], urdf=record["urdf"],
+                 base_pose=np.asarray(record["base_pose"], dtype=float),
+                 arms={side: RobotArm(base_link=a["base_link"], tip_link=a["tip_link"],
+                                      tcp=np.asarray(a["tcp"], dtype=float),
+                                      gripper=a["gripper"], joints=tuple(a["joints"]),
+                                      rest=a.get("rest"),
+                                      finger_joints=tuple(a.get("finger_joints", ())))
+                       for side, a in record["arms"].items()})

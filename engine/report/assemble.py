@@ -438,12 +438,13 @@ def receiver_block(s: Situation) -> dict:
 
 def gripper_block(spec: GripperSpec, g) -> dict:
     """The result's ``gripper``: the model used (``g``, a
-    :class:`~handover.geometry.gripper.Gripper` built from ``spec``), m."""
+    :class:`~handover.geometry.gripper.Gripper` built from ``spec``), m; ``grip_force``, N
+    per jaw."""
     return {"id": spec.id, "max_width": g.max_opening, "min_width": g.min_opening,
             "finger_depth": g.finger_length / 2.0, "finger_length": g.finger_length,
             "finger_width": g.finger_width, "finger_thickness": g.finger_thickness,
             "palm": list(g.palm), "friction": g.friction, "clearance": g.clearance,
-            **_gripper_meshes(spec)}
+            "grip_force": spec.grip_force, **_gripper_meshes(spec)}
 
 
 def scene_block(ctx: PlanContext) -> dict:

@@ -26,11 +26,12 @@ that order, ``id`` ``"<object>/<grasp id>/<hand>"``):
 - ``post_place_retreat``: where the gripper lets go (the handover or placement,
   ``pose_world``; for H2G2's first grasp the midair regrasp), back along ``-a`` by the
   default approach distances.
-- ``pre_grasp_posture`` / ``grasp_posture``: the fingers (:data:`FINGER_JOINTS`, prismatic, m,
-  each finger's pad from the grasp frame's centre) open at ``Gripper.opening(width) / 2``,
-  then closed on the object at ``width / 2``, each one point :data:`POSTURE_SECONDS` from
-  the start; the grasp posture's effort is the gripper's ``grip_force`` (N per jaw) when the
-  result gives it.
+- ``pre_grasp_posture`` / ``grasp_posture``: the fingers (the arm's ``finger_joints`` in
+  the result's robot block, else :data:`~handover.engine.spec.robotspec.FINGER_JOINTS`,
+  prismatic, m, each finger's pad from the grasp frame's centre) open at
+  ``Gripper.opening(width) / 2``, then closed on the object at ``width / 2``, each one
+  point :data:`POSTURE_SECONDS` from the start; the grasp posture's effort is the gripper's
+  ``grip_force`` (N per jaw) when the result gives it.
 - ``grasp_quality``: the grasp's ``score``; ``max_contact_force``: the gripper's
   ``grip_force`` when given, else 0 (MoveIt: <= 0 is no limit); ``allowed_touch_objects``:
   the object's id.
@@ -44,24 +45,20 @@ motion it checked between them. Joint names follow the arm's chain order
 (``robot.arms[arm].joints``). Headers carry no stamp (ROS's zero time: "start now") and no
 frame.
 
-**The bag** (:func:`write_mcap`): the ``ros2`` MCAP profile, CDR-encoded by
-``mcap-ros2-support``, each schema the full concatenated definition rosbag2 stores
-(:mod:`.msgdefs`); :data:`GRASPS_TOPIC` (``moveit_msgs/msg/Grasp``, one message per grasp),
-then ``/handover/trajectory/<arm>`` (``trajectory_msgs/msg/JointTrajectory``, one message
-per segment), log times :data:`LOG_TIME_BASE_NS` plus :data:`LOG_TIME_STEP_NS` per message,
-in that order.
+**Frames** (:func:`static_frames`): the object at pick-up, at the midair regrasp and at the
+handover (or where it is set down), and the receiver, as a ``tf2_msgs/TFMessage``.
+
+The bag of these messages is :mod:`.rosbag`'s.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any, BinaryIO
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from handover.engine.report.msgdefs import full_text
 from handover.engine.report.rosmsg import (
     Duration,
     Grasp,
@@ -73,28 +70,31 @@ from handover.engine.report.rosmsg import (
     Pose,
     PoseStamped,
     Quaternion,
+    TFMessage,
+    Transform,
+    TransformStamped,
     Vector3,
     Vector3Stamped,
 )
+from handover.engine.spec.robotspec import finger_joints
 from handover.geometry.gripper import Gripper
 
 __all__ = [
     "MoveItPlan",
     "ArmTrajectory",
     "moveit_messages",
-    "write_mcap",
     "pose_message",
     "WORLD_FRAME",
     "GRASPS_TOPIC",
     "TRAJECTORY_TOPIC",
-    "FINGER_JOINTS",
+    "TF_STATIC_TOPIC",
+    "static_frames",
+    "grasp_planning_result",
     "STAGE_ORDER",
     "STAGE_SECONDS",
     "POSTURE_SECONDS",
     "LIFT_DISTANCE",
     "LIFT_MIN_DISTANCE",
-    "LOG_TIME_BASE_NS",
-    "LOG_TIME_STEP_NS",
 ]
 
 WORLD_FRAME = "world"
@@ -102,7 +102,7 @@ WORLD_FRAME = "world"
 facing +x)."""
 GRASPS_TOPIC = "/handover/grasps"
 TRAJECTORY_TOPIC = "/handover/trajectory/{arm}"
-FINGER_JOINTS = ("{side}_finger0_joint", "{side}_finger1_joint")
+TF_STATIC_TOPIC = "/tf_static"
 """The finger joints of a posture, ``side`` the arm (else the hand): finger 0 on the grasp
 frame's ``-o`` side, finger 1 on ``+o`` (geometry/gripper.py's names)."""
 STAGE_ORDER = ("pickup", "midair", "handover", "place")
@@ -110,8 +110,6 @@ STAGE_SECONDS = 2.0
 POSTURE_SECONDS = 0.5
 LIFT_DISTANCE = 0.10
 LIFT_MIN_DISTANCE = 0.05
-LOG_TIME_BASE_NS = 1_000_000_000
-LOG_TIME_STEP_NS = 1_000_000
 
 _SWAP = np.diag([-1.0, -1.0, 1.0, 1.0])  # half a turn about the grasp frame's a
 _ORTHO_TOL = 1e-4  # the JSON rounds matrices to 6 decimals
@@ -141,26 +139,33 @@ class ArmTrajectory:
 
 @dataclass(frozen=True)
 class MoveItPlan:
-    """A plan's messages: ``grasps`` (one per robot grasp, in the result's order) and the
-    arms' ``trajectories``."""
+    """A plan's messages: ``grasps`` (one per robot grasp, in the result's order), the arms'
+    ``trajectories`` and the plan's ``tf_static`` frames (:func:`static_frames`)."""
 
     object: str
     grasps: tuple[Grasp, ...]
     trajectories: tuple[ArmTrajectory, ...]
+    tf_static: TFMessage = TFMessage()
 
     def to_dict(self) -> dict[str, Any]:
         """What ``--format moveit`` prints: ``{object, frame_id, grasps: [Grasp as ROS prints
-        it], trajectories: [ArmTrajectory.to_dict()]}``."""
+        it], trajectories: [ArmTrajectory.to_dict()], tf_static: TFMessage as ROS prints
+        it}``."""
         return {
             "object": self.object,
             "frame_id": WORLD_FRAME,
             "grasps": [g.to_dict() for g in self.grasps],
             "trajectories": [t.to_dict() for t in self.trajectories],
+            "tf_static": self.tf_static.to_dict(),
         }
 
-    def messages(self) -> list[tuple[str, Grasp | JointTrajectory]]:
-        """(topic, message) in the bag's order: the grasps, then the trajectories."""
-        out: list[tuple[str, Grasp | JointTrajectory]] = [(GRASPS_TOPIC, g) for g in self.grasps]
+    def messages(self) -> list[tuple[str, TFMessage | Grasp | JointTrajectory]]:
+        """(topic, message) in the bag's order: the static frames (when there are any), the
+        grasps, then the trajectories."""
+        out: list[tuple[str, TFMessage | Grasp | JointTrajectory]] = []
+        if self.tf_static.transforms:
+            out.append((TF_STATIC_TOPIC, self.tf_static))
+        out += [(GRASPS_TOPIC, g) for g in self.grasps]
         out += [(t.topic, t.trajectory) for t in self.trajectories]
         return out
 
@@ -309,6 +314,19 @@ def _tip(result: dict, g: dict, stage: str, frame: np.ndarray, where: str) -> np
     return frame @ np.linalg.inv(tcp)
 
 
+def _finger_names(result: dict, g: dict, hand: str) -> tuple[str, str]:
+    """The finger joints of the gripper that holds grasp ``g``: its arm's ``finger_joints``
+    in the result's robot block, else the default names of its arm (or hand)."""
+    side = g.get("arm") or hand
+    given = ((result.get("robot") or {}).get("arms") or {}).get(side, {}).get("finger_joints")
+    if given is None:
+        return finger_joints(side)
+    if (not isinstance(given, list) or len(given) != 2
+            or not all(isinstance(n, str) and n for n in given)):
+        raise ValueError(f"robot.arms.{side}.finger_joints must name two joints")
+    return given[0], given[1]
+
+
 def _grasp(result: dict, i: int, gripper: Gripper, force: float) -> Grasp:
     where = f"robot_grasps[{i}]"
     g = result["robot_grasps"][i]
@@ -319,8 +337,7 @@ def _grasp(result: dict, i: int, gripper: Gripper, force: float) -> Grasp:
                          f"{', '.join(joints) or 'no stage'}")
     width = _number(_field(g, "width", where), f"{where}.width")
     hand = _field(g, "hand", where)
-    side = g.get("arm") or hand
-    names = tuple(name.format(side=side) for name in FINGER_JOINTS)
+    names = _finger_names(result, g, hand)
     depth = gripper.finger_depth + gripper.clearance
     approach = (closing[:3, 2], gripper.finger_length + gripper.clearance, depth)
     place = (-release[:3, 2], approach[1], approach[2])
@@ -396,6 +413,44 @@ def _trajectories(result: dict, i: int) -> list[ArmTrajectory]:
     return [ArmTrajectory(arm, i, "stages", _trajectory(list(names), rows, times, where))]
 
 
+def _transform(parent: str, child: str, transform: np.ndarray) -> TransformStamped:
+    pose = pose_message(transform, parent).pose
+    return TransformStamped(Header(frame_id=parent), child, Transform(
+        Vector3(pose.position.x, pose.position.y, pose.position.z), pose.orientation))
+
+
+def static_frames(result: dict) -> TFMessage:
+    """The plan's frames that do not move, as ``/tf_static`` carries them, each a child of
+    :data:`WORLD_FRAME` (z up, m): the object where it is picked up (``<object>/pickup``,
+    ``initial_pose``), where the second hand takes it in H2G2 (``<object>/midair``,
+    ``regrasp.midair_pose``), where it is handed over or set down (``<object>/handover`` or
+    ``<object>/place``, ``object_pose``), and the receiver (``receiver``: on the floor at their
+    feet, x the way they face, z up). The grasps' poses are in ``world``; these frames let a
+    viewer (Foxglove, RViz) show where the object and the person are. Stamps are zero, as a
+    static broadcaster's frames are valid at every time."""
+    name = str(_field(result, "object", "the result"))
+    frames = [(f"{name}/pickup", _rigid(_matrix(_field(result, "initial_pose", "the result"),
+                                                "initial_pose")))]
+    regrasp = result.get("regrasp")
+    if regrasp:
+        frames.append((f"{name}/midair", _rigid(_matrix(
+            _field(regrasp, "midair_pose", "regrasp"), "regrasp.midair_pose"))))
+    end = "place" if result.get("outcome") == "place" else "handover"
+    frames.append((f"{name}/{end}", _rigid(_matrix(_field(result, "object_pose", "the result"),
+                                                   "object_pose"))))
+    receiver = result.get("receiver") or {}
+    if receiver.get("position") is not None and receiver.get("facing") is not None:
+        position = np.asarray(receiver["position"], dtype=float)
+        facing = np.asarray(receiver["facing"], dtype=float) * [1.0, 1.0, 0.0]
+        if (position.shape == (3,) and np.isfinite(position).all()
+                and np.linalg.norm(facing) > 1e-9):
+            x = facing / np.linalg.norm(facing)
+            at = np.eye(4)
+            at[:3, 0], at[:3, 1], at[:3, 3] = x, np.cross([0.0, 0.0, 1.0], x), position
+            frames.append(("receiver", at))
+    return TFMessage(tuple(_transform(WORLD_FRAME, child, t) for child, t in frames))
+
+
 def moveit_messages(result: dict) -> MoveItPlan:
     """The ROS 2 messages of a plan's JSON ``result`` (see the module docstring for every
     field). A refused or infeasible plan has no robot grasps and gives no messages. Raises
@@ -414,31 +469,25 @@ def moveit_messages(result: dict) -> MoveItPlan:
         object=str(result["object"]),
         grasps=tuple(_grasp(result, i, gripper, force) for i in range(len(grasps))),
         trajectories=tuple(t for i in range(len(grasps)) for t in _trajectories(result, i)),
+        tf_static=static_frames(result),
     )
 
 
-def write_mcap(result: dict, path: str | Path | BinaryIO) -> None:
-    """Write the plan's messages (:func:`moveit_messages`) to ``path`` (a file name, or a
-    binary stream written from its current position) as a ROS 2 MCAP bag (``ros2`` profile,
-    CDR, zstd chunks), readable by ``ros2 bag`` (the MCAP storage plugin) and Foxglove.
-    Deterministic: the same result gives the same bytes."""
+def grasp_planning_result(result: dict, group_name: str = "") -> dict[str, Any]:
+    """The result of a ``grasping_msgs/action/GraspPlanning`` goal answered by the plan
+    ``result``: ``{"grasps": [moveit_msgs/Grasp as ROS prints it]}``, the plan's robot grasps
+    in its order (:func:`moveit_messages`); with a ``group_name`` (an arm, ``left`` or
+    ``right``, or ``<arm>_arm``), only the grasps that arm takes. A refused or infeasible plan
+    gives no grasp. Raises ValueError for a group that is no arm of the robot."""
     plan = moveit_messages(result)
-    if isinstance(path, str | Path):
-        with open(path, "wb") as stream:
-            _write_bag(plan, stream)
-    else:
-        _write_bag(plan, path)
-
-
-def _write_bag(plan: MoveItPlan, stream: BinaryIO) -> None:
-    from mcap_ros2.writer import Writer
-
-    writer = Writer(stream)
-    schemas = {}
-    for k, (topic, message) in enumerate(plan.messages()):
-        kind = message.ROS_TYPE
-        if kind not in schemas:
-            schemas[kind] = writer.register_msgdef(kind, full_text(kind))
-        writer.write_message(topic, schemas[kind], message.to_dict(),
-                             log_time=LOG_TIME_BASE_NS + k * LOG_TIME_STEP_NS, sequence=k)
-    writer.finish()
+    if not group_name:
+        return {"grasps": [g.to_dict() for g in plan.grasps]}
+    arm = group_name.removesuffix("_arm")
+    robot = result.get("robot")
+    arms = sorted((robot or {}).get("arms") or {})
+    hands = [g.get("arm") or g.get("hand") for g in result["robot_grasps"]]
+    if arms and arm not in arms:
+        raise ValueError(f"group_name {group_name!r} is not an arm of robot "
+                         f"'{robot.get('id')}' (arms: {', '.join(arms)})")
+    return {"grasps": [g.to_dict() for g, side in zip(plan.grasps, hands, strict=True)
+                       if side == arm]}

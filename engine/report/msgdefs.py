@@ -8,9 +8,10 @@ first, the dependencies of each text in sorted order of their full names, each t
 time it is met. :func:`full_text` builds exactly that from :data:`DEFINITIONS`.
 
 :data:`DEFINITIONS` holds the field lines of the Jazzy interface files (moveit_msgs 2.6,
-common_interfaces and rcl_interfaces of Jazzy), in their order, with their default values;
-the files' comment lines are left out. Readers (``ros2 bag``, Foxglove, ``mcap-ros2-support``)
-use the fields only, so a bag decodes the same with or without them.
+common_interfaces, geometry2's tf2_msgs and rcl_interfaces of Jazzy), in their order, with
+their default values; the files' comment lines are left out. Readers (``ros2 bag``,
+Foxglove, ``mcap-ros2-support``) use the fields only, so a bag decodes the same with or
+without them.
 
 >>> print(full_text("geometry_msgs/msg/Point"))
 float64 x
@@ -38,6 +39,11 @@ DEFINITIONS: dict[str, str] = {
     "geometry_msgs/PoseStamped": "std_msgs/Header header\nPose pose\n",
     "geometry_msgs/Vector3": "float64 x\nfloat64 y\nfloat64 z\n",
     "geometry_msgs/Vector3Stamped": "std_msgs/Header header\nVector3 vector\n",
+    "geometry_msgs/Transform": "Vector3 translation\nQuaternion rotation\n",
+    "geometry_msgs/TransformStamped": (
+        "std_msgs/Header header\nstring child_frame_id\nTransform transform\n"
+    ),
+    "tf2_msgs/TFMessage": "geometry_msgs/TransformStamped[] transforms\n",
     "trajectory_msgs/JointTrajectoryPoint": (
         "float64[] positions\n"
         "float64[] velocities\n"

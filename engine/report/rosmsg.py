@@ -34,6 +34,9 @@ __all__ = [
     "PoseStamped",
     "Vector3",
     "Vector3Stamped",
+    "Transform",
+    "TransformStamped",
+    "TFMessage",
     "JointTrajectoryPoint",
     "JointTrajectory",
     "GripperTranslation",
@@ -188,6 +191,36 @@ class Vector3Stamped(Message):
     ROS_TYPE: ClassVar[str] = "geometry_msgs/msg/Vector3Stamped"
     header: Header = field(default_factory=Header)
     vector: Vector3 = field(default_factory=Vector3)
+
+
+@dataclass(frozen=True)
+class Transform(Message):
+    """geometry_msgs/msg/Transform: a frame's ``translation`` (m) and ``rotation`` in its
+    parent frame."""
+
+    ROS_TYPE: ClassVar[str] = "geometry_msgs/msg/Transform"
+    translation: Vector3 = field(default_factory=Vector3)
+    rotation: Quaternion = field(default_factory=Quaternion)
+
+
+@dataclass(frozen=True)
+class TransformStamped(Message):
+    """geometry_msgs/msg/TransformStamped: where frame ``child_frame_id`` is in the frame
+    its ``header`` names."""
+
+    ROS_TYPE: ClassVar[str] = "geometry_msgs/msg/TransformStamped"
+    header: Header = field(default_factory=Header)
+    child_frame_id: str = ""
+    transform: Transform = field(default_factory=Transform)
+
+
+@dataclass(frozen=True)
+class TFMessage(Message):
+    """tf2_msgs/msg/TFMessage: the ``transforms`` a tf broadcaster sends (on ``/tf_static``:
+    frames that never move)."""
+
+    ROS_TYPE: ClassVar[str] = "tf2_msgs/msg/TFMessage"
+    transforms: tuple[TransformStamped, ...] = ()
 
 
 @dataclass(frozen=True)

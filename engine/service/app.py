@@ -1,16 +1,19 @@
 """The plan service's HTTP routes (Starlette), under ``/v1``.
 
-=======================  =================================================================
-``GET /v1/health``       ``{"ok": true, "kb": {...}, "workers", "pending", "reloads"}``
-``POST /v1/plan``        body: the query by ``handover plan``'s option names; answer: what
-                         ``handover plan --json`` prints (``"format": "moveit"``: what
-                         ``--format moveit`` prints; ``"mcap"``: the bag), 200 whatever
-                         the outcome (``X-Handover-Outcome`` says which)
-``POST /v1/verify``      body ``{"k"?, "coverage"?}``: ``handover kb test --json``
-``GET /v1/kb/validate``  ``handover kb validate --json`` of the folder (200 valid, 422 not)
-``POST /v1/kb/reload``   load the folder again; a KB that does not validate is refused (422,
-                         every problem file:line:col) and the old one goes on serving
-=======================  =================================================================
+===========================  =============================================================
+``GET /v1/health``           ``{"ok": true, "kb": {...}, "workers", "pending", "reloads"}``
+``POST /v1/plan``            body: the query by ``handover plan``'s option names; answer: what
+                             ``handover plan --json`` prints (``"format": "moveit"``: what
+                             ``--format moveit`` prints; ``"mcap"``: the bag), 200 whatever
+                             the outcome (``X-Handover-Outcome`` says which)
+``POST /v1/grasp_planning``  body: a ``grasping_msgs/action/GraspPlanning`` goal
+                             (``{"object": {"name", "properties"}, "group_name"}``); answer: the
+                             action's result, ``{"grasps": [moveit_msgs/Grasp]}`` (docs/ros.md)
+``POST /v1/verify``          body ``{"k"?, "coverage"?}``: ``handover kb test --json``
+``GET /v1/kb/validate``      ``handover kb validate --json`` of the folder (200 valid, 422 not)
+``POST /v1/kb/reload``       load the folder again; a KB that does not validate is refused (422,
+                             every problem file:line:col) and the old one goes on serving
+===========================  =============================================================
 
 Every error is JSON, ``{"error": {"code", "message", ...}}``: 400 a malformed body or a
 bad value, 401 a missing or wrong token, 404 an unknown id or path, 405 a wrong method,
@@ -44,6 +47,7 @@ from handover.engine.service.worker import (
     Reply,
     error_body,
     error_reply,
+    grasp_planning_task,
     plan_task,
     validate_task,
     verify_task,
@@ -140,6 +144,12 @@ def create_app(service: Service, token: str | None = None) -> Starlette:
         request.state.object = body.get("object") if isinstance(body, dict) else None
         return _reply(await service.run(plan_task, body, deadline=_deadline(request)))
 
+    async def grasp_planning(request: Request) -> Response:
+        goal = await _body(request)
+        obj = goal.get("object") if isinstance(goal, dict) else None
+        request.state.object = obj.get("name") if isinstance(obj, dict) else None
+        return _reply(await service.run(grasp_planning_task, goal, deadline=_deadline(request)))
+
     async def verify(request: Request) -> Response:
         body = await _body(request, required=False)
         return _reply(await service.run(verify_task, body, deadline=_deadline(request)))
@@ -165,6 +175,7 @@ def create_app(service: Service, token: str | None = None) -> Starlette:
     routes = [
         Route("/v1/health", health, methods=["GET"]),
         Route("/v1/plan", plan, methods=["POST"]),
+        Route("/v1/grasp_planning", grasp_planning, methods=["POST"]),
         Route("/v1/verify", verify, methods=["POST"]),
         Route("/v1/kb/validate", validate, methods=["GET", "POST"]),
         Route("/v1/kb/reload", reload, methods=["POST"]),

@@ -150,6 +150,12 @@ class Client:
                                       self._query(obj, **_query_args(query), fmt="mcap")))
         return Path(path)
 
+    def grasp_planning(self, goal: dict) -> dict:
+        """The result of a ``grasping_msgs/action/GraspPlanning`` goal (``{"object": {"name":
+        OBJECT, "properties": [{"name": "receiver", "value": "elder"}]}, "group_name":
+        ""}``): ``{"grasps": [moveit_msgs/Grasp]}`` (docs/ros.md)."""
+        return json.loads(self._call("POST", "/v1/grasp_planning", goal))
+
     def health(self) -> dict:
         """``GET /v1/health``: the KB served (root, digest, counts), workers, pending."""
         return json.loads(self._call("GET", "/v1/health"))

@@ -174,6 +174,40 @@ def plan_task(body: Any) -> Reply:
         return _timed(error_reply(e), start)
 
 
+def grasp_planning_task(goal: Any) -> Reply:
+    """``POST /v1/grasp_planning``: a ``grasping_msgs/action/GraspPlanning`` goal
+    (:func:`handover.engine.tools.answer.grasp_planning_request`) answered with the action's
+    result, ``{"grasps": [moveit_msgs/Grasp]}``, status 200 whatever the outcome (an
+    infeasible plan has no grasp; ``X-Handover-Outcome`` says which), from the memo when the
+    same goal was answered."""
+    start = time.perf_counter()
+    try:
+        from handover.engine.report.moveit import grasp_planning_result
+        from handover.engine.tools.answer import grasp_planning_request, plan_request
+
+        request, group = grasp_planning_request(goal)
+        state = _state()
+        key = ("grasp_planning", group, request.key())
+        found = state.memo.get(key)
+        if found is not None:
+            return Reply(found.status, found.body, found.media_type, found.outcome, True,
+                         os.getpid(), time.perf_counter() - start)
+        planned = plan_request(state.kb, request, state.db)
+        try:
+            answer = grasp_planning_result(json.loads(planned.result.to_json()), group)
+        except ValueError as e:
+            from handover.engine.errors import UsageError
+
+            raise UsageError(str(e)) from None
+        body = (json.dumps(answer, indent=2, ensure_ascii=False) + "\n").encode("utf-8")
+        reply = Reply(200, body, "application/json", planned.outcome, False, os.getpid(),
+                      time.perf_counter() - start)
+        state.memo.put(key, reply)
+        return reply
+    except Exception as e:  # noqa: BLE001 - every error is an answer
+        return _timed(error_reply(e), start)
+
+
 def verify_task(body: Any) -> Reply:
     """``POST /v1/verify``: the served KB's test cases (``kb test --json``); body keys ``k``
     (only the cases whose name contains it) and ``coverage``."""

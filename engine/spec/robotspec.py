@@ -20,10 +20,23 @@ from pydantic import Field, model_validator
 
 from handover.engine.spec.kbmodel import Finite, FiniteVec3, Id, KBModel, Positive
 
-__all__ = ["FramePose", "ArmSpec", "BodyPrimitive", "RobotSpec", "SIDES"]
+__all__ = ["FramePose", "ArmSpec", "BodyPrimitive", "RobotSpec", "SIDES", "FINGER_JOINTS",
+           "finger_joints"]
 
 SIDES: tuple[str, str] = ("left", "right")
 """The hands a robot may have, in the order they are listed."""
+
+FINGER_JOINTS: tuple[str, str] = ("{side}_finger0_joint", "{side}_finger1_joint")
+"""The finger joints' names of a hand whose arm names none (``side`` the hand)."""
+
+
+def finger_joints(side: str, given: tuple[str, str] | None = None) -> tuple[str, str]:
+    """The two finger joint names of the gripper on hand ``side``: ``given`` (an arm's
+    ``finger_joints``), else :data:`FINGER_JOINTS`."""
+    if given is not None:
+        return given
+    first, second = FINGER_JOINTS
+    return first.format(side=side), second.format(side=side)
 
 LinkName = Field(min_length=1, max_length=256)
 
@@ -41,13 +54,24 @@ class ArmSpec(KBModel):
     the ``tcp`` (tip link -> grasp frame), the gripper at its end (default: the robot's
     ``gripper``) and ``rest``, the joint values (rad; m for a prismatic joint) it waits at
     while the other arm works (every joint of the chain, within its limits; without it the
-    idle arm is placed nowhere and nothing is tested against it)."""
+    idle arm is placed nowhere and nothing is tested against it). ``finger_joints``: the
+    names of the gripper's two finger joints as the robot's controllers know them (prismatic,
+    m; the grasp postures of ``--format moveit`` name them), default :data:`FINGER_JOINTS`."""
 
     base_link: str = LinkName
     tip_link: str = LinkName
     tcp: FramePose = Field(default_factory=FramePose)
     gripper: Id | None = None
     rest: dict[str, Finite] | None = None
+    finger_joints: tuple[str, str] | None = None
+
+    @model_validator(mode="after")
+    def _fingers(self) -> ArmSpec:
+        if self.finger_joints is not None:
+            a, b = self.finger_joints
+            if not a or not b or a == b:
+                raise ValueError("finger_joints must name two different joints")
+        return self
 
 
 class BodyPrimitive(KBModel):

@@ -143,6 +143,69 @@ class PlanRequest:
                 self.format)
 
 
+_GOAL_OPTIONS = ("task", "receiver", "culture", "scene", "mode", "robot", "gripper")
+_GOAL_GEOMETRY = ("point_cluster", "primitives", "primitive_poses", "meshes", "mesh_poses",
+                  "surface")
+
+
+def grasp_planning_request(goal: Any) -> tuple[PlanRequest, str]:
+    """The plan request and the group of a ``grasping_msgs/action/GraspPlanning`` goal, as
+    JSON in the shape ``ros2 action send_goal`` takes it: ``{"object": {"name": OBJECT,
+    "properties": [{"name": "receiver", "value": "elder"}, ...]}, "group_name": ""}``.
+    ``object.name`` is the KB's object id; the properties are ``handover plan``'s options
+    (:data:`_GOAL_OPTIONS`); ``header`` and ``support_surface`` are taken and not used (the
+    scene says where the object is). The object is known by name: a goal that describes
+    its geometry (points, primitives, meshes, a plane) is refused rather than planned for
+    another shape. Raises UsageError saying what is wrong."""
+    if not isinstance(goal, Mapping):
+        raise UsageError(f"the goal must be a JSON object, got {type(goal).__name__}")
+    unknown = sorted(set(goal) - {"object", "group_name"})
+    if unknown:
+        raise UsageError(f"unknown goal field(s) {', '.join(unknown)} (GraspPlanning's goal "
+                         "has object and group_name)")
+    obj, group = goal.get("object"), goal.get("group_name", "")
+    if not isinstance(group, str):
+        raise UsageError(f"'group_name' must be a string, got {group!r}")
+    if not isinstance(obj, Mapping) or not isinstance(obj.get("name"), str) or not obj["name"]:
+        raise UsageError("the goal's object needs a 'name': the object id of the knowledge "
+                         "base")
+    fields = {"header", "name", "support_surface", "properties", *_GOAL_GEOMETRY}
+    unknown = sorted(set(obj) - fields)
+    if unknown:
+        raise UsageError(f"unknown object field(s) {', '.join(unknown)} (grasping_msgs/Object "
+                         f"has {', '.join(sorted(fields))})")
+    described = [k for k in _GOAL_GEOMETRY if _given(obj.get(k))]
+    if described:
+        raise UsageError(f"the goal describes the object's geometry ({', '.join(described)}): "
+                         f"the service plans the knowledge base's objects by name; send "
+                         f"'{obj['name']}' without it, or add the object to the KB")
+    options: dict[str, str] = {}
+    properties = obj.get("properties") or []
+    if not isinstance(properties, list):
+        raise UsageError("the object's 'properties' must be a list of {name, value}")
+    for prop in properties:
+        if not isinstance(prop, Mapping) or set(prop) - {"name", "value"} \
+                or not isinstance(prop.get("name"), str) or not isinstance(prop.get("value"), str):
+            raise UsageError(f"each property is {{name, value}}, two strings; got {prop!r}")
+        if prop["name"] not in _GOAL_OPTIONS:
+            raise UsageError(f"unknown property '{prop['name']}' (known: "
+                             f"{', '.join(_GOAL_OPTIONS)})")
+        if prop["name"] in options:
+            raise UsageError(f"property '{prop['name']}' is given twice")
+        options[prop["name"]] = prop["value"]
+    return PlanRequest.from_mapping({"object": obj["name"], **options}), group
+
+
+def _given(value: Any) -> bool:
+    """Whether a goal field holds anything but defaults: an all-zero plane, an empty point
+    cloud or an empty list hold nothing (as ``ros2 action send_goal`` fills them in)."""
+    if isinstance(value, Mapping):
+        return any(_given(v) for v in value.values())
+    if isinstance(value, list | tuple):
+        return any(_given(v) for v in value)
+    return bool(value)
+
+
 def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
     """Plan ``request`` with ``kb`` and the grasp database ``db`` (None: generate)."""
     from handover.engine.planner import plan
@@ -260,7 +323,8 @@ def render(planned: Plan, fmt: str = "json") -> bytes:
     text = planned.result.to_json()
     if fmt == "json":
         return text.encode("utf-8")
-    from handover.engine.report.moveit import moveit_messages, write_mcap
+    from handover.engine.report.moveit import moveit_messages
+    from handover.engine.report.rosbag import write_mcap
 
     data = json.loads(text)
     if fmt == "moveit":

@@ -26,8 +26,9 @@ from mcap_ros2.decoder import DecoderFactory
 from typer.testing import CliRunner
 
 from handover.engine.cli import app
-from handover.engine.report.moveit import moveit_messages, write_mcap
+from handover.engine.report.moveit import moveit_messages
 from handover.engine.report.msgdefs import DEFINITIONS, dependencies, full_text
+from handover.engine.report.rosbag import write_mcap
 from handover.engine.report.rosmsg import Duration, JointTrajectory, JointTrajectoryPoint
 from handover.engine.store.kb import builtin_kb_dir
 
@@ -186,7 +187,7 @@ def test_urdf_forward_kinematics_puts_the_tip_link_at_each_grasp_pose(results, n
 
 
 def test_finger_postures_open_with_clearance_and_close_on_the_width(results, tmp_path):
-    result = results["tray"]
+    result = copy.deepcopy(results["tray"])
     gripper = result["gripper"]
     for g, msg in zip(result["robot_grasps"], grasps_of(bag(result, tmp_path)[1]), strict=True):
         names = [f"{g['arm']}_finger0_joint", f"{g['arm']}_finger1_joint"]
@@ -198,8 +199,14 @@ def test_finger_postures_open_with_clearance_and_close_on_the_width(results, tmp
         np.testing.assert_allclose(2 * np.asarray(pre.positions), [opened] * 2, atol=1e-12)
         np.testing.assert_allclose(2 * np.asarray(closed.positions), [g["width"]] * 2,
                                    atol=1e-12)
-        # No grip force in the result: no effort, and no limit on the contact force.
-        assert list(closed.effort) == [] and msg.max_contact_force == 0.0
+        # The gripper's grip force (kb/grippers/parallel_jaw.yaml: 70 N per jaw) is the
+        # closed posture's effort and the contact force limit; none while it opens.
+        assert list(closed.effort) == [70.0, 70.0] and msg.max_contact_force == 70.0
+        assert list(pre.effort) == []
+    # Without a grip force in the result: no effort, and no limit on the contact force.
+    del result["gripper"]["grip_force"]
+    msg = grasps_of(bag(result, tmp_path, "no-force.mcap")[1])[0]
+    assert list(msg.grasp_posture.points[0].effort) == [] and msg.max_contact_force == 0.0
 
 
 def test_a_grip_force_in_the_result_is_the_effort_and_the_force_limit(results):
@@ -283,11 +290,13 @@ def test_the_bag_is_a_ros2_bag_with_the_full_definitions(results, tmp_path):
     info, messages = bag(results["book"], tmp_path)
     assert info.header.profile == "ros2"
     schemas = {s.name: s for s in info.summary.schemas.values()}
-    assert set(schemas) == {"moveit_msgs/msg/Grasp", "trajectory_msgs/msg/JointTrajectory"}
+    assert set(schemas) == {"moveit_msgs/msg/Grasp", "trajectory_msgs/msg/JointTrajectory",
+                            "tf2_msgs/msg/TFMessage"}
     assert {s.encoding for s in schemas.values()} == {"ros2msg"}
     assert {c.message_encoding for c in info.summary.channels.values()} == {"cdr"}
     assert sorted(c.topic for c in info.summary.channels.values()) == [
-        "/handover/grasps", "/handover/trajectory/left", "/handover/trajectory/right"]
+        "/handover/grasps", "/handover/trajectory/left", "/handover/trajectory/right",
+        "/tf_static"]
     text = schemas["moveit_msgs/msg/Grasp"].data.decode()
     assert text.startswith("string id\ntrajectory_msgs/JointTrajectory pre_grasp_posture\n")
     # rosbag2's order, worked out by hand: each type's dependencies sorted by full name,
@@ -303,7 +312,7 @@ def test_the_bag_is_a_ros2_bag_with_the_full_definitions(results, tmp_path):
     # motion in the order of its grasp: a message per segment (one of the stage joints
     # where the result has no motion).
     grasps = results["book"]["robot_grasps"]
-    expected = ["/handover/grasps"] * len(grasps)
+    expected = ["/tf_static"] + ["/handover/grasps"] * len(grasps)
     for g in grasps:
         expected += [f"/handover/trajectory/{g['arm']}"] * max(len(g.get("trajectory", [])), 1)
     assert [t for t, _, _ in messages] == expected
@@ -318,7 +327,8 @@ def test_to_dict_is_what_the_bag_holds(results, name, tmp_path):
     json.dumps(printed)  # --format moveit prints it as JSON
     decoded = [plain(m) for _, _, m in bag(results[name], tmp_path)[1]]
     assert decoded == [m.to_dict() for _, m in plan.messages()]
-    assert printed["grasps"] == decoded[:len(plan.grasps)]
+    assert printed["tf_static"] == decoded[0]
+    assert printed["grasps"] == decoded[1:1 + len(plan.grasps)]
 
 
 def test_approach_retreat_and_trajectory_of_the_result_are_used(results, tmp_path):
@@ -443,3 +453,104 @@ def test_every_type_a_definition_uses_is_defined():
         assert len(blocks) == len(set(blocks)) and name not in blocks
     with pytest.raises(ValueError, match="no definition"):
         full_text("sensor_msgs/msg/Image")
+
+
+def test_static_frames_put_the_object_and_the_receiver_where_the_json_says(results, tmp_path):
+    result = results["book"]  # H2G2: picked up, regrasped midair, handed over
+    info, messages = bag(result, tmp_path)
+    (tf,) = [m for topic, _, m in messages if topic == "/tf_static"]
+    frames = {t.child_frame_id: t for t in tf.transforms}
+    assert list(frames) == ["book/pickup", "book/midair", "book/handover", "receiver"]
+    want = {"book/pickup": result["initial_pose"],
+            "book/midair": result["regrasp"]["midair_pose"],
+            "book/handover": result["object_pose"]}
+    for child, pose in want.items():
+        t = frames[child]
+        assert t.header.frame_id == "world" and t.header.stamp.sec == 0
+        got = np.eye(4)
+        got[:3, :3] = quaternion_matrix(t.transform.rotation)
+        got[:3, 3] = [t.transform.translation.x, t.transform.translation.y,
+                      t.transform.translation.z]
+        np.testing.assert_allclose(got, rigid(pose), atol=1e-9)
+    # The receiver's frame: at their feet, x the way they face (the JSON's receiver block).
+    r = frames["receiver"].transform
+    facing = np.asarray(result["receiver"]["facing"], dtype=float)
+    np.testing.assert_allclose(quaternion_matrix(r.rotation)[:, 0], facing / np.linalg.norm(facing),
+                               atol=1e-12)
+    np.testing.assert_allclose(quaternion_matrix(r.rotation)[:, 2], [0, 0, 1], atol=1e-12)
+    assert [r.translation.x, r.translation.y, r.translation.z] == result["receiver"]["position"]
+
+
+def test_a_set_down_object_s_last_frame_is_where_it_is_placed(results):
+    result = copy.deepcopy(results["knife"])
+    result["outcome"] = "place"
+    names = [t.child_frame_id for t in moveit_messages(result).tf_static.transforms]
+    assert names == ["knife/pickup", "knife/place", "receiver"]
+
+
+def test_every_topic_offers_a_latched_reliable_qos_as_rosbag2_writes_it(results, tmp_path):
+    import yaml
+
+    info, messages = bag(results["tray"], tmp_path)
+    counts: dict[str, int] = {}
+    for topic, _, _ in messages:
+        counts[topic] = counts.get(topic, 0) + 1
+    assert set(counts) == {c.topic for c in info.summary.channels.values()}
+    for channel in info.summary.channels.values():
+        (qos,) = yaml.safe_load(channel.metadata["offered_qos_profiles"])
+        # rosbag2's Jazzy serialisation (string policies), tf2's static broadcaster's QoS:
+        # a late subscriber to `ros2 bag play` still gets every message of the topic.
+        assert qos["history"] == "keep_last" and qos["depth"] == counts[channel.topic]
+        assert qos["reliability"] == "reliable" and qos["durability"] == "transient_local"
+        assert qos["liveliness"] == "automatic"
+        assert qos["avoid_ros_namespace_conventions"] is False
+        for duration in ("deadline", "lifespan", "liveliness_lease_duration"):
+            assert qos[duration] == {"sec": 9223372036, "nsec": 854775807}  # infinite
+
+
+def _robot_with_fingers(root: Path, fingers: dict[str, str]) -> Path:
+    """The built-in KB copied to ``root`` with lines added under each arm of the robot."""
+    import shutil
+
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    path = root / "robots" / "idro.yaml"
+    lines = path.read_text().splitlines(keepends=True)
+    out = []
+    for line in lines:
+        out.append(line)
+        for side, extra in fingers.items():
+            if line.rstrip() == f"  {side}:":
+                out.append("    " + extra + "\n")
+    path.write_text("".join(out))
+    return root
+
+
+def test_the_robot_s_finger_joints_name_the_postures(tmp_path):
+    kb = _robot_with_fingers(tmp_path / "kb", {
+        "left": "finger_joints: [left_gripper_finger_a, left_gripper_finger_b]",
+        "right": "finger_joints: [right_gripper_finger_a, right_gripper_finger_b]"})
+    got = CliRunner().invoke(app, ["--kb", str(kb), "plan", "tray", "--receiver", "elder",
+                                   "--culture", "korean", "--format", "moveit"])
+    assert got.exit_code == 0, got.output
+    grasps = json.loads(got.stdout)["grasps"]
+    assert len(grasps) == 2
+    for g in grasps:
+        side = g["id"].rsplit("/", 1)[1]
+        for posture in ("pre_grasp_posture", "grasp_posture"):
+            assert g[posture]["joint_names"] == [f"{side}_gripper_finger_a",
+                                                 f"{side}_gripper_finger_b"]
+
+
+@pytest.mark.parametrize(("extra", "words"), [
+    ("finger_joints: [left_joint7, left_gripper_finger_b]", "a joint of the arm's chain"),
+    ("finger_joints: [left_finger, left_finger]", "two different joints"),
+])
+def test_bad_finger_joints_are_kb_errors_at_their_line(tmp_path, capsys, extra, words):
+    from handover.engine.cli.app import main
+
+    kb = _robot_with_fingers(tmp_path / "kb", {"left": extra})
+    assert main(["--kb", str(kb), "kb", "validate"]) == 3
+    printed = "".join(capsys.readouterr())
+    line = 1 + next(i for i, text in enumerate(
+        (kb / "robots" / "idro.yaml").read_text().splitlines()) if "finger_joints" in text)
+    assert f"idro.yaml:{line}" in printed and words in printed

@@ -167,6 +167,60 @@ def test_moveit_and_mcap_are_the_cli_s(service, kb_dir, tmp_path) -> None:
                 got.orientation.w] == [p["orientation"][k] for k in "xyzw"]
 
 
+def test_a_grasp_planning_goal_is_answered_with_the_plan_s_grasps(service, kb_dir) -> None:
+    # The GraspPlanning action's goal as `ros2 action send_goal` fills it in (empty geometry),
+    # with the query's options as the object's properties.
+    goal = {"object": {"header": {"stamp": {"sec": 0, "nanosec": 0}, "frame_id": ""},
+                       "name": "tray", "support_surface": "",
+                       "properties": [{"name": "receiver", "value": "elder"},
+                                      {"name": "culture", "value": "korean"}],
+                       "point_cluster": {"height": 0, "width": 0, "fields": [], "data": []},
+                       "primitives": [], "primitive_poses": [], "meshes": [],
+                       "mesh_poses": [], "surface": {"coef": [0.0, 0.0, 0.0, 0.0]}},
+            "group_name": ""}
+    _, printed = cli(kb_dir, "plan", "tray", "--receiver", "elder", "--culture", "korean",
+                     "--format", "moveit")
+    _, plan_json = cli(kb_dir, "plan", "tray", "--receiver", "elder", "--culture", "korean",
+                       "--json")
+    status, headers, answer = service.plan(goal, "/v1/grasp_planning")
+    assert status == 200 and headers["x-handover-outcome"] == "handover"
+    result = json.loads(answer)
+    assert list(result) == ["grasps"]
+    assert result["grasps"] == json.loads(printed)["grasps"]
+    arms = [g["arm"] for g in json.loads(plan_json)["robot_grasps"]]
+    assert sorted(arms) == ["left", "right"]  # the korean elder: two hands (H2G1)
+    # A group is one arm: only the grasp that arm takes; "<arm>_arm" names it too.
+    for group in ("left", "right_arm"):
+        status, _, answer = service.plan({**goal, "group_name": group}, "/v1/grasp_planning")
+        side = group.removesuffix("_arm")
+        assert status == 200
+        assert json.loads(answer)["grasps"] == [
+            g for g, arm in zip(result["grasps"], arms, strict=True) if arm == side]
+    # A refusal is an answer with no grasp, as the action gives it.
+    status, headers, answer = service.plan(
+        {"object": {"name": "knife", "properties": [{"name": "receiver", "value": "child"}]}},
+        "/v1/grasp_planning")
+    assert status == 200 and json.loads(answer) == {"grasps": []}
+    assert headers["x-handover-outcome"] != "handover"
+
+
+@pytest.mark.parametrize(("goal", "status", "words"), [
+    ({"object": {"name": "mug"}, "group_name": "torso"}, 400, "not an arm"),
+    ({"object": {"name": "mug", "properties": [{"name": "colour", "value": "red"}]}}, 400,
+     "unknown property 'colour'"),
+    ({"object": {"name": "mug", "primitives": [{"type": 1, "dimensions": [0.1, 0.1, 0.1]}]}},
+     400, "describes the object's geometry (primitives)"),
+    ({"object": {"name": "mug"}, "planning_group": "left"}, 400, "unknown goal field"),
+    ({"object": {"properties": []}}, 400, "needs a 'name'"),
+    ({"object": {"name": "teapot"}}, 404, "teapot"),
+    ("[1, 2]", 400, "JSON object"),
+])
+def test_bad_grasp_planning_goals_are_json_errors(service, goal, status, words) -> None:
+    got, _, answer = service.plan(goal, "/v1/grasp_planning")
+    assert got == status
+    assert words in json.loads(answer)["error"]["message"]
+
+
 def _error(status: int, body: bytes) -> dict:
     assert b"Traceback" not in body
     data = json.loads(body)
