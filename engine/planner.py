@@ -84,7 +84,7 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
     return Plan(result, ctx, d.attempt)
 
 
-MOTION_TRIES = 3
+MOTION_TRIES = 6
 """How many plans the motion planner tries: the chosen one, then (each time an arm has no
 motion) the plan the modes choose without the grasp whose arm failed."""
 

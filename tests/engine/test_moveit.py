@@ -509,7 +509,8 @@ def test_every_topic_offers_a_latched_reliable_qos_as_rosbag2_writes_it(results,
 
 
 def _robot_with_fingers(root: Path, fingers: dict[str, str]) -> Path:
-    """The built-in KB copied to ``root`` with lines added under each arm of the robot."""
+    """The built-in KB copied to ``root``, each arm of the robot given ``fingers[side]`` as
+    its finger_joints line (the shipped lines taken out)."""
     import shutil
 
     shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
@@ -517,6 +518,8 @@ def _robot_with_fingers(root: Path, fingers: dict[str, str]) -> Path:
     lines = path.read_text().splitlines(keepends=True)
     out = []
     for line in lines:
+        if line.strip().startswith("finger_joints:"):
+            continue
         out.append(line)
         for side, extra in fingers.items():
             if line.rstrip() == f"  {side}:":
