@@ -17,11 +17,14 @@ is a pure function of its key.
 
 from __future__ import annotations
 
+import hashlib
 from collections import OrderedDict
 from collections.abc import Callable, Hashable, Iterator
 from typing import Generic, TypeVar
 
-__all__ = ["LRU"]
+import numpy as np
+
+__all__ = ["LRU", "content_key"]
 
 K = TypeVar("K", bound=Hashable)
 V = TypeVar("V")
@@ -76,3 +79,23 @@ class LRU(Generic[K, V]):
 
     def __repr__(self) -> str:
         return f"LRU(size={self.size}, {len(self)} kept)"
+
+
+def content_key(*parts: np.ndarray | str) -> str:
+    """A key for an :class:`LRU` from what the value is a function of: arrays (by dtype,
+    shape and bytes) and strings (a spec's JSON), in order.
+
+    >>> content_key(np.zeros(2), "a") == content_key(np.zeros(2), "a") != content_key(np.ones(2))
+    True
+    """
+    h = hashlib.sha1()
+    for part in parts:
+        if isinstance(part, str):
+            h.update(b"s%d:" % len(part))
+            h.update(part.encode("utf-8"))
+            continue
+        a = np.ascontiguousarray(part)
+        h.update(f"a{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+

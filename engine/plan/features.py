@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.assets.lru import LRU, content_key
+
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Hands
@@ -198,14 +200,27 @@ def open_interior(ctx: PlanContext, tags: tuple[str, ...]) -> Interior:
     return memo[key]
 
 
+KEEP_OUT: LRU[str, np.ndarray] = LRU(16)
+"""Per candidate, the gripper boxes that reach into an object's opening, by what that is a
+function of (the object's description, its mesh, the candidates' gripper boxes, the
+opening's tags), filled in as rows are asked: a warm plan of the same object and gripper
+tests no box it tested before (this process's)."""
+
+
 def keep_out_gripper(ctx: PlanContext, interior: Interior, key: tuple,
                      gi: np.ndarray) -> np.ndarray:
     """(R,) int64 bit mask: which of the gripper's boxes (bit b: ``gripper_boxes().names[b]``)
-    at grasp ``gi`` reach into ``interior`` (object frame). Memoised per candidate under
-    ``key`` (the interior's tags)."""
+    at grasp ``gi`` reach into ``interior`` (object frame, :func:`open_interior` of the tags
+    ``key``). Memoised per candidate under ``key``, and across plans (:data:`KEEP_OUT`)."""
     posed = ctx.gripper_boxes()
     memo = ctx.memo.keep_out_gripper
-    known = memo.setdefault(key, np.full(ctx.n, -1, dtype=np.int64))
+    if key not in memo:
+        mesh = ctx.part_mesh.mesh
+        shared = content_key(ctx.situation.obj.model_dump_json(), "\0".join(key),
+                             mesh.vertices, mesh.faces, np.asarray(ctx.part_mesh.face_part),
+                             posed.centres, posed.rotations, posed.extents)
+        memo[key] = KEEP_OUT.fetch(shared, lambda: np.full(ctx.n, -1, dtype=np.int64))
+    known = memo[key]
     todo = np.unique(gi[known[gi] < 0])
     if len(todo):
         mask = np.zeros(len(todo), dtype=np.int64)

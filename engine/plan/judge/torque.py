@@ -6,12 +6,11 @@ that the object's weight uses."""
 from __future__ import annotations
 
 import dataclasses
-import hashlib
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.assets.lru import LRU
+from handover.engine.assets.lru import LRU, content_key
 from handover.engine.plan.judge.base import Outcome, inapplicable, judges
 from handover.engine.spec.kinds.torque import GRAVITY, TorqueRule, load_shares, pair_lever
 from handover.geometry.squeeze import SOURCE_SQUEEZE
@@ -54,7 +53,7 @@ def pad_patches(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
         grip = pad_grip(ctx)
         mesh, poses, widths = ctx.part_mesh.mesh, ctx.gripper_poses(), ctx.candidates.width
         squeeze = ctx.candidates.source == SOURCE_SQUEEZE
-        key = _digest(mesh.vertices, mesh.faces, poses, widths, squeeze,
+        key = content_key(mesh.vertices, mesh.faces, poses, widths, squeeze,
                       np.array(dataclasses.astuple(grip), dtype=float))
 
         def every() -> np.ndarray:
@@ -74,16 +73,6 @@ PATCHES: LRU[str, np.ndarray] = LRU(16)
 """Every candidate's pad patches by what they are a function of (the mesh, the candidates'
 poses and widths, the gripper's pads): a warm plan of the same object and gripper casts no
 rays again (this process's; the rays cost about 1 s on a 4,000-candidate ball)."""
-
-
-def _digest(*arrays: np.ndarray) -> str:
-    """A key for arrays (their dtypes, shapes and bytes)."""
-    h = hashlib.sha1()
-    for a in arrays:
-        a = np.ascontiguousarray(a)
-        h.update(f"{a.dtype.str}{a.shape}".encode())
-        h.update(a.tobytes())
-    return h.hexdigest()
 
 
 def capacity(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
