@@ -51,6 +51,25 @@ axes:
   up: [0, 0, 1]
 """
 TABLET_RADIUS, TABLET_HEIGHT = 0.0045, 0.0035
+# A lit candle on a holder whose stem is too short for a hand to close round it below the
+# wax: nothing cool is left for the receiver's hand.
+CANDLE = """\
+id: lit_candle
+name: Lit candle in its holder
+mass: 0.3
+tags: [flame]
+geometry:
+  primitives:
+    - {shape: cylinder, part: holder, radius: 0.05, height: 0.03, position: [0, 0, 0.015]}
+    - {shape: cylinder, part: stem, radius: 0.015, height: 0.06, position: [0, 0, 0.06]}
+    - {shape: cylinder, part: candle, radius: 0.012, height: 0.15, position: [0, 0, 0.165]}
+parts:
+  holder: {tags: [base]}
+  stem: {tags: [handle]}
+  candle: {tags: [hot, flame]}
+axes:
+  up: [0, 0, 1]
+"""
 
 
 @pytest.fixture(scope="module")
@@ -59,6 +78,7 @@ def kb_dir(tmp_path_factory) -> Path:
     shutil.copytree(builtin_kb_dir(), root)
     (root / "objects" / "euro_coin.yaml").write_text(COIN, encoding="utf-8")
     (root / "objects" / "tablet.yaml").write_text(TABLET, encoding="utf-8")
+    (root / "objects" / "lit_candle.yaml").write_text(CANDLE, encoding="utf-8")
     return root
 
 
@@ -138,3 +158,25 @@ def test_a_small_thing_is_set_down_within_a_standing_adult_s_reach(
     contacts = np.asarray(grasp["contacts"], dtype=float) @ plan.object_pose[:3, :3].T \
         + plan.object_pose[:3, 3]
     assert (contacts[:, 2] > tips[:, 2]).all() and (contacts[:, 2] < top + height).all()
+
+
+@pytest.mark.parametrize("receiver", ["adult", "seated_adult"])
+def test_a_hot_thing_no_hand_can_take_cool_is_set_down_upright_within_reach(
+        planner, kb_dir, receiver):
+    # What a careful waiter does with a hot dish: not handed over, but set down where they
+    # reach it, upright (the hot object kept level), as the safety rule's fallback says.
+    plan = planner.plan("lit_candle", receiver=receiver)
+    assert plan.outcome == "place" and plan.feasible, plan.reason
+    result = plan.to_dict()
+    assert "receiver_avoids_hot" in result["reason"]
+    assert result["human_grasps"] == []  # nobody's hand on it
+    pose = np.asarray(plan.object_pose, dtype=float)
+    assert pose[2, 2] >= np.cos(np.radians(15.0))  # its up axis within 15 deg of vertical
+    scene = yaml.safe_load((kb_dir / "scenes" / "table.yaml").read_text())
+    top = float(scene["support"]["position"][2])
+    base = _disc_points(pose, 0.05, 0.03)  # the holder, its frame at the object's origin
+    base = base + pose[:3, 2] * 0.015  # the holder's centre is 15 mm above the origin
+    assert abs(base[:, 2].min() - top) <= 0.001  # standing on the table top
+    distance, reach = _leaning_distance(result, pose[:3, 3] + 0.06 * pose[:3, 2])  # the stem
+    assert distance <= reach
+
