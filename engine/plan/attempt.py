@@ -76,10 +76,12 @@ class Pairs:
 @dataclass(frozen=True)
 class Midair:
     """H2G2's regrasp: ``pose`` (4, 4) world, the object where the second gripper takes it;
-    ``rows_skipped``: how many better second grasps the pairing passed over."""
+    ``rows_skipped``: how many better second grasps the pairing passed over; ``lift``: m,
+    how much higher than the first midair pose tried it is (``MIDAIR_LIFTS``)."""
 
     pose: np.ndarray
     rows_skipped: int = 0
+    lift: float = 0.0
 
 
 @dataclass(frozen=True)

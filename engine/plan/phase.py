@@ -81,7 +81,9 @@ class Phase:
     it judges by exact inverse kinematics, see :mod:`handover.engine.plan.arms.solve`).
     giver_forbid : the tags the robot may not hold in this mode (the hard giver contact
     rules whose conditions hold: :attr:`ConstraintGraph.giver_forbid
-    <handover.engine.plan.compiler.ConstraintGraph.giver_forbid>`).
+    <handover.engine.plan.compiler.ConstraintGraph.giver_forbid>`). midair_lift : m, how
+    much higher than its default (the handover pose moved back toward the robot) H2G2's
+    midair regrasp is (:func:`~handover.engine.plan.arms.stages.objects_at`).
     """
 
     mode: str
@@ -91,6 +93,7 @@ class Phase:
     other_grasp: int | None = None
     arm: str | None = None
     giver_forbid: frozenset[str] = frozenset()
+    midair_lift: float = 0.0
 
     def but(self, **changes) -> Phase:
         """A copy with ``changes`` (phases are values)."""

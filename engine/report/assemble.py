@@ -327,7 +327,7 @@ def regrasp_block(attempt: Attempt, grasps: list[RobotGrasp]) -> Regrasp | None:
     if not attempt.feasible or attempt.notes.midair is None:
         return None
     first, second = grasps
-    return Regrasp(first, attempt.notes.midair.pose, second)
+    return Regrasp(first, attempt.notes.midair.pose, second, attempt.notes.midair.lift)
 
 
 def trace_block(ctx: PlanContext, attempt: Attempt, shown: Shown, outcome: str,

@@ -37,11 +37,14 @@ OUTCOMES = ("handover", "place", "refuse", "infeasible")
 class Regrasp:
     """H2G2's midair regrasp: the ``first`` grasp (``stage`` ``pick``; its ``pose_world`` at
     the initial pose), the object's ``midair_pose`` (4, 4) world where the second gripper
-    takes it, and the ``second`` grasp (``stage`` ``handover``)."""
+    takes it, the ``second`` grasp (``stage`` ``handover``), and ``midair_lift`` (m): how
+    much higher the midair pose is than the first one tried (0 unless the arms or the world
+    ruled that one out)."""
 
     first: RobotGrasp
     midair_pose: np.ndarray
     second: RobotGrasp
+    midair_lift: float = 0.0
 
     @property
     def first_pose_midair(self) -> np.ndarray:
@@ -49,12 +52,14 @@ class Regrasp:
         return self.midair_pose @ self.first.pose
 
     def to_dict(self) -> dict[str, Any]:
-        """``{"first": grasp + "pose_midair", "midair_pose", "second": grasp}``."""
+        """``{"first": grasp + "pose_midair", "midair_pose", "midair_lift", "second":
+        grasp}``."""
         if stored_json(self) is not None:
             return stored_json(self)
         return to_jsonable({"first": self.first.to_dict() | {
             "pose_midair": to_jsonable(self.first_pose_midair)},
-            "midair_pose": self.midair_pose, "second": self.second.to_dict()})
+            "midair_pose": self.midair_pose, "midair_lift": self.midair_lift,
+            "second": self.second.to_dict()})
 
 
 @dataclass
@@ -212,5 +217,6 @@ class PlanResult:
             first = {k: v for k, v in r["first"].items() if k != "pose_midair"}
             data["regrasp"] = read_back(Regrasp(robot_grasp_of(first),
                                                 np.asarray(r["midair_pose"], dtype=float),
-                                                robot_grasp_of(r["second"])), r)
+                                                robot_grasp_of(r["second"]),
+                                                float(r.get("midair_lift", 0.0))), r)
         return cls(**data)

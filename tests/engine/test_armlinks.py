@@ -546,3 +546,41 @@ def test_the_object_held_must_not_pass_through_the_arm_that_waits(builtin_urdf):
     assert check.failure().startswith("the left arm cannot wait at its rest at the handover "
                                       "while the right arm works: its ")
     assert "left_link4" in check.failure() and "rest:" not in check.failure()
+
+
+# ------------------------------------------------------ the midair regrasp, higher or lower
+
+
+def test_a_lamp_below_the_midair_regrasp_raises_it(links_kb, builtin_urdf):
+    # The book goes H2G2 for a standing adult: where the second gripper takes it (the
+    # handover pose 20 cm back toward the robot) a lamp hangs, its top 5 cm below the
+    # book's centre there. People pass a thing between their hands higher then.
+    book = yaml.safe_load((links_kb / "objects" / "book.yaml").read_text())
+    boxes = [(p["extents"], p.get("position", [0, 0, 0]))
+             for p in book["geometry"]["primitives"]]  # its pages and spine
+    before = Planner(kb=load_kb(links_kb)).plan("book").to_dict()
+    assert before["mode"] == "H2G2" and before["regrasp"]["midair_lift"] == 0.0
+    default = np.asarray(before["regrasp"]["midair_pose"])
+    centre = default[:3, 3] - [0.0, 0.0, 0.10]  # the lamp's centre, 10 cm below the book's
+    (links_kb / "scenes" / "lamp_at_midair.yaml").write_text(SCENE.format(
+        id="lamp_at_midair", name="A lamp below where the hands pass the book",
+        obstacle="lamp", x=centre[0], y=centre[1], z=centre[2], ex=0.14, ey=0.24, ez=0.10),
+        encoding="utf-8")
+    lamp = obstacle_boxes(links_kb, "lamp_at_midair")["scene:lamp"]
+    at = {"object_pose": default, "initial_pose": default, "object": "book"}
+    # There, the book goes through the lamp (checked here, with fcl) ...
+    assert any(collide(o, lamp) for o in held_object(at, boxes, "handover").values())
+    after = Planner(kb=load_kb(links_kb)).plan("book", scene="lamp_at_midair").to_dict()
+    assert after["outcome"] == "handover" and after["mode"] == "H2G2", after["reason"]
+    # ... so the regrasp is 10 cm higher, the handover where it was, the book there clear of
+    # the lamp, and every arm's link at every stage clear of it and of everything else.
+    regrasp = after["regrasp"]
+    assert regrasp["midair_lift"] == pytest.approx(0.10)
+    midair = np.asarray(regrasp["midair_pose"])
+    handover = np.asarray(after["object_pose"])
+    np.testing.assert_allclose(midair[:3, 3], handover[:3, 3] - 0.2 * np.array([1.0, 0, 0])
+                               + [0.0, 0.0, 0.10], atol=1e-6)
+    at = {"object_pose": midair, "initial_pose": midair, "object": "book"}
+    assert not any(collide(o, lamp) for o in held_object(at, boxes, "handover").values())
+    assert link_hits(links_kb, builtin_urdf, after, "lamp_at_midair", boxes) == []
+    assert {"midair", "handover"} <= {s for g in after["robot_grasps"] for s in g["joints"]}

@@ -21,6 +21,7 @@ from handover.engine.plan.arms.stages import (
     hit_words,
     objects_at,
     other_arm_idle,
+    pose_key,
     row_keys,
     stage_poses,
 )
@@ -271,20 +272,21 @@ def link_tally(failures: list[str]) -> dict[str, int]:
 
 def pair_contacts(ctx: PlanContext, stage: str, a: tuple[ArmCheck, int],
                   b: tuple[ArmCheck, int], presentation: int,
-                  hands_key) -> tuple[tuple[str, str], ...]:
+                  poses_key) -> tuple[tuple[str, str], ...]:
     """Where both arms hold the object at ``stage`` (H2G2's midair regrasp, H2G1's handover
     and its pick-up by both arms): ``(link of a, "other_arm:<link of b>")`` pairs of arm a's
     links touching arm b's, each arm at its check's configuration there (``a``, ``b``:
-    (check, grasp)). Memoised in the context both ways, so the trace of either grasp says
-    the pair was checked (:func:`links_words`)."""
+    (check, grasp)); ``poses_key``: the phase's
+    :func:`~handover.engine.plan.arms.stages.pose_key`. Memoised in the context both ways, so
+    the trace of either grasp says the pair was checked (:func:`links_words`)."""
     memo = ctx.memo.arm_pairs
     (ca, ia), (cb, ib) = a, b
-    key = (ca.side, ia, cb.side, ib, presentation, hands_key, stage)
+    key = (ca.side, ia, cb.side, ib, presentation, poses_key, stage)
     if key not in memo:
         qa, qb = ca.q[ca.stages.index(stage)], cb.q[cb.stages.index(stage)]
         found = ctx.arms.contacts(ca.side, qa, other=(cb.side, qb), own_body=False)[0]
         memo[key] = tuple((la, f"other_arm:{lb}") for la, lb in found)
-        memo[(cb.side, ib, ca.side, ia, presentation, hands_key, stage)] = tuple(
+        memo[(cb.side, ib, ca.side, ia, presentation, poses_key, stage)] = tuple(
             (lb, f"other_arm:{la}") for la, lb in found)
     return memo[key]
 
@@ -302,7 +304,7 @@ def links_words(ctx: PlanContext, phase: Phase, check: ArmCheck, grasp: int,
     memo = ctx.memo.arm_pairs
     for side in ctx.arms.sides:
         said = [s for s in check.stages if memo.get(
-            (check.side, grasp, side, other, presentation, phase.hands.key, s)) == ()]
+            (check.side, grasp, side, other, presentation, pose_key(phase), s)) == ()]
         if side != check.side and said:
             words += (f"; of the {side} arm's links "
                       f"{' and '.join(STAGE_WORDS[s] for s in said)}")

@@ -17,7 +17,7 @@ import numpy as np
 
 from handover.engine.plan.arms.links import pair_contacts, wrist_failures
 from handover.engine.plan.arms.solve import CONFIRM_LIMIT, confirm, preferred_sides, screen
-from handover.engine.plan.arms.stages import STAGE_WORDS, hit_words
+from handover.engine.plan.arms.stages import STAGE_WORDS, hit_words, pose_key
 
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
@@ -103,7 +103,7 @@ def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.n
                         skip.add((side1, int(f)))
                     continue
                 touch = pair_contacts(ctx, "midair", (c1, int(f)), (c2, i2), k,
-                                      second.hands.key)
+                                      pose_key(second))
                 if touch:
                     failures.append(_pair_failure(side1, (int(f), i2), touch, "midair"))
                     continue
@@ -148,7 +148,7 @@ def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
             held[side] = (c, i)
         if len(held) < 2:
             continue
-        touch = pair_contacts(ctx, "handover", held["left"], held["right"], k, phase.hands.key)
+        touch = pair_contacts(ctx, "handover", held["left"], held["right"], k, pose_key(phase))
         if touch:
             failures.append(_pair_failure("left", (il, ir), touch, "handover"))
             continue
@@ -169,7 +169,7 @@ def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
                 failures.append(f"grasp {i}: {c.failure()}")
         if both_pick and len(lifts) == 2:
             touch = pair_contacts(ctx, "pickup", lifted["left"], lifted["right"], k,
-                                  phase.hands.key)
+                                  pose_key(phase))
             if touch:
                 failures.append(_pair_failure("left", (il, ir), touch, "pickup"))
                 continue

@@ -25,8 +25,8 @@ if TYPE_CHECKING:
     from handover.engine.plan.phase import Phase
 
 __all__ = ["STAGES", "STAGE_WORDS", "MIDAIR_BACKOFF", "FLIP", "stages", "screened_stages",
-           "stage_poses", "pose_words", "objects_at", "finger_sign", "canonical_first", "row_keys",
-           "ArmCheck", "hit_words"]
+           "pose_key", "stage_poses", "pose_words", "objects_at", "finger_sign",
+           "canonical_first", "row_keys", "ArmCheck", "hit_words"]
 
 STAGES = ("pickup", "midair", "handover")
 
@@ -76,7 +76,15 @@ def objects_at(ctx: PlanContext, phase: Phase, stage: str, pk: np.ndarray) -> np
     if stage == "midair":
         poses = poses.copy()
         poses[:, :3, 3] -= MIDAIR_BACKOFF * np.asarray(ctx.situation.toward, dtype=float)
+        poses[:, 2, 3] += phase.midair_lift
     return poses
+
+
+def pose_key(phase: Phase) -> tuple:
+    """What the object's poses at the stages of ``phase`` depend on beyond the row: the
+    receiver's hands (the handover locations) and the midair regrasp's lift; memo keys of
+    the arms' checks hold it."""
+    return (phase.hands.key, phase.midair_lift) if phase.midair_lift else phase.hands.key
 
 def stage_poses(ctx: PlanContext, phase: Phase, gi: np.ndarray,
                 pk: np.ndarray) -> dict[str, np.ndarray]:
@@ -126,11 +134,11 @@ def row_keys(side: str, phase: Phase, gi: np.ndarray, pk: np.ndarray
              ) -> tuple[np.ndarray, np.ndarray, tuple[str, ...], list[tuple]]:
     """Rows ``(gi, pk)`` as (R,) int arrays, the stages of ``phase`` and each row's memo key
     for the arm on ``side``: (arm, grasp, presentation (-1 when only pick-up, where the
-    presentation does not matter), stages, the receiver's hands)."""
+    presentation does not matter), stages, :func:`pose_key`)."""
     gi = np.asarray(gi, dtype=np.int64).reshape(-1)
     pk = np.asarray(pk, dtype=np.int64).reshape(-1)
     names = stages(phase)
-    keys = [(side, int(i), int(k) if names != ("pickup",) else -1, names, phase.hands.key)
+    keys = [(side, int(i), int(k) if names != ("pickup",) else -1, names, pose_key(phase))
             for i, k in zip(gi, pk, strict=True)]
     return gi, pk, names, keys
 

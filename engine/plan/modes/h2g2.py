@@ -36,7 +36,8 @@ if TYPE_CHECKING:
     from handover.engine.load.loader import KB
     from handover.engine.plan.context import PlanContext
 
-__all__ = ["plan_h2g2", "first_rules", "midair_pose", "MIDAIR_BACKOFF", "FIRST_NOTE"]
+__all__ = ["plan_h2g2", "first_rules", "midair_pose", "MIDAIR_BACKOFF", "MIDAIR_LIFTS",
+           "FIRST_NOTE"]
 
 FIRST_NOTE = "applies to the handover grasp only (function and etiquette)"
 
@@ -60,16 +61,26 @@ def first_rules(hard: list[CompiledRule]) -> list[CompiledRule]:
     return keep
 
 
-def midair_pose(ctx: PlanContext, handover: np.ndarray) -> np.ndarray:
+MIDAIR_LIFTS = (0.0, 0.10, -0.10)
+"""m: the midair regrasp's heights tried, in order, above the first (the handover pose moved
+``MIDAIR_BACKOFF`` back toward the robot): where the arms cannot hold a pair there, or the
+object or a gripper hits something (a link on the table below a low handover, an arm at the
+top of its reach), 10 cm higher, then 10 cm lower. People pass a thing from hand to hand
+where their hands meet comfortably, not at one height."""
+
+
+def midair_pose(ctx: PlanContext, handover: np.ndarray, lift: float = 0.0) -> np.ndarray:
     """(4, 4) world: the object at its ``handover`` pose (4, 4), ``MIDAIR_BACKOFF`` nearer
-    the robot."""
+    the robot and ``lift`` (m) higher."""
     pose = handover.copy()
     pose[:3, 3] -= MIDAIR_BACKOFF * ctx.situation.toward
+    pose[2, 3] += lift
     return pose
 
 
 def _clear_in_midair(ctx: PlanContext, hands, firsts: np.ndarray, seconds: np.ndarray,
-                     presentations: np.ndarray) -> tuple[np.ndarray, dict[str, int]]:
+                     presentations: np.ndarray, lift: float = 0.0
+                     ) -> tuple[np.ndarray, dict[str, int]]:
     """(F, M) bool: the object at the midair pose of each second row's presentation, and both
     grippers there (first grasp f, second grasp m), hit none of the world's targets (table,
     obstacles, bodies); and what was hit, counted over (pair) failures."""
@@ -82,7 +93,7 @@ def _clear_in_midair(ctx: PlanContext, hands, firsts: np.ndarray, seconds: np.nd
     posed = ctx.gripper_boxes()
     for k in np.unique(presentations):
         cols = np.flatnonzero(presentations == k)
-        pose = midair_pose(ctx, hands.poses[k])
+        pose = midair_pose(ctx, hands.poses[k], lift)
         obj = mesh_hits(targets, ctx.collider, pose[None])[0]  # (P,)
         local = targets.moved(np.linalg.inv(pose))
         f_hit = local.posed_hits(posed._replace(centres=posed.centres[firsts],
@@ -131,20 +142,41 @@ def plan_h2g2(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     (:func:`~handover.engine.plan.modes.common.relocated`); ``notes.relocation`` says which
     presentations moved."""
     cg = compile(kb, ctx, "H2G2")
-    return relocated(_plan(ctx, cg, hands_for(cg, ctx), quick),
-                     lambda avoid: hands_for(cg, ctx, avoid=avoid),
-                     lambda hands: _plan(ctx, cg, hands, quick))
+    first = None
+    for lift in MIDAIR_LIFTS:
+        attempt = relocated(_plan(ctx, cg, hands_for(cg, ctx), quick, lift),
+                            lambda avoid: hands_for(cg, ctx, avoid=avoid),
+                            lambda hands, lift=lift: _plan(ctx, cg, hands, quick, lift))
+        if attempt.feasible:
+            return attempt
+        if first is None:
+            first = attempt
+        if not _at_the_midair_regrasp(attempt):  # another height cannot help
+            break
+    if attempt is first:
+        return first
+    tried = ", ".join(f"{100 * v:+.0f} cm" for v in MIDAIR_LIFTS[1:])
+    return replace(first, reason=f"{first.reason}; nor with the midair regrasp higher or "
+                   f"lower ({tried})")
 
 
-def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
-    """H2G2 with the receiver's hands (and the handover locations) ``hands``."""
+def _at_the_midair_regrasp(attempt: Attempt) -> bool:
+    """Whether ``attempt`` failed where the midair regrasp's height matters: the arms held no
+    pair of grasps, or at the midair pose the object or a gripper hit something."""
+    return attempt.notes.arm_failures is not None or (
+        attempt.reason or "").startswith("H2G2: at the midair pose")
+
+
+def _plan(ctx: PlanContext, cg, hands, quick: bool = False, lift: float = 0.0) -> Attempt:
+    """H2G2 with the receiver's hands (and the handover locations) ``hands``, the midair
+    regrasp ``lift`` (m) above its first pose."""
     from handover.engine.plan.corridors import midair_pairs
     from handover.geometry.collision import grippers_collide
 
     # The second hand hands over: it never takes the object off the table. The first picks
     # it while the receiver's hands are not there yet.
     second = Phase("H2G2", hands=hands, pickup=False, receiver_present=True,
-                   giver_forbid=cg.giver_forbid)
+                   giver_forbid=cg.giver_forbid, midair_lift=lift)
     first = second.but(pickup=True, receiver_present=False)
     decision = evaluate(cg, ctx, second)
     firsts, first_removed = _feasible_firsts(ctx, first_rules(cg.hard), first)
@@ -167,7 +199,7 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
     free = ~hit
     free &= firsts[:, None] != seconds[None, :]
     clear, midair_hits = _clear_in_midair(ctx, second.hands, firsts, seconds,
-                                          decision.pk[pool])
+                                          decision.pk[pool], lift)
     notes = replace(notes, pairs=Pairs(checked=int(hit.size), colliding=int(hit.sum()),
                                        hitting_in_midair=int((free & ~clear).sum()),
                                        midair_hits=midair_hits))
@@ -226,7 +258,8 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False) -> Attempt:
     i2, k = int(decision.gi[row]), int(decision.pk[row])
     first_gripper = arm1 or gripper_at(ctx.initial, ctx.candidates.centre[f])
     second_gripper = arm2 or ("left" if first_gripper == "right" else "right")
-    notes = replace(notes, midair=Midair(midair_pose(ctx, second.hands.poses[k]), m))
+    notes = replace(notes, midair=Midair(midair_pose(ctx, second.hands.poses[k], lift), m,
+                                         lift))
     chosen = (Chosen(first_gripper, f, k, first.but(other_grasp=i2, arm=arm1), stage="pick"),
               Chosen(second_gripper, i2, k, second.but(other_grasp=f, arm=arm2)))
     return Attempt("H2G2", True, None, cg, decision, second, chosen,
