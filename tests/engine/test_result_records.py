@@ -93,7 +93,8 @@ def test_a_regrasp_gives_the_first_gripper_at_the_midair_pose():
     midair = np.eye(4)
     midair[:3, 3] = [0.4, 0.0, 1.1]
     out = Regrasp(first, midair, second).to_dict()
-    assert list(out) == ["first", "midair_pose", "second"]
+    assert list(out) == ["first", "midair_pose", "midair_lift", "second"]
+    assert out["midair_lift"] == 0.0
     assert list(out["first"])[-2:] == ["stage", "pose_midair"]
     # The first gripper's pose at the midair pose: the object's pose there times the grasp's.
     expected = TURN.copy()
