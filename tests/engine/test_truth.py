@@ -31,7 +31,7 @@ from handover.engine.plan.whatif import without_rules
 from handover.engine.spec.query import Query
 
 KB_DIR = Path(__file__).resolve().parents[2] / "kb"
-CASES = int(os.environ.get("HANDOVER_TRUTH_CASES", "60"))
+CASES = int(os.environ.get("HANDOVER_TRUTH_CASES", "40"))
 TAGS = ["handle", "grip", "sharp", "blade", "pointed", "fragile", "hot", "food_contact",
         "ink", "metal"]
 HANDS = 4
