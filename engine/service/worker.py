@@ -160,18 +160,28 @@ def plan_task(body: Any) -> Reply:
             raise UsageError(f"'{request.object}' is a mesh file: the service plans the objects "
                              "of its knowledge base only")
         state = _state()
-        key = request.key()
-        found = state.memo.get(key)
-        if found is not None:
-            return Reply(found.status, found.body, found.media_type, found.outcome, True,
-                         os.getpid(), time.perf_counter() - start)
-        planned = plan_request(state.kb, request, state.db)
-        reply = Reply(200, render(planned, request.format), MEDIA_TYPES[request.format],
-                      planned.outcome, False, os.getpid(), time.perf_counter() - start)
-        state.memo.put(key, reply)
-        return reply
+
+        def answer() -> tuple[bytes, str, str]:
+            planned = plan_request(state.kb, request, state.db)
+            return render(planned, request.format), MEDIA_TYPES[request.format], planned.outcome
+
+        return _memoised(state, request.key(), answer, start)
     except Exception as e:  # noqa: BLE001 - every error is an answer
         return _timed(error_reply(e), start)
+
+
+def _memoised(state: WorkerState, key: tuple, answer, start: float) -> Reply:
+    """The reply under ``key`` in the worker's memo, else ``answer()`` (body, media type,
+    outcome) as a 200 reply, kept in the memo; timed from ``start`` (perf_counter)."""
+    found = state.memo.get(key)
+    if found is not None:
+        return Reply(found.status, found.body, found.media_type, found.outcome, True,
+                     os.getpid(), time.perf_counter() - start)
+    body, media_type, outcome = answer()
+    reply = Reply(200, body, media_type, outcome, False, os.getpid(),
+                  time.perf_counter() - start)
+    state.memo.put(key, reply)
+    return reply
 
 
 def grasp_planning_task(goal: Any) -> Reply:
@@ -185,25 +195,16 @@ def grasp_planning_task(goal: Any) -> Reply:
         from handover.engine.report.moveit import grasp_planning_result
         from handover.engine.tools.answer import grasp_planning_request, plan_request
 
-        request, group = grasp_planning_request(goal)
         state = _state()
-        key = ("grasp_planning", group, request.key())
-        found = state.memo.get(key)
-        if found is not None:
-            return Reply(found.status, found.body, found.media_type, found.outcome, True,
-                         os.getpid(), time.perf_counter() - start)
-        planned = plan_request(state.kb, request, state.db)
-        try:
-            answer = grasp_planning_result(json.loads(planned.result.to_json()), group)
-        except ValueError as e:
-            from handover.engine.errors import UsageError
+        request, group = grasp_planning_request(goal, state.kb)
 
-            raise UsageError(str(e)) from None
-        body = (json.dumps(answer, indent=2, ensure_ascii=False) + "\n").encode("utf-8")
-        reply = Reply(200, body, "application/json", planned.outcome, False, os.getpid(),
-                      time.perf_counter() - start)
-        state.memo.put(key, reply)
-        return reply
+        def answer() -> tuple[bytes, str, str]:
+            planned = plan_request(state.kb, request, state.db)
+            result = grasp_planning_result(json.loads(planned.result.to_json()), group)
+            body = (json.dumps(result, indent=2, ensure_ascii=False) + "\n").encode("utf-8")
+            return body, "application/json", planned.outcome
+
+        return _memoised(state, ("grasp_planning", group, request.key()), answer, start)
     except Exception as e:  # noqa: BLE001 - every error is an answer
         return _timed(error_reply(e), start)
 

@@ -148,7 +148,7 @@ _GOAL_GEOMETRY = ("point_cluster", "primitives", "primitive_poses", "meshes", "m
                   "surface")
 
 
-def grasp_planning_request(goal: Any) -> tuple[PlanRequest, str]:
+def grasp_planning_request(goal: Any, kb: KB | None = None) -> tuple[PlanRequest, str]:
     """The plan request and the group of a ``grasping_msgs/action/GraspPlanning`` goal, as
     JSON in the shape ``ros2 action send_goal`` takes it: ``{"object": {"name": OBJECT,
     "properties": [{"name": "receiver", "value": "elder"}, ...]}, "group_name": ""}``.
@@ -156,7 +156,9 @@ def grasp_planning_request(goal: Any) -> tuple[PlanRequest, str]:
     (:data:`_GOAL_OPTIONS`); ``header`` and ``support_surface`` are taken and not used (the
     scene says where the object is). The object is known by name: a goal that describes
     its geometry (points, primitives, meshes, a plane) is refused rather than planned for
-    another shape. Raises UsageError saying what is wrong."""
+    another shape; with the ``kb``, a ``group_name`` that is no arm of the query's robot
+    (``left``, ``right`` or ``<arm>_arm``) is refused before anything is planned. Raises
+    UsageError saying what is wrong (an unknown robot: the KB's own error)."""
     if not isinstance(goal, Mapping):
         raise UsageError(f"the goal must be a JSON object, got {type(goal).__name__}")
     unknown = sorted(set(goal) - {"object", "group_name"})
@@ -193,7 +195,14 @@ def grasp_planning_request(goal: Any) -> tuple[PlanRequest, str]:
         if prop["name"] in options:
             raise UsageError(f"property '{prop['name']}' is given twice")
         options[prop["name"]] = prop["value"]
-    return PlanRequest.from_mapping({"object": obj["name"], **options}), group
+    request = PlanRequest.from_mapping({"object": obj["name"], **options})
+    if kb is not None and group:
+        robot = kb.robot(request.query().robot)
+        arms = sorted(robot.arms or robot.hands)
+        if group.removesuffix("_arm") not in arms:
+            raise UsageError(f"group_name {group!r} is not an arm of robot '{robot.id}' "
+                             f"(arms: {', '.join(arms)})")
+    return request, group
 
 
 def _given(value: Any) -> bool:

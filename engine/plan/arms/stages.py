@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from handover.engine.plan.phase import Phase
 
 __all__ = ["STAGES", "STAGE_WORDS", "MIDAIR_BACKOFF", "FLIP", "stages", "screened_stages",
-           "pose_key", "stage_poses", "pose_words", "objects_at", "finger_sign",
+           "pose_key", "midair_poses", "stage_poses", "pose_words", "objects_at", "finger_sign",
            "canonical_first", "row_keys", "ArmCheck", "hit_words"]
 
 STAGES = ("pickup", "midair", "handover")
@@ -74,9 +74,16 @@ def objects_at(ctx: PlanContext, phase: Phase, stage: str, pk: np.ndarray) -> np
         return np.broadcast_to(ctx.initial, (len(pk), 4, 4))
     poses = phase.hands.poses[pk]
     if stage == "midair":
-        poses = poses.copy()
-        poses[:, :3, 3] -= MIDAIR_BACKOFF * np.asarray(ctx.situation.toward, dtype=float)
-        poses[:, 2, 3] += phase.midair_lift
+        return midair_poses(ctx, poses, phase.midair_lift)
+    return poses
+
+
+def midair_poses(ctx: PlanContext, handover: np.ndarray, lift: float = 0.0) -> np.ndarray:
+    """(..., 4, 4) world: H2G2's midair regrasp for the object at its ``handover`` poses
+    (..., 4, 4): :data:`MIDAIR_BACKOFF` nearer the robot and ``lift`` (m) higher."""
+    poses = np.array(handover, dtype=float)
+    poses[..., :3, 3] -= MIDAIR_BACKOFF * np.asarray(ctx.situation.toward, dtype=float)
+    poses[..., 2, 3] += lift
     return poses
 
 

@@ -54,7 +54,7 @@ def pad_patches(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
         mesh, poses, widths = ctx.part_mesh.mesh, ctx.gripper_poses(), ctx.candidates.width
         squeeze = ctx.candidates.source == SOURCE_SQUEEZE
         key = content_key(mesh.vertices, mesh.faces, poses, widths, squeeze,
-                      np.array(dataclasses.astuple(grip), dtype=float))
+                          np.array(dataclasses.astuple(grip), dtype=float))
 
         def every() -> np.ndarray:
             out = np.zeros((ctx.n, 3))

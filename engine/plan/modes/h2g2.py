@@ -22,7 +22,7 @@ import numpy as np
 
 from handover.engine.plan.arms.pairs import choose_pair_h2g2
 from handover.engine.plan.arms.solve import reach_rule
-from handover.engine.plan.arms.stages import MIDAIR_BACKOFF
+from handover.engine.plan.arms.stages import MIDAIR_BACKOFF, midair_poses
 from handover.engine.plan.attempt import Attempt, AttemptNotes, Chosen, FirstGrasps, Midair, Pairs
 from handover.engine.plan.compiler import CompiledRule, compile
 from handover.engine.plan.evaluate import evaluate, evaluate_rule
@@ -71,11 +71,9 @@ where their hands meet comfortably, not at one height."""
 
 def midair_pose(ctx: PlanContext, handover: np.ndarray, lift: float = 0.0) -> np.ndarray:
     """(4, 4) world: the object at its ``handover`` pose (4, 4), ``MIDAIR_BACKOFF`` nearer
-    the robot and ``lift`` (m) higher."""
-    pose = handover.copy()
-    pose[:3, 3] -= MIDAIR_BACKOFF * ctx.situation.toward
-    pose[2, 3] += lift
-    return pose
+    the robot and ``lift`` (m) higher (:func:`~handover.engine.plan.arms.stages.midair_poses`,
+    which the arms judge)."""
+    return midair_poses(ctx, handover, lift)
 
 
 def _clear_in_midair(ctx: PlanContext, hands, firsts: np.ndarray, seconds: np.ndarray,
@@ -143,6 +141,7 @@ def plan_h2g2(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     presentations moved."""
     cg = compile(kb, ctx, "H2G2")
     first = None
+    tried: list[float] = []
     for lift in MIDAIR_LIFTS:
         attempt = relocated(_plan(ctx, cg, hands_for(cg, ctx), quick, lift),
                             lambda avoid: hands_for(cg, ctx, avoid=avoid),
@@ -151,20 +150,22 @@ def plan_h2g2(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
             return attempt
         if first is None:
             first = attempt
+        else:
+            tried.append(lift)
         if not _at_the_midair_regrasp(attempt):  # another height cannot help
             break
-    if attempt is first:
+    if not tried:
         return first
-    tried = ", ".join(f"{100 * v:+.0f} cm" for v in MIDAIR_LIFTS[1:])
-    return replace(first, reason=f"{first.reason}; nor with the midair regrasp higher or "
-                   f"lower ({tried})")
+    heights = ", ".join(f"{100 * v:+.0f} cm" for v in tried)
+    return replace(first, reason=f"{first.reason}; nor with the midair regrasp at {heights}")
 
 
 def _at_the_midair_regrasp(attempt: Attempt) -> bool:
     """Whether ``attempt`` failed where the midair regrasp's height matters: the arms held no
-    pair of grasps, or at the midair pose the object or a gripper hit something."""
+    pair of grasps, or pairs clear of each other hit the world at the midair pose."""
+    pairs = attempt.notes.pairs
     return attempt.notes.arm_failures is not None or (
-        attempt.reason or "").startswith("H2G2: at the midair pose")
+        pairs is not None and pairs.hitting_in_midair > 0)
 
 
 def _plan(ctx: PlanContext, cg, hands, quick: bool = False, lift: float = 0.0) -> Attempt:
