@@ -38,6 +38,7 @@ from handover.engine.plan.receiver_sites import (
     ReceiverSites,
     axis_wraps,
     predict_receiver_sites,
+    two_hand_offset,
     wraps_at,
 )
 
@@ -206,7 +207,7 @@ def _side_mask(region: ReceiverRegion, rotations: np.ndarray, toward: np.ndarray
     lateral = np.cross([0.0, 0.0, 1.0], toward)
     t = region.points @ np.einsum("kji,j->ki", rotations, lateral).T  # (M, K)
     t_min, t_max = t.min(axis=0), t.max(axis=0)
-    mid, half = 0.5 * (t_min + t_max), np.maximum(0.5 * (t_max - t_min) - width, 0.0)
+    mid, half = 0.5 * (t_min + t_max), two_hand_offset(t_min, t_max, width)
     target = mid + (1.0 if side == 0 else -1.0) * half
     return np.abs(t - target[None, :]) <= max(width, 0.02), target
 

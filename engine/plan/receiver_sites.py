@@ -31,6 +31,10 @@ if TYPE_CHECKING:
 COMPACT_GAP = 0.005
 MIN_SECTION = 0.002
 """m: the thinnest section a hand is modelled round (a wire is held like a 2 mm rod)."""
+HANDS_GAP = 0.01
+"""m: the least gap between the receiver's two hands side by side on an object (their
+middles at least a hand's width and this apart): on a ball or a small box the two hands'
+sites, an end's hand width in from each side, would otherwise overlap in the middle."""
 BAND_TOL = 1e-9
 """m: samples this close outside a hand's band still count (rounding, not geometry)."""
 BAND_REACH = 0.02
@@ -46,6 +50,7 @@ __all__ = [
     "hand_approach",
     "predict_receiver_sites",
     "predict_two_hand_sites",
+    "two_hand_offset",
     "wraps_at",
     "axis_wraps",
 ]
@@ -532,6 +537,13 @@ def hand_approach(axis: np.ndarray, toward: np.ndarray, up: np.ndarray) -> np.nd
     return move / np.linalg.norm(move, axis=-1, keepdims=True)
 
 
+def two_hand_offset(t_min: np.ndarray, t_max: np.ndarray, width: float) -> np.ndarray:
+    """(K,) m: how far each of the receiver's two hands sits from the middle of the object's
+    lateral extent [t_min, t_max] ((K,) m): a hand ``width`` in from each side, and at least
+    half a width and half :data:`HANDS_GAP` from the middle, so the hands never overlap."""
+    return np.maximum(0.5 * (t_max - t_min) - width, 0.5 * (width + HANDS_GAP))
+
+
 def predict_two_hand_sites(
     region: ReceiverRegion,
     rotations: np.ndarray,
@@ -566,7 +578,7 @@ def predict_two_hand_sites(
     h = region.points @ h_obj.T
     s_target = s.max(axis=0) - grip_width / 2.0
     t_mid = 0.5 * (t.min(axis=0) + t.max(axis=0))
-    t_half = np.maximum(0.5 * (t.max(axis=0) - t.min(axis=0)) - grip_width, 0.0)
+    t_half = two_hand_offset(t.min(axis=0), t.max(axis=0), grip_width)
     n_parts = int(region.parts.max()) + 1
     out = []
     for sign in (1.0, -1.0):

@@ -10,6 +10,7 @@ import shutil
 
 import numpy as np
 import pytest
+import trimesh
 import yaml
 
 from handover import Planner
@@ -109,3 +110,90 @@ def test_a_squeeze_must_also_hold_the_crates_turn_about_the_press_line(tmp_path)
     r = Planner(kb=root, db=False).plan("crate").to_dict()
     assert r["outcome"] == "infeasible"
     assert "press 30 N each" in r["reason"]
+
+
+# ------------------------------------------------- the issue's crate and a ball, as shipped
+
+# The issue's crate (30 x 40 x 20 cm, 1.2 kg, nothing said of its faces) and a size-5
+# football (22 cm, 430 g): what no gripper spans, handed with the shipped robot.
+ISSUE_CRATE = CRATE.replace("[0.25, 0.3, 0.15]", "[0.3, 0.4, 0.2]").replace(
+    "position: [0, 0, 0.075]", "position: [0, 0, 0.1]").replace("tags: [box, flat]", "tags: []")
+BALL = """\
+id: football
+name: Football (size 5)
+mass: 0.43
+tags: [toy]
+geometry:
+  primitives:
+    - {shape: sphere, part: shell, radius: 0.11}
+parts:
+  shell: {tags: [surface]}
+"""
+GIVE = 0.005  # m: the hand_fit rule's max_depth_m in the built-in common culture
+
+
+@pytest.fixture(scope="module")
+def shipped(tmp_path_factory):
+    root = tmp_path_factory.mktemp("shipped") / "kb"
+    shutil.copytree(builtin_kb_dir(), root, ignore=shutil.ignore_patterns("schema", "__*"))
+    (root / "objects" / "crate.yaml").write_text(ISSUE_CRATE)
+    (root / "objects" / "football.yaml").write_text(BALL)
+    return Planner(kb=root, db=False)
+
+
+def _lattice_depth(mesh, extents, pose, n: int = 9) -> float:
+    """m: the deepest point of a lattice through a box (extents (3,), pose (4, 4), world)
+    inside the mesh, as its distance to the mesh's surface (0: none inside)."""
+    t = np.linspace(-0.5, 0.5, n)
+    local = np.stack(np.meshgrid(t, t, t, indexing="ij"), -1).reshape(-1, 3) * extents
+    pts = local @ pose[:3, :3].T + pose[:3, 3]
+    inside = mesh.contains(pts)
+    if not inside.any():
+        return 0.0
+    return float(trimesh.proximity.closest_point(mesh, pts[inside])[1].max())
+
+
+def _apart(a, b) -> float:
+    """m: the gap between two boxes (extents, pose) along the line joining their centres
+    (a separating axis when positive: the boxes do not meet)."""
+    (ea, pa), (eb, pb) = a, b
+    d = pb[:3, 3] - pa[:3, 3]
+    axis = d / np.linalg.norm(d)
+    half = [np.sum(np.abs(p[:3, :3].T @ axis) * e / 2) for e, p in ((ea, pa), (eb, pb))]
+    return float(abs(d @ axis) - half[0] - half[1])
+
+
+@pytest.mark.parametrize(("obj", "receiver"), [("crate", "adult"), ("football", "adult"),
+                                               ("football", "elder")])
+def test_what_no_gripper_spans_is_squeezed_lifted_by_both_arms_and_taken_on_two_palms(
+        shipped, obj, receiver):
+    plan = shipped.plan(obj, receiver=receiver)
+    r = plan.to_dict()
+    assert r["outcome"] == "handover" and r["mode"] == "H2G1", r["reason"]
+    grasps = {g["hand"]: g for g in r["robot_grasps"]}
+    assert sorted(grasps) == ["left", "right"]
+    assert [g["hold"] for g in grasps.values()] == ["squeeze", "squeeze"]
+    a = [np.asarray(g["pose"])[:3, 2] for g in grasps.values()]
+    assert float(a[0] @ a[1]) < -0.97  # the presses push against each other
+    # a press holds nothing alone: both arms take it from the table (solved there), each
+    # on its own side of the object as it lies, the left arm's press on the robot's left (+y)
+    initial = np.asarray(r["initial_pose"])
+    at_pickup = {h: (initial @ np.asarray(g["pose"]))[:3, 3] for h, g in grasps.items()}
+    assert all(set(g["joints"]) == {"pickup", "handover"} for g in grasps.values())
+    assert at_pickup["left"][1] > at_pickup["right"][1]
+    # the receiver takes it on two palms, side by side and apart, neither in the object
+    hands = {h["hand"]: h for h in r["human_grasps"]}
+    assert sorted(hands) == ["left", "right"]
+    assert {h["grasp"]["name"] for h in hands.values()} == {"support"}
+    mesh = plan.context.part_mesh.mesh.copy()
+    mesh.apply_transform(np.asarray(r["object_pose"], dtype=float))
+    boxes = {}
+    for side, h in hands.items():
+        for box in h["grasp"]["boxes"]:
+            ext, pose = np.asarray(box["extents"]), np.asarray(box["pose"])
+            assert _lattice_depth(mesh, ext, pose) <= GIVE + 0.001, (side, box["name"])
+            boxes.setdefault(side, []).append((ext, pose))
+    assert min(_apart(x, y) for x in boxes["left"] for y in boxes["right"]) > 0.0
+    # and it holds in the simulator: both presses through the lift, the carry and the shake
+    checked = check_plan(shipped.kb, r)
+    assert checked.passed, checked.to_dict()["chosen"]["slip"]

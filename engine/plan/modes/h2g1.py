@@ -119,6 +119,26 @@ def _overloaded(ctx: PlanContext, cg: ConstraintGraph, gl: np.ndarray, gr: np.nd
     return over
 
 
+def _with_partners(ctx: PlanContext, gi: np.ndarray, mine: np.ndarray, theirs: np.ndarray,
+                   theirs_all: np.ndarray) -> np.ndarray:
+    """``theirs`` (decision rows of one side, the best first) and, after them, the best
+    :data:`SIDE_POOL` other rows of ``theirs_all`` whose squeeze site opposes that of a row of
+    ``mine`` (the other side's pool): a squeeze pairs with its opposite press only, which the
+    best rows of each side need not hold."""
+    from handover.geometry.squeeze import opposed
+
+    cand = ctx.candidates
+    own = gi[mine][cand.source[gi[mine]] == SOURCE_SQUEEZE]
+    rest = theirs_all[~np.isin(theirs_all, theirs)]
+    other = gi[rest]
+    if not len(own) or not len(rest):
+        return theirs
+    hit = opposed(cand.centre[own][:, None], cand.a[own][:, None], cand.centre[other][None],
+                  cand.a[other][None]).any(axis=0)
+    hit &= cand.source[other] == SOURCE_SQUEEZE
+    return np.concatenate([theirs, rest[hit][:SIDE_POOL]])
+
+
 @register("H2G1", hands=2)
 def plan_h2g1(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     """Plan a two-handed handover; see the module docstring. When the arms hold none of the
@@ -172,13 +192,20 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
     com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
     poses, widths = ctx.gripper_poses(), ctx.candidates.width
     both_pick = facts.mass > facts.payload  # too heavy for one hand to lift alone
+    # a squeeze holds nothing alone: both presses lift it, each arm on its own side of the
+    # object as it lies (the arms do not cross to carry it to the presentation)
+    squeezed = ctx.candidates.source == SOURCE_SQUEEZE
+    at_pickup = (ctx.candidates.centre @ ctx.initial[:3, :3].T) @ lateral
     best = None
     found: list[tuple] = []  # with arms: the best pairs of each presentation, for the arms
     arms = reach_rule(cg, ctx) is not None
     checked = colliding = unpickable = overloaded = receiver_blocked = 0
     for k in np.unique(pk):  # at most 24 presentations; pairs within one are vectorised
-        li = ranking[(pk == k) & left][:SIDE_POOL]
-        ri = ranking[(pk == k) & right][:SIDE_POOL]
+        li_all, ri_all = ranking[(pk == k) & left], ranking[(pk == k) & right]
+        li, ri = li_all[:SIDE_POOL], ri_all[:SIDE_POOL]
+        if squeezed.any():  # a press pairs only with the one opposing it: bring it in
+            li, ri = (_with_partners(ctx, decision.gi, ri, li, li_all),
+                      _with_partners(ctx, decision.gi, li, ri, ri_all))
         if not len(li) or not len(ri):
             continue
         gl, gr = decision.gi[li], decision.gi[ri]
@@ -201,8 +228,10 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
         overloaded += int(heavy.sum())
         pick_l = ~collision_scene(ctx, gl)  # free of table and obstacles at pick-up
         pick_r = ~collision_scene(ctx, gr)
-        lifts = (pick_l[:, None] & pick_r[None, :]) if both_pick else (
-            pick_l[:, None] | pick_r[None, :])
+        together = both_pick | squeezed[gl][:, None] | squeezed[gr][None, :]
+        uncrossed = at_pickup[gl][:, None] > at_pickup[gr][None, :]
+        lifts = np.where(together, pick_l[:, None] & pick_r[None, :] & uncrossed,
+                         pick_l[:, None] | pick_r[None, :])
         unpickable += int((~hit & ~heavy & ~lifts).sum())
         score = np.where(hit | heavy | ~lifts, -np.inf, score)
         if arms:
@@ -220,7 +249,7 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
                                        not_liftable=unpickable, overloaded=overloaded,
                                        leaving_no_receiver_grasp=receiver_blocked))
     if best is None:
-        lift = "both hands" if both_pick else "either hand"
+        lift = "both hands" if both_pick or squeezed[gi].all() else "either hand"
         holding = ", ".join(c.id for c in cg.hard if c.rule.kind == "torque")
         heavy = (f", {overloaded} where a gripper's share of the weight exceeds its payload "
                  f"or what its grip holds ({holding or 'no holding rule'})"
@@ -242,7 +271,7 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
         idx = np.unique([i for p in found for i in p[1:3]])
         free = dict(zip(idx.tolist(), (~collision_scene(ctx, idx)).tolist(), strict=True))
         best, lifts, failures = choose_pair_h2g1(ctx, phase, found, free, both_pick,
-                                                 limit=checks)
+                                                 limit=checks, together=squeezed)
         if best is None:
             rule = reach_rule(cg, ctx).id
             said = "; ".join(failures[:3]) or "no arm's map holds the grasps of any pair"
@@ -256,8 +285,8 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
     else:  # the grippers free of the table; one lifts it unless both must
         picks = ~collision_scene(ctx, np.array([i_left, i_right]))
         lifts = tuple(h for h, ok in zip(("left", "right"), picks, strict=True) if ok)
-        if not both_pick:  # the other joins at the presentation
-            lifts = lifts[:1]
+        if not (both_pick or squeezed[[i_left, i_right]].any()):  # the other joins at
+            lifts = lifts[:1]                                         # the presentation
     notes = replace(notes, two_handed=TwoHanded(off, lifts))
     chosen = (
         Chosen("left", i_left, k, phase.but(pickup="left" in lifts, other_grasp=i_right,
