@@ -295,14 +295,16 @@ def test_an_object_thinner_than_the_gripper_closes(capsys, kb_copy):
     assert_clean(err)
 
 
-def test_an_object_wider_than_any_opening(capsys, kb_copy):
+def test_an_object_wider_than_any_opening_is_squeezed_and_taken_on_two_palms(capsys, kb_copy):
     root = kb_copy({"objects/crate.yaml": box_object("crate", [0.4, 0.4, 0.4], mass=0.5)})
     code, out, err = run(capsys, "--kb", str(root), "plan", "crate", "--json")
-    assert code == EXIT_INFEASIBLE
+    assert code == 0
     result = json.loads(out)
-    # no gripper spans it: the two grippers would squeeze it (H2G1), but a 40 cm cube is
-    # nothing a receiver's hand takes (no edge, no handle, nothing flat to lay on the palm)
-    assert result["reason"].startswith("H2G1") and "nowhere to offer it" in result["reason"]
+    # no gripper spans it: the two grippers squeeze it (H2G1), and the receiver takes the
+    # 40 cm box as people take a box, on their two palms under it
+    assert result["mode"] == "H2G1"
+    assert [g["hold"] for g in result["robot_grasps"]] == ["squeeze", "squeeze"]
+    assert [h["grasp"]["name"] for h in result["human_grasps"]] == ["support", "support"]
     tried = {t["mode"]: t["reason"] for t in result["modes_tried"]}
     assert "two_hands_if_wide" in tried["H1G1"]  # one hand cannot span it: both are needed
     assert_clean(err)

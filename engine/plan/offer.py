@@ -441,13 +441,33 @@ def location_reason(ctx: PlanContext, hands, rules: list) -> str | None:
                         f"({c.id}, {robot.source})")
         elif rule.measure == "clear":
             hit = sorted({n for names in hands.hits for n in names})
-            said.append(f"wherever the receiver could take it the object, their hand or their "
-                        f"reaching arm hits "
-                        f"{', '.join(hit) or 'something'} ({c.id})")
+            graspless = _graspless(ctx, hands)
+            if hit or not graspless:
+                said.append(f"wherever the receiver could take it the object, their hand or "
+                            f"their reaching arm hits {', '.join(hit) or 'something'} ({c.id})")
+            if graspless:
+                said.append(f"{graspless} ({c.id})")
         elif not np.isfinite(value):
             said.append(f"there is no place within the receiver's reach ({c.id})")
         else:
             said.append(f"{rule.measure} is {value:.2f}, not {rule.threshold()} ({c.id})")
+    return "; ".join(said) or None
+
+
+def _graspless(ctx: PlanContext, hands) -> str | None:
+    """The receiving hands that no grasp of their repertoire fits in any presentation, each
+    with why not, grasp by grasp, in the first presentation ("the receiver's right hand has
+    no grasp on it: wrap: a section 0.216 m across, outside [0, 0.16] m; ..."); None when
+    every hand has one somewhere."""
+    from handover.engine.plan.grasp_record import not_taken
+
+    said = []
+    for h, sites in enumerate(hands.sites):
+        if sites.options is None or (sites.options.grasp >= 0).any():
+            continue
+        why = "; ".join(f"{g}: {w}" for g, w in not_taken(ctx, sites, 0, None).items())
+        side = _arm_side(hands.sites, hands.receiving, h)
+        said.append(f"the receiver's {side} hand has no grasp on it ({why})")
     return "; ".join(said) or None
 
 

@@ -5,6 +5,7 @@ reason must name it; the reason speaks for the mode the query's rules ask for fi
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -66,6 +67,18 @@ age: 7.5
 hand: child_hand
 grasps: [wrap]
 """
+# A 22 cm ball: no gripper spans it, so it goes in both hands, and the child above takes
+# nothing that size in a wrap.
+BALL = """\
+id: big_ball
+name: Big ball
+mass: 0.4
+geometry:
+  primitives:
+    - {shape: sphere, part: shell, radius: 0.11}
+parts:
+  shell: {tags: [surface]}
+"""
 HOT_BLOCK = """\
 id: hot_block
 name: Hot block
@@ -86,6 +99,7 @@ def planner(tmp_path_factory) -> Planner:
     shutil.copytree(builtin_kb_dir(), root)
     for name, text in {"scenes/under_shelf.yaml": UNDER_SHELF, "scenes/far_receiver.yaml": FAR,
                        "objects/tile.yaml": TILE, "objects/hot_block.yaml": HOT_BLOCK,
+                       "objects/big_ball.yaml": BALL,
                        "receivers/wrap_only_child.yaml": WRAP_ONLY_CHILD}.items():
         (Path(root) / name).write_text(text, encoding="utf-8")
     return Planner(root, db=False)
@@ -135,3 +149,17 @@ def test_the_mode_tried_first_speaks_even_when_another_got_further(planner):
     first = tried["H1G1"]["reason"].rstrip(".")
     assert plan.reason.startswith(first)
     assert plan.reason[len(first):].startswith("; setting it down instead")
+
+
+def test_a_hand_that_has_no_grasp_for_it_is_named_not_a_collision(planner):
+    # Nothing of the child's repertoire (a wrap) takes a 22 cm ball: the location is not
+    # clear because the hands have no grasp there, not because anything is hit.
+    plan = planner.plan("big_ball", receiver="wrap_only_child")
+    assert plan.outcome == "infeasible"
+    cause = _first_sentence(plan.reason).split("; smallest blocking")[0]
+    assert "nowhere to offer it" in cause
+    assert "hits something" not in cause
+    said = re.search(r"the receiver's right hand has no grasp on it \(wrap: a section "
+                     r"([0-9.]+) m across, outside \[0, ([0-9.]+)\] m\)", cause)
+    assert said, cause
+    assert float(said[1]) > float(said[2])  # the ball's section is more than a wrap takes
