@@ -19,8 +19,9 @@ What each segment is checked against (:func:`segment_targets`): the world the pl
 use at the stage it goes to or comes from (:func:`~handover.engine.plan.arms.links.link_targets`:
 the table and obstacles, the receiver's body, at the handover without the arms that take the
 object, the robot's body, the other arm at rest where it waits), the other arm's links at its
-own stage joints where it works at the same time (H2G1; H2G2 at the midair regrasp); the open
-gripper's boxes carried in the tool frame, and while the object is held, the gripper closed on
+own stage joints where it works at the same time (H2G1; H2G2 at the midair regrasp; in H2G1 an
+arm that joins at the presentation waits at rest while the other lifts and carries the object
+there, and comes once it is there); the open gripper's boxes carried in the tool frame, and while the object is held, the gripper closed on
 it and the object's bounding box (attached; lifted off the table it rests on, that pair is
 allowed for the lift). Arms are planned one at a time, each against the other at a fixed
 configuration per segment (not coordinated in time). The object, when not held, is not an
@@ -305,12 +306,20 @@ def segment_targets(ctx: PlanContext, attempt: Attempt, index: int, side: str, w
     return obstacles(bodies=[body], others=extra)
 
 
-def _other_joints(grasps: list[RobotGrasp], side: str, where: str) -> dict[str, np.ndarray]:
+def _other_joints(ctx: PlanContext, grasps: list[RobotGrasp], side: str, where: str,
+                  carried: bool = False) -> dict[str, np.ndarray]:
     """The other arms' joints at plan stage ``where`` (``pickup`` | ``midair`` |
-    ``handover``), those that hold a grasp there."""
+    ``handover``), those that hold a grasp there. While this arm carries the object to the
+    handover (``carried``), an arm that only joins there (H2G1's second hand, which takes
+    hold at the presentation) still waits at its rest: it comes once the object is there."""
     out = {}
     for g in grasps:
         if g.arm is None or g.arm == side or where not in g.joints:
+            continue
+        joins = where == "handover" and not ({"pickup", "midair"} & set(g.joints))
+        rest = ctx.arms.arm(g.arm).rest
+        if carried and joins and rest is not None:
+            out[g.arm] = np.asarray(rest, dtype=float)
             continue
         out[g.arm] = np.array(list(g.joints[where].values()), dtype=float)
     return out
@@ -355,7 +364,7 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
             key = (where, carried, start == "grasp")
             if key not in _memo:
                 targets = segment_targets(ctx, attempt, _index, _side, where,
-                                          _other_joints(grasps, _side, where))
+                                          _other_joints(ctx, grasps, _side, where, carried))
                 allowed = []
                 if carried:  # another gripper may hold it; it leaves the table
                     allowed = [("held object", t) for t in targets.names

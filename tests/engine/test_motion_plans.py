@@ -281,3 +281,47 @@ def test_the_recording_animates_the_arm_on_a_motion_timeline(kb, tmp_path):
               for t in c.to_record_batch().column("TextLog:text").to_pylist()]
     assert len(logged) == len(segments)
     assert all(s.name in str(t) for s, t in zip(segments, logged, strict=True))
+
+
+def _link_objects(urdf, base, links):
+    """fcl objects of ``links``' collision geometry at the URDF's current configuration."""
+    out = []
+    for link in links:
+        world = base @ urdf.get_transform(link, urdf.base_link)
+        for col in urdf.link_map[link].collisions:
+            pose = world @ (np.eye(4) if col.origin is None else col.origin)
+            out.append((link, fcl.CollisionObject(_fcl_shape(col.geometry),
+                                                  fcl.Transform(pose[:3, :3], pose[:3, 3]))))
+    return out
+
+
+def test_one_arm_carries_it_to_the_presentation_while_the_other_waits_at_rest(kb, urdf):
+    """H2G1 with one arm lifting (the hammer to a Korean elder: both hands give it, one takes
+    it from the table): the other arm joins at the presentation, so it waits at its rest
+    while the first lifts and carries; every sample of the carrying arm's way there, posed
+    with yourdfpy, clears the waiting arm's links (fcl), and both arms have their motion."""
+    result = plan(kb, Query(object="hammer", receiver="elder", culture="korean"),
+                  motion=True).result.to_dict()
+    assert result["mode"] == "H2G1" and result["motion"]["planned"], result["motion"]
+    grasps = {g["hand"]: g for g in result["robot_grasps"]}
+    lifter = next(g for g in grasps.values() if "pickup" in g["joints"])
+    joiner = next(g for g in grasps.values() if "pickup" not in g["joints"])
+    assert lifter["trajectory"] and joiner["trajectory"]
+    assert joiner["trajectory"][0]["segment"] == "rest->approach"
+    base = np.asarray(result["robot"]["base_pose"], dtype=float)
+    rest = result["robot"]["arms"][joiner["arm"]]["rest"]
+    request = fcl.CollisionRequest()
+    checked = 0
+    for segment in lifter["trajectory"]:
+        if segment["segment"] not in ("grasp->lift", "lift->approach", "approach->handover"):
+            continue
+        names = segment["joint_names"]
+        for k, q in enumerate(segment["positions"]):
+            urdf.update_cfg({**rest, **dict(zip(names, q, strict=True))})
+            waiting = _link_objects(urdf, base, _moving(urdf, list(rest)))
+            for link, part in _link_objects(urdf, base, _moving(urdf, names)):
+                for other, obstacle in waiting:
+                    assert not fcl.collide(part, obstacle, request, fcl.CollisionResult()), (
+                        f"{segment['segment']} sample {k}: {link} touches {other}")
+            checked += 1
+    assert checked > 20
