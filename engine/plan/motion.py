@@ -23,8 +23,8 @@ own stage joints where it works at the same time (H2G1; H2G2 at the midair regra
 arm that joins at the presentation waits at rest while the other lifts and carries the object
 there, and comes once it is there); the open gripper's boxes carried in the tool frame, and
 while the object is held, the gripper closed on it and the object's bounding box (attached;
-lifted off the table it rests on, that pair is allowed for the lift). Arms are planned one at a time, each against the other at a fixed
-configuration per segment (not coordinated in time). The object, when not held, is not an
+lifted off the table it rests on, that pair is allowed for the lift). Arms are planned one
+at a time, each against the other at a fixed configuration per segment (not coordinated in time). The object, when not held, is not an
 obstacle to the arm (the corridors judge the gripper's way in and out against its mesh).
 
 Deterministic: OMPL is seeded per segment and iteration-bounded, so the same plan gives the same
