@@ -16,15 +16,16 @@ the poses in between are solved by inverse kinematics from the neighbouring stag
 each from the tool pose the arm has there (so a grasp held with its fingers swapped stays so).
 
 What each segment is checked against (:func:`segment_targets`): the world the plan's arm checks
-use at the stage it goes to or comes from (:func:`~handover.engine.plan.arms.links.link_targets`:
-the table and obstacles, the receiver's body, at the handover without the arms that take the
-object, the robot's body, the other arm at rest where it waits), the other arm's links at its
-own stage joints where it works at the same time (H2G1; H2G2 at the midair regrasp; in H2G1 an
-arm that joins at the presentation waits at rest while the other lifts and carries the object
-there, and comes once it is there); the open gripper's boxes carried in the tool frame, and
-while the object is held, the gripper closed on it and the object's bounding box (attached;
-lifted off the table it rests on, that pair is allowed for the lift). Arms are planned one
-at a time, each against the other at a fixed configuration per segment (not coordinated in time). The object, when not held, is not an
+use at the stage it goes to or comes from
+(:func:`~handover.engine.plan.arms.links.link_targets`: the table and obstacles, the receiver's
+body, at the handover without the arms that take the object, the robot's body, the other arm at
+rest where it waits), the other arm's links at its own stage joints where it works at the same
+time (H2G1; H2G2 at the midair regrasp; in H2G1 an arm that joins at the presentation waits at
+rest while the other lifts and carries the object there, and comes once it is there); the open
+gripper's boxes carried in the tool frame, and while the object is held, the gripper closed on
+it and the object's bounding box (attached; lifted off the table it rests on, that pair is
+allowed for the lift). Arms are planned one at a time, each against the other at a fixed
+configuration per segment (not coordinated in time). The object, when not held, is not an
 obstacle to the arm (the corridors judge the gripper's way in and out against its mesh).
 
 Deterministic: OMPL is seeded per segment and iteration-bounded, so the same plan gives the same
