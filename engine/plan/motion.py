@@ -219,7 +219,7 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
 
     add("rest", rest, False, "pickup")
     midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
-    joins = "pickup" not in q_of and "midair" not in q_of  # takes hold at the handover
+    joins = _joins(q_of)  # takes hold at the handover
     grasp_stage, object_pose = 0, np.asarray(grasp.pose_world @ np.linalg.inv(grasp.pose))
     if "pickup" in q_of:  # from the table
         q_grasp = q_of["pickup"]
@@ -307,6 +307,12 @@ def segment_targets(ctx: PlanContext, attempt: Attempt, index: int, side: str, w
     return obstacles(bodies=[body], others=extra)
 
 
+def _joins(joints) -> bool:
+    """Whether a grasp with joints at these stages (``pickup`` | ``midair`` | ``handover``)
+    takes hold only at the handover (H2G1's second hand)."""
+    return "pickup" not in joints and "midair" not in joints
+
+
 def _other_joints(ctx: PlanContext, grasps: list[RobotGrasp], side: str, where: str,
                   carried: bool = False) -> dict[str, np.ndarray]:
     """The other arms' joints at plan stage ``where`` (``pickup`` | ``midair`` |
@@ -317,9 +323,8 @@ def _other_joints(ctx: PlanContext, grasps: list[RobotGrasp], side: str, where: 
     for g in grasps:
         if g.arm is None or g.arm == side or where not in g.joints:
             continue
-        joins = where == "handover" and not ({"pickup", "midair"} & set(g.joints))
         rest = ctx.arms.arm(g.arm).rest
-        if carried and joins and rest is not None:
+        if carried and where == "handover" and _joins(g.joints) and rest is not None:
             out[g.arm] = np.asarray(rest, dtype=float)
             continue
         out[g.arm] = np.array(list(g.joints[where].values()), dtype=float)

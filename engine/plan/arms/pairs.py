@@ -112,18 +112,17 @@ def choose_pair_h2g2(ctx: PlanContext, first: Phase, second: Phase, firsts: np.n
 
 
 def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
-                     picks: dict[int, bool], both_pick: bool,
-                     limit: int | None = None, together: np.ndarray | None = None
-                     ) -> tuple[tuple | None, list[str], list[str]]:
+                     picks: dict[int, bool], both_pick: np.ndarray,
+                     limit: int | None = None) -> tuple[tuple | None, list[str], list[str]]:
     """H2G1's best pair (``pairs``: (score, left grasp, right grasp, presentation, ...) best
     first) whose arms hold it exactly: the left arm its left grasp and the right arm its right
-    grasp at the handover, and the lifting arm (both when ``both_pick``) at pick-up too,
-    among the hands whose gripper is free at pick-up (``picks``: grasp -> bool), the two arms'
-    links clear of each other at the handover (and at pick-up when both lift). ``together``:
-    (N,) bool per candidate, grasps that hold nothing alone (a squeeze): a pair with one is
-    lifted by both arms, as ``both_pick`` pairs are. Returns (the pair or None, the lifting
-    hands, failures met); at most ``limit`` exact checks, a grasp an arm failed to hold in a
-    presentation not tried again."""
+    grasp at the handover, and the lifting arm at pick-up too (both when ``both_pick``, (N,)
+    bool per candidate, holds for either grasp of the pair: too heavy for one hand, or a
+    squeeze, which holds nothing alone), among the hands whose gripper is free at pick-up
+    (``picks``: grasp -> bool), the two arms' links clear of each other at the handover (and
+    at pick-up when both lift). Returns (the pair or None, the lifting hands, failures met);
+    at most ``limit`` exact checks, a grasp an arm failed to hold in a presentation not
+    tried again."""
     limit = CONFIRM_LIMIT if limit is None else limit
     failures: list[str] = []
     failed: set[tuple[str, int, int]] = set()  # (arm, grasp, presentation) not held
@@ -170,7 +169,7 @@ def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
                 lifted[side] = (c, i)
             else:
                 failures.append(f"grasp {i}: {c.failure()}")
-        both = both_pick or (together is not None and bool(together[il] or together[ir]))
+        both = bool(both_pick[il] or both_pick[ir])
         if both and len(lifts) == 2:
             touch = pair_contacts(ctx, "pickup", lifted["left"], lifted["right"], k,
                                   pose_key(phase))

@@ -191,10 +191,11 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
         right &= side_reaches(ctx, phase, "right", gi, pk)
     com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
     poses, widths = ctx.gripper_poses(), ctx.candidates.width
-    both_pick = facts.mass > facts.payload  # too heavy for one hand to lift alone
-    # a squeeze holds nothing alone: both presses lift it, each arm on its own side of the
-    # object as it lies (the arms do not cross to carry it to the presentation)
+    # both lift it when it is too heavy for one hand, or with a squeeze, which holds nothing
+    # alone: per candidate, a pair lifts together when either of its grasps says so, each arm
+    # on its own side of the object as it lies (the arms do not cross to carry it there)
     squeezed = ctx.candidates.source == SOURCE_SQUEEZE
+    both_pick = squeezed | (facts.mass > facts.payload)
     at_pickup = (ctx.candidates.centre @ ctx.initial[:3, :3].T) @ lateral
     best = None
     found: list[tuple] = []  # with arms: the best pairs of each presentation, for the arms
@@ -228,7 +229,7 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
         overloaded += int(heavy.sum())
         pick_l = ~collision_scene(ctx, gl)  # free of table and obstacles at pick-up
         pick_r = ~collision_scene(ctx, gr)
-        together = both_pick | squeezed[gl][:, None] | squeezed[gr][None, :]
+        together = both_pick[gl][:, None] | both_pick[gr][None, :]
         uncrossed = at_pickup[gl][:, None] > at_pickup[gr][None, :]
         lifts = np.where(together, pick_l[:, None] & pick_r[None, :] & uncrossed,
                          pick_l[:, None] | pick_r[None, :])
@@ -249,7 +250,7 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
                                        not_liftable=unpickable, overloaded=overloaded,
                                        leaving_no_receiver_grasp=receiver_blocked))
     if best is None:
-        lift = "both hands" if both_pick or squeezed[gi].all() else "either hand"
+        lift = "both hands" if both_pick[gi].all() else "either hand"
         holding = ", ".join(c.id for c in cg.hard if c.rule.kind == "torque")
         heavy = (f", {overloaded} where a gripper's share of the weight exceeds its payload "
                  f"or what its grip holds ({holding or 'no holding rule'})"
@@ -271,7 +272,7 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
         idx = np.unique([i for p in found for i in p[1:3]])
         free = dict(zip(idx.tolist(), (~collision_scene(ctx, idx)).tolist(), strict=True))
         best, lifts, failures = choose_pair_h2g1(ctx, phase, found, free, both_pick,
-                                                 limit=checks, together=squeezed)
+                                                 limit=checks)
         if best is None:
             rule = reach_rule(cg, ctx).id
             said = "; ".join(failures[:3]) or "no arm's map holds the grasps of any pair"
@@ -285,8 +286,8 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
     else:  # the grippers free of the table; one lifts it unless both must
         picks = ~collision_scene(ctx, np.array([i_left, i_right]))
         lifts = tuple(h for h, ok in zip(("left", "right"), picks, strict=True) if ok)
-        if not (both_pick or squeezed[[i_left, i_right]].any()):  # the other joins at
-            lifts = lifts[:1]                                         # the presentation
+        if not both_pick[[i_left, i_right]].any():  # the other joins at the presentation
+            lifts = lifts[:1]
     notes = replace(notes, two_handed=TwoHanded(off, lifts))
     chosen = (
         Chosen("left", i_left, k, phase.but(pickup="left" in lifts, other_grasp=i_right,
