@@ -48,6 +48,7 @@ import numpy as np
 from handover.geometry.bodies import Body
 from handover.geometry.collision import BoxWorld, ObjectCollider, _check_boxes
 from handover.geometry.gripper import PART_NAMES, Box, Gripper, check_poses
+from handover.geometry.proximity import segment_box_distances, segment_segment_distances
 
 __all__ = [
     "DEFAULT_RESOLUTION",
@@ -206,6 +207,7 @@ def check_corridors(
     except_object: float = 0.0,
     resolution: float = DEFAULT_RESOLUTION,
     margin: float = 0.0,
+    groups: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> CorridorHits:
     """Whether the open gripper, translated from each pose along its direction, touches the
     world, the bodies or the object (see the module docstring), for all poses at once.
@@ -221,6 +223,10 @@ def check_corridors(
     carried : boxes moving with the gripper (the held object's), world, at the start.
     resolution : m, > 0, the sampling step for capsules and the object.
     margin : m, >= 0, every moving box grows by this much on every side.
+    groups : (row groups (n,) int, world groups (W,) int) for a ``world`` of W boxes whose
+        boxes stand only for some rows (each row's own obstacles, many rows in one call): box
+        ``b`` is tested against the rows of its group only, a box of group -1 against every
+        row; without it every box against every row.
     """
     poses, widths = check_poses(poses, widths)
     n = len(poses)
@@ -275,20 +281,18 @@ def check_corridors(
         bc = np.concatenate([x[0] for x in b_parts])
         br = np.concatenate([x[1] for x in b_parts])
         be = np.concatenate([x[2] for x in b_parts])
-        # Broad phase, in each fixed box's own frame: the segment swept by each moving box's
-        # centre, grown by the moving box's bounding sphere, against the fixed box itself
-        # (its half extents), so a long flat box such as a table is treated as the box it is
-        # and not as its bounding sphere.
-        rad_m = 0.5 * np.linalg.norm(m_ext, axis=1)  # (K,)
-        half_b = 0.5 * be  # (B, 3)
-        rel = m_centres[:, :, None, :] - bc[None, None]  # (n, K, B, 3)
-        p0 = np.einsum("nkbi,bij->nkbj", rel, br)  # start in each fixed box's frame
-        step = np.einsum("ni,bij->nbj", length[:, None] * d, br)[:, None]  # (n, 1, B, 3)
-        lo = np.minimum(p0, p0 + step)
-        hi = np.maximum(p0, p0 + step)
-        grow = rad_m[None, :, None, None] + 1e-9
-        near = ((lo - grow <= half_b[None, None]) & (hi + grow >= -half_b[None, None])).all(-1)
-        rows, parts, boxes = np.nonzero(near)
+        box_groups = np.full(len(bc), -1, dtype=np.int64)
+        row_groups = np.zeros(n, dtype=np.int64)
+        if groups is not None:
+            row_groups = np.asarray(groups[0], dtype=np.int64).reshape(-1)
+            world_groups = np.asarray(groups[1], dtype=np.int64).reshape(-1)
+            if row_groups.shape != (n,) or world_groups.shape != (len(world or ()),):
+                raise ValueError(f"groups must be ((n,), (W,)) = (({n},), "
+                                 f"({len(world or ())},)), got ({row_groups.shape}, "
+                                 f"{world_groups.shape})")  # fmt: skip
+            box_groups[:len(world_groups)] = world_groups
+        rows, parts, boxes = _near_boxes(m_centres, m_ext, d, length, bc, br, be,
+                                         row_groups, box_groups)
         for s0 in range(0, len(rows), _PAIRS):
             i, k, j = rows[s0:s0 + _PAIRS], parts[s0:s0 + _PAIRS], boxes[s0:s0 + _PAIRS]
             s = swept_box_contacts(m_centres[i, k], m_rots[i, k], m_ext[k], d[i], length[i],
@@ -301,15 +305,23 @@ def check_corridors(
         base = len(targets)
         targets += caps.names
         steps = _samples(length, resolution, include_start=True)  # (n, S)
-        S = steps.shape[1]
-        centres = m_centres[:, None] + steps[:, :, None, None] * d[:, None, None, :]
-        rots = np.broadcast_to(m_rots[:, None], (n, S, len(movers), 3, 3))
-        ext = np.broadcast_to(m_ext, (n, S, len(movers), 3))
-        valid = np.broadcast_to((steps >= 0)[:, :, None], (n, S, len(movers)))
-        idx = np.nonzero(valid)
-        hits = caps.boxes_hit(centres[idx], rots[idx], ext[idx], margin=0.5 * resolution)
-        r, c = np.nonzero(hits)
-        keep(idx[0][r], steps[idx[0][r], idx[1][r]], base + c, idx[2][r])
+        grown = caps.radius + 0.5 * resolution
+        # Broad phase: the path of each moving box's centre (a segment), grown by the box's
+        # bounding sphere, against each capsule; only the pairs it leaves are sampled.
+        ends = m_centres + (length[:, None] * d)[:, None, :]  # (n, K, 3)
+        gap = segment_segment_distances(m_centres[:, :, None], ends[:, :, None],
+                                        caps.p0[None, None], caps.p1[None, None])  # (n, K, C)
+        rad_m = 0.5 * np.linalg.norm(m_ext, axis=1)
+        rows, parts, cols = np.nonzero(gap <= rad_m[None, :, None] + grown[None, None] + 1e-9)
+        samples = np.nonzero(steps[rows] >= 0)  # (pair, sample) where the corridor has one
+        for s0 in range(0, len(samples[0]), _PAIRS):
+            t, j = samples[0][s0:s0 + _PAIRS], samples[1][s0:s0 + _PAIRS]
+            i, k, c = rows[t], parts[t], cols[t]
+            s = steps[i, j]
+            centres = m_centres[i, k] + s[:, None] * d[i]
+            hit = segment_box_distances(caps.p0[c], caps.p1[c], centres, m_rots[i, k],
+                                        0.5 * m_ext[k]) <= grown[c]
+            keep(i[hit], s[hit], base + c[hit], k[hit])
 
     if obj is not None:
         base = len(targets)
@@ -339,6 +351,57 @@ def check_corridors(
         length=length,
         resolution=resolution,
     )
+
+
+def _near_boxes(m_centres: np.ndarray, m_ext: np.ndarray, d: np.ndarray, length: np.ndarray,
+                bc: np.ndarray, br: np.ndarray, be: np.ndarray, row_groups: np.ndarray,
+                box_groups: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The broad phase of the boxes: (rows, parts, boxes) int, the triples whose moving box
+    may touch the fixed box along the corridor. In each fixed box's own frame, the segment
+    swept by the moving box's centre, grown by the moving box's bounding sphere, against the
+    fixed box itself (its half extents), so a long flat box such as a table is treated as the
+    box it is and not as its bounding sphere. Boxes of group -1 meet every row (all pairs at
+    once, as arrays (n, K, B)); the others only the rows of their group.
+
+    m_centres : (n, K, 3) moving boxes at the start; m_ext : (K, 3) their edge lengths;
+    d : (n, 3) unit, length : (n,) the corridors; bc, br, be : (B, 3), (B, 3, 3), (B, 3)
+    the fixed boxes; row_groups : (n,) int; box_groups : (B,) int."""
+    n, k = m_centres.shape[:2]
+    rad_m = 0.5 * np.linalg.norm(m_ext, axis=1)  # (K,)
+    sweep = length[:, None] * d  # (n, 3)
+    out = []
+    every = np.flatnonzero(box_groups < 0)
+    if len(every):
+        rel = m_centres[:, :, None, :] - bc[every][None, None]  # (n, K, B, 3)
+        p0 = np.einsum("nkbi,bij->nkbj", rel, br[every])  # start in each fixed box's frame
+        step = np.einsum("ni,bij->nbj", sweep, br[every])[:, None]  # (n, 1, B, 3)
+        lo, hi = np.minimum(p0, p0 + step), np.maximum(p0, p0 + step)
+        grow = rad_m[None, :, None, None] + 1e-9
+        half = 0.5 * be[every][None, None]
+        near = ((lo - grow <= half) & (hi + grow >= -half)).all(-1)
+        rows, parts, boxes = np.nonzero(near)
+        out.append((rows, parts, every[boxes]))
+    grouped = np.flatnonzero(box_groups >= 0)
+    if len(grouped):
+        # Each row with the boxes of its group, then each moving part: (row, part, box).
+        by_group = grouped[np.argsort(box_groups[grouped], kind="stable")]
+        keys = box_groups[by_group]
+        first = np.searchsorted(keys, row_groups, side="left")
+        count = np.searchsorted(keys, row_groups, side="right") - first
+        i = np.repeat(np.arange(n), count)
+        j = by_group[np.repeat(first, count) + np.arange(len(i))
+                     - np.repeat(np.cumsum(count) - count, count)]
+        i, kk, j = np.repeat(i, k), np.tile(np.arange(k), len(i)), np.repeat(j, k)
+        p0 = np.einsum("ti,tij->tj", m_centres[i, kk] - bc[j], br[j])
+        step = np.einsum("ti,tij->tj", sweep[i], br[j])
+        lo, hi = np.minimum(p0, p0 + step), np.maximum(p0, p0 + step)
+        grow = rad_m[kk][:, None] + 1e-9
+        half = 0.5 * be[j]
+        near = ((lo - grow <= half) & (hi + grow >= -half)).all(-1)
+        out.append((i[near], kk[near], j[near]))
+    if not out:
+        return (np.zeros(0, np.int64),) * 3
+    return tuple(np.concatenate(x) for x in zip(*out, strict=True))
 
 
 def _samples(length: np.ndarray, step: float, *, include_start: bool) -> np.ndarray:

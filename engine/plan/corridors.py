@@ -200,49 +200,44 @@ def midair_pairs(ctx: PlanContext, firsts: np.ndarray, seconds: np.ndarray,
     return out
 
 
-def retreat(ctx: PlanContext, hands: Hands, gi: np.ndarray, pk: np.ndarray) -> list:
-    """The retreat corridors of rows ``(gi, pk)`` (R,) int at the handover against the
-    receiver's hands (the grasp each hand takes with the robot's gripper at that row:
-    :func:`~handover.engine.plan.hand_features.receiver_choice`), the scene and both bodies
-    (the object: :func:`object_distance`): one ``(rows, CorridorHits)`` per presentation and
-    choice of the hands among the rows (rows: indices into ``gi``). The targets move into the
-    object frame and only those within reach of the corridors are tested (the same geometry
-    as in the world, fewer primitives)."""
-    from handover.engine.plan.features import gripper_spheres, handover_targets
+def retreat(ctx: PlanContext, hands: Hands, gi: np.ndarray, pk: np.ndarray) -> CorridorHits:
+    """The retreat corridors of rows ``(gi, pk)`` (R,) int at the handover, world: back along
+    ``-a`` against the receiver's hands (the grasp each hand takes with the robot's gripper at
+    that row: :func:`~handover.engine.plan.hand_features.receiver_choice`, each row against
+    its own presentation's and choice's hands), the scene and both bodies (the object:
+    :func:`object_distance`), every row in one sweep."""
+    from handover.engine.plan.features import handover_targets
     from handover.engine.plan.hand_features import hand_model, receiver_choice
     from handover.geometry.collision import BoxWorld
     from handover.geometry.corridor import check_corridors
 
     bodies = handover_targets(ctx, hands)
-    origin, g_reach = gripper_spheres(ctx)
     length = _spec(ctx).retreat
-    poses = ctx.gripper_poses()
     choice = receiver_choice(ctx, hands, gi, pk) if len(gi) else np.zeros((0, 0), np.int64)
     keys = np.concatenate([pk[:, None], choice], axis=1)
-    out = []
-    for key in np.unique(keys, axis=0):
-        rows = np.flatnonzero((keys == key).all(axis=1))
+    unique, row_groups = np.unique(keys, axis=0, return_inverse=True)
+    boxes, box_groups = [], []
+    for g, key in enumerate(unique):
         k = int(key[0])
-        pose = hands.poses[k]
-        sel = gi[rows]
-        reach = float(np.linalg.norm(origin[sel], axis=1).max()) + g_reach + length
-        local = None
-        if len(bodies):
-            near = bodies.point_distances(pose[:3, 3][None])[0] <= reach
-            if near.any():
-                local = bodies.subset(near).moved(np.linalg.inv(pose))
-        boxes = []
         for sites, j in zip(hands.sites, key[1:], strict=True):
             if sites.options is not None and j < 0:
                 continue  # the gripper leaves this hand no grasp: judged by hand_fit
-            boxes += hand_model(ctx, hands.region, sites, k, pose,
-                                None if sites.options is None else int(j))
-        world = BoxWorld(boxes).moved(np.linalg.inv(pose)) if boxes else None
-        hits = check_corridors(ctx.gripper, poses[sel], ctx.candidates.width[sel],
-                               -poses[sel, :3, 2], length, world=world, bodies=local,
-                               name="retreat")
-        out.append((rows, hits))
-    return out
+            found = hand_model(ctx, hands.region, sites, k, hands.poses[k],
+                               None if sites.options is None else int(j))
+            boxes += found
+            box_groups += [g] * len(found)
+    poses = _world_poses_rows(hands.poses[pk], ctx.gripper_poses()[gi])
+    return check_corridors(ctx.gripper, poses, ctx.candidates.width[gi], -poses[:, :3, 2],
+                           length, world=BoxWorld(boxes) if boxes else None,
+                           bodies=bodies if len(bodies) else None, name="retreat",
+                           groups=(row_groups.reshape(-1), np.array(box_groups, np.int64))
+                           if boxes else None)
+
+
+def _world_poses_rows(objects: np.ndarray, grasp_poses: np.ndarray) -> np.ndarray:
+    """(R, 4, 4) each row's gripper in the world: object poses (R, 4, 4) @ grasp poses
+    (R, 4, 4), object frame."""
+    return np.einsum("rij,rjk->rik", objects, grasp_poses)
 
 BITS = {name: 1 << i for i, name in enumerate(CORRIDORS)}
 """The bit of each corridor in a ``corridor`` rule's measured value."""
@@ -271,9 +266,7 @@ def _approach_blocked(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
 
 def _retreat_blocked(ctx: PlanContext, hands: Hands, gi: np.ndarray,
                      pk: np.ndarray) -> np.ndarray:
-    out = np.zeros(len(gi), dtype=np.int64)
-    for rows, hits in retreat(ctx, hands, gi, pk):
-        out[rows] = hits.hit
+    out = retreat(ctx, hands, gi, pk).hit.astype(np.int64)
     out |= object_distance(ctx, gi) <= _spec(ctx).retreat
     return out
 
@@ -352,7 +345,7 @@ def corridors_of(ctx: PlanContext, names, *, pickup: bool, hands: Hands | None,
         out.append(Corridor("midair", end[:3, 2].copy(), float(spec.retreat), pre, end,
                             not hits.hit[0], hits.reason(0)))
     if hands is not None and "retreat" in names:
-        ((_, hits),) = retreat(ctx, hands, g, np.array([presentation]))
+        hits = retreat(ctx, hands, g, np.array([presentation]))
         free, reason = _first(hits, object_hits(ctx, g), spec.retreat)
         start = hands.poses[presentation] @ ctx.gripper_poses()[grasp]
         end = start.copy()
