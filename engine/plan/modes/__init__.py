@@ -88,7 +88,7 @@ def attempt_mode(kb: KB, ctx: PlanContext, mode: str, quick: bool = False) -> At
         return Attempt(mode, False, f"{mode}: {out_of_reach}")
     attempt = PLANNERS[mode](kb, ctx, quick=quick)
     if not attempt.feasible:
-        return replace(attempt, reason=_reason_with_targets(ctx, attempt))
+        return attempt if quick else replace(attempt, reason=_reason_with_targets(ctx, attempt))
     return _checked(ctx, attempt)
 
 
