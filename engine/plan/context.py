@@ -89,6 +89,7 @@ class Memo:
     single_grasps: dict[frozenset[str], int] = field(default_factory=dict)
     # plan.hands / plan.offer
     hands: dict[tuple, Hands] = field(default_factory=dict)
+    receiver_sites: dict[tuple, tuple] = field(default_factory=dict)  # each hand's, any place
     locations: dict[str, Locations] = field(default_factory=dict)  # by receiving hand
     # plan.features, plan.hand_features, plan.receiver_grasps
     collision_scene: np.ndarray | None = None  # (N,) int8, -1 not judged yet

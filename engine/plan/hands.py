@@ -112,6 +112,25 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
     region = receiver_region(centroids, face_part, ctx.part_tags, set(roles.want),
                              set(roles.receiver_forbid))
     s = ctx.situation
+    sites_key = (roles, count, grasps.key)
+    sites = ctx.memo.receiver_sites.get(sites_key)
+    if sites is None:
+        sites = ctx.memo.receiver_sites[sites_key] = _sites(ctx, region, count, grasps)
+    receiving = (s.receiver.dominant_hand,) if count == 1 else (
+        s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")
+    placed = place(ctx, region, sites, list(location_rules), receiving, avoid)
+    return Hands(key=key, region=region, sites=placed.sites, s_range=s_range,
+                 poses=placed.poses, location=placed.location, located=placed.located,
+                 measured=placed.measured, hits=placed.hits, receiving=receiving,
+                 locations=locations(ctx, receiving[0]), avoid=avoid)
+
+
+def _sites(ctx: PlanContext, region, count: int, grasps: GraspRules) -> tuple:
+    """Each receiving hand's sites in every presentation, with its grasp options, wherever
+    the object is offered (memoised by :func:`_hands` per roles, count and grasp rules: a
+    mode that tries other locations asks them again)."""
+    mesh = ctx.part_mesh.mesh
+    s = ctx.situation
     cuts: dict = {}  # the region's sections, measured once for every grasp that needs one
     if count == 2:
         wraps = tuple(predict_two_hand_sites(region, ctx.rotations, s.toward,
@@ -123,17 +142,10 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
             finger_thickness=s.hand.finger_thickness, hand=ctx.hand, mesh=mesh,
             opening=grasps.opening if grasps.opening is not None and len(grasps.opening)
             else None, samples=_samples(ctx), cuts=cuts),)
-    sites = wraps
-    if ctx.repertoire is not None and not region.empty:
-        sites = tuple(_with_options(ctx, region, w, grasps, count, h, cuts)
-                      for h, w in enumerate(wraps))
-    receiving = (s.receiver.dominant_hand,) if count == 1 else (
-        s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")
-    placed = place(ctx, region, sites, list(location_rules), receiving, avoid)
-    return Hands(key=key, region=region, sites=placed.sites, s_range=s_range,
-                 poses=placed.poses, location=placed.location, located=placed.located,
-                 measured=placed.measured, hits=placed.hits, receiving=receiving,
-                 locations=locations(ctx, receiving[0]), avoid=avoid)
+    if ctx.repertoire is None or region.empty:
+        return wraps
+    return tuple(_with_options(ctx, region, w, grasps, count, h, cuts)
+                 for h, w in enumerate(wraps))
 
 
 def _samples(ctx: PlanContext):
