@@ -168,15 +168,23 @@ def uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
     pick-up and the handover orientation (presentation ``pk``)."""
     from handover.geometry.holding import load_torques
 
-    poses = ctx.gripper_poses()[gi]
     com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
-    load = share * ctx.facts.mass * GRAVITY * rule.load_factor
-    cap = capacity(rule, ctx, gi)
-    out = np.zeros(len(gi))
-    for rot in (np.broadcast_to(ctx.initial[:3, :3], (len(gi), 3, 3)), ctx.rotations[pk]):
-        down = np.einsum("rji,j->ri", rot, _DOWN)  # gravity in the object frame
-        out = np.maximum(out, _use(rule, load_torques(poses, com, down, load), cap))
-    return out
+    load = np.asarray(share, dtype=float) * ctx.facts.mass * GRAVITY * rule.load_factor
+    # The pick-up orientation is the same for every presentation: where every row carries
+    # the same load, judged once per grasp (row by row the same numbers).
+    if len(load) and (load == load[0]).all():
+        once, back = np.unique(gi, return_inverse=True)
+    else:
+        once, back = gi, np.arange(len(gi))
+    cap = capacity(rule, ctx, once)
+    down = np.einsum("rji,j->ri", np.broadcast_to(ctx.initial[:3, :3], (len(once), 3, 3)),
+                     _DOWN)  # gravity in the object frame
+    picked = _use(rule, load_torques(ctx.gripper_poses()[once], com, down, load[:len(once)]),
+                  cap)
+    down = np.einsum("rji,j->ri", ctx.rotations[pk], _DOWN)
+    offered = _use(rule, load_torques(ctx.gripper_poses()[gi], com, down, load),
+                   cap[back.reshape(-1)])
+    return np.maximum(np.maximum(0.0, picked[back.reshape(-1)]), offered)
 
 
 def pair_uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, other: np.ndarray,
