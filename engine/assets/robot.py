@@ -80,7 +80,7 @@ START_LIBRARY = 4096
 IK_KEPT = 50_000
 """Inverse-kinematics answers a :class:`RobotArms` keeps (:meth:`RobotArms.ik_from`), by arm,
 target and starts: a plan asks the same pick-up poses whatever the receiver, and a warm
-planner the same poses again; about 0.3 KB each."""
+planner the same poses again; about 0.5 KB each."""
 
 SPARED_SAMPLES = 256
 """Configurations per arm that find the robot body's primitives its links always touch
@@ -647,8 +647,9 @@ def plan_arms(kb_root: Path | str | None, spec: RobotSpec,
 ARMS_KEPT = 2
 """How many robots' arms a cache of arms keeps (:data:`PLAN_ARMS`, a Planner's
 ``arms_cache``): each holds its arms' reachability maps, about 17 MB per arm with the default
-map (the whole map and its core, one byte per bit; ``benchmarks/planner_caches.py``), and a
-plan uses one robot."""
+map (the whole map and its core, one byte per bit; ``benchmarks/planner_caches.py``), and at
+most :data:`IK_KEPT` inverse-kinematics answers (about 26 MB when full); a plan uses one
+robot."""
 PLAN_ARMS: LRU[tuple, RobotArms] = LRU(ARMS_KEPT)
 """The arms of plans made without a Planner (the CLI's one plan, a batch worker's plans),
 by (KB folder, robot document, URDF digest), least recently used dropped first."""
