@@ -290,13 +290,40 @@ def test_the_shipped_robot_s_body_is_its_urdf_s_fixed_links(builtin_kb):
         np.testing.assert_allclose(pose, urdf_boxes[name][2], atol=1e-6)
 
 
-def test_a_target_s_ik_answer_does_not_depend_on_the_others_asked_with_it(idro):
-    """The same target, asked alone or in a batch of others, gets the same joint values (a
-    plan's answer for a row must not depend on which rows were checked with it)."""
+def _fresh(builtin_kb) -> RobotArms:
+    """The shipped robot's arms as a new process has them: nothing solved yet."""
+    return RobotArms.load(builtin_kb, "idro", map_params=SMALL_MAP)
+
+
+def test_a_target_s_ik_answer_does_not_depend_on_the_others_asked_with_it(builtin_kb, idro):
+    """The same target, asked alone (by arms that never saw the batch) or in a batch of
+    others, gets the same joint values (a plan's answer for a row must not depend on which
+    rows were checked with it)."""
     rng = np.random.default_rng(21)
     targets = idro.fk("right", idro.arm("right").kin.random_configurations(12, rng))
-    together = idro.solve("right", targets)
+    targets[:, :3, 3] += rng.normal(0.0, 0.03, (12, 3))  # some out of reach
+    together = _fresh(builtin_kb).solve("right", targets)
     for k in (0, 5, 11):
-        alone = idro.solve("right", targets[k : k + 1])
+        alone = _fresh(builtin_kb).solve("right", targets[k : k + 1])
         assert_allclose(alone.q[0], together.q[k], atol=0)
         assert alone.ok[0] == together.ok[k]
+
+
+def test_a_remembered_ik_answer_is_the_one_solving_gives(builtin_kb):
+    """Arms remember what they solved (a warm planner asks the same pick-up poses again): a
+    pose asked again, alone or among new ones, is answered to the bit as by arms that never
+    saw it, and without solving it again."""
+    rng = np.random.default_rng(5)
+    arms = _fresh(builtin_kb)
+    targets = arms.fk("left", arms.arm("left").kin.random_configurations(8, rng))
+    targets[:, :3, 3] += rng.normal(0.0, 0.03, (8, 3))
+    first = arms.solve("left", targets[:5])
+    again = arms.solve("left", targets[[4, 7, 0, 6, 2]])  # three remembered, two new
+    fresh = _fresh(builtin_kb).solve("left", targets[[4, 7, 0, 6, 2]])
+    for got in (again, fresh):
+        assert_allclose(got.q[[0, 2, 4]], first.q[[4, 0, 2]], atol=0)
+    for a, b in zip(again, fresh, strict=True):
+        assert_allclose(np.asarray(a, dtype=float), np.asarray(b, dtype=float), atol=0)
+    base = arms._to_base(arms.arm("left"), targets[:1])
+    starts = arms._nearest("left", base, 11)
+    assert arms.ik_from("left", base, starts).attempts[0] == 0  # asked before: not solved

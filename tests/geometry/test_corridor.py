@@ -139,6 +139,33 @@ def test_body_capsules_are_never_missed_between_samples():
                 r.distance[0] <= expected)
 
 
+def test_grouped_boxes_stand_only_for_their_own_rows():
+    # Each pose its own obstacles, in one call (a retreat against the receiver's hands where
+    # each presentation puts them): the shelf over the top grasp (hit after 1.5 cm, as in the
+    # shelf test) belongs to the side grasp's group, so the top grasp backs out free; the
+    # cabinet (hit by the top grasp after 6.5 cm) to the top grasp's. The table (group -1)
+    # stands for both. Each row gets what a call with its own boxes alone gives.
+    shelf = _box("shelf", [0.4, -0.3, 0.95], [0.8, 0.3, 0.97])
+    cabinet = _box("wall cabinet", [0.35, -0.4, 1.0], [0.75, 0.4, 1.3])
+    # An arm over the side grasp's way back (x 0.49 at once), for the capsule broad phase.
+    arm = Body.from_primitives([("forearm", [0.45, -0.3, 0.8], [0.45, 0.3, 0.8], 0.04)])
+    grouped = check_corridors(G, POSES, WIDTH, -POSES[:, :3, 2], 0.10,
+                              world=[TABLE, shelf, cabinet], bodies=arm,
+                              groups=(np.array([0, 1]), np.array([-1, 1, 0])))
+    alone = [check_corridors(G, POSES[i:i + 1], WIDTH, -POSES[i:i + 1, :3, 2], 0.10,
+                             world=boxes, bodies=arm)
+             for i, boxes in ((0, [TABLE, cabinet]), (1, [TABLE, shelf]))]
+    assert grouped.target == ("wall cabinet", "forearm")
+    assert grouped.distance[0] == pytest.approx(0.065, abs=1e-9)
+    for i, one in enumerate(alone):
+        assert (grouped.hit[i], grouped.target[i], grouped.part[i]) == \
+            (one.hit[0], one.target[0], one.part[0])
+        assert grouped.distance[i] == one.distance[0]
+    with pytest.raises(ValueError, match="groups"):
+        check_corridors(G, POSES, WIDTH, -POSES[:, :3, 2], 0.10, world=[TABLE],
+                        groups=(np.array([0, 1]), np.array([0, 1])))
+
+
 def test_second_gripper_approach_must_clear_the_first_gripper():
     # Midair: the first gripper holds the object from the side (+x); a second one
     # approaching from the opposite side along -x, 10 cm, would drive its fingers into the
