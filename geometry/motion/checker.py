@@ -15,10 +15,16 @@ grows every link and attached shape). The arm's links are not tested against eac
 
 :meth:`ValidityChecker.hits` gives the whole (configuration, link, target) matrix through
 ``world_hits``; :meth:`ValidityChecker.valid`, what a planner asks thousands of times, answers
-the same question (a test holds them equal) faster: the targets' bounding spheres and the
-pairs to test are prepared once per checker; one array operation compares every (configuration,
-shape, target shape) pair's bounding spheres, only the pairs whose spheres meet go to their
-exact tests (the cheap kinds first), and a configuration found touching is not tested further.
+the same question (a test holds them equal) faster. Prepared once per checker: every shape's
+points and axes in the frame of the joint that moves it, the targets' bounding spheres, the
+pairs to test. Per batch of configurations (an edge's, a segment's): the shapes are posed by
+one product of the joint frames with those points; each shape's centres over the whole batch
+make one sphere, tested against every target shape's bounding sphere (the configurations of a
+batch lie close together, so few pairs remain); those pairs' bounding spheres are compared per
+configuration; a cheap separation test in a box's frame (a capsule beyond one of its slabs,
+two boxes apart along one of their face normals, each clearly, by more than a nanometre)
+drops most of what remains, and only the rest goes to the exact tests (the cheap kinds
+first); a configuration found touching is not tested further.
 
 World frame, metres, radians (metres for prismatic joints).
 """
@@ -30,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from handover.geometry.armcollision import Targets, posed_boxes, posed_capsules, world_hits
+from handover.geometry.armcollision import Targets, world_hits
 from handover.geometry.bodies import Body
 from handover.geometry.collision import _check_boxes, _check_rigid, boxes_overlap
 from handover.geometry.gripper import Box
@@ -151,7 +157,8 @@ class ValidityChecker:
         self._allowed = np.zeros((len(self.shapes.links), len(targets.names)), dtype=bool)
         for a, b in allowed:
             self._allowed[self.shapes.links.index(a), targets.names.index(b)] = True
-        self._pairs = _pairs(self.shapes, targets, self._allowed)
+        self._prepared = _prepare(arm, self.shapes, self._n_attached, targets,
+                                  self._allowed, margin)
 
     @property
     def link_names(self) -> tuple[str, ...]:
@@ -193,24 +200,25 @@ class ValidityChecker:
         """(n,) bool: no shape touches any target, for q (n, dof) within the limits."""
         n = len(q)
         free = np.ones(n, dtype=bool)
-        poses = self._poses(q)
-        ca, cb = posed_capsules(self.shapes, poses)  # (n, c, 3)
-        bc, br = posed_boxes(self.shapes, poses)  # (n, b, 3), (n, b, 3, 3)
-        t, mg, p = self.targets, self.margin, self._pairs
-        cap_r = self.shapes.cap_radius + mg
-        box_h = 0.5 * self.shapes.box_extents + mg
-        t_h = 0.5 * t.box_ext
-        # Broad phase over every (configuration, shape, target shape) at once: bounding
-        # spheres (capsules: about their middle; boxes: about their centre).
-        centres = np.concatenate([0.5 * (ca + cb), bc], axis=1)  # (n, c + b, 3)
-        radii = np.concatenate([0.5 * np.linalg.norm(cb - ca, axis=2) + cap_r,
-                                np.broadcast_to(np.linalg.norm(box_h, axis=1),
-                                                (n, len(box_h)))], axis=1)  # fmt: skip
-        gap = centres[:, :, None, :] - p["t_centre"]  # (n, S, T, 3)
-        reach = radii[:, :, None] + p["t_radius"]
-        near = ((gap * gap).sum(axis=3) <= reach * reach) & p["mask"]
-        rows, shp, tgt = np.nonzero(near)
+        p = self._prepared
+        ca, cb, bc, br = self._posed(q)  # (n, c, 3) x 2, (n, b, 3), (n, b, 3, 3)
+        t, cap_r, box_h, t_h = self.targets, p.cap_r, p.box_h, p.t_h
         nc, tc = len(cap_r), len(t.cap_target)
+        centres = np.concatenate([0.5 * (ca + cb), bc], axis=1)  # (n, S, 3)
+        # Broad phase, batch level: each shape's centres over the batch in one sphere
+        # (the configurations of an edge or a segment lie close together), against every
+        # target shape's bounding sphere: the (shape, target shape) pairs that may meet.
+        lo, hi = centres.min(axis=0), centres.max(axis=0)  # (S, 3)
+        gap = 0.5 * (lo + hi)[:, None, :] - p.t_centre  # (S, T, 3)
+        reach = 0.5 * np.linalg.norm(hi - lo, axis=1)[:, None] + p.reach  # (S, T)
+        shp, tgt = np.nonzero(((gap * gap).sum(axis=2) <= reach * reach) & p.mask)
+        if not len(shp):
+            return free
+        # Then per configuration, the pairs' bounding spheres.
+        gap = centres[:, shp] - p.t_centre[tgt]  # (n, m, 3)
+        reach = p.reach[shp, tgt]
+        rows, pair = np.nonzero((gap * gap).sum(axis=2) <= reach * reach)
+        shp, tgt = shp[pair], tgt[pair]
         kinds = (shp >= nc).astype(int) * 2 + (tgt >= tc)  # 0 cc, 1 cb, 2 bc, 3 bb
         for kind in (0, 3, 1, 2):  # the cheap exact tests first
             pick = np.flatnonzero((kinds == kind) & free[rows])
@@ -221,19 +229,41 @@ class ValidityChecker:
                 touch = segment_segment_distances(ca[i, s], cb[i, s], t.cap_a[k],
                                                   t.cap_b[k]) <= cap_r[s] + t.cap_radius[k]
             elif kind == 1:
-                k = k - tc
-                touch = segment_box_distances(ca[i, s], cb[i, s], t.box_centre[k], t.box_rot[k],
-                                              t_h[k]) <= cap_r[s]  # fmt: skip
+                touch = _capsules_touch_boxes(ca[i, s], cb[i, s], cap_r[s], t.box_centre[k - tc],
+                                              t.box_rot[k - tc], t_h[k - tc])  # fmt: skip
             elif kind == 2:
                 s = s - nc
                 touch = segment_box_distances(t.cap_a[k], t.cap_b[k], bc[i, s], br[i, s],
                                               box_h[s]) <= t.cap_radius[k]  # fmt: skip
             else:
                 s, k = s - nc, k - tc
-                touch = boxes_overlap(bc[i, s], br[i, s], 2.0 * box_h[s], t.box_centre[k],
-                                      t.box_rot[k], t.box_ext[k])  # fmt: skip
+                touch = _boxes_touch(bc[i, s], br[i, s], box_h[s], t.box_centre[k],
+                                     t.box_rot[k], t_h[k])  # fmt: skip
             free[i[touch]] = False
         return free
+
+    def _posed(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The shapes at configurations q (n, dof), world: capsule ends (n, c, 3) twice, box
+        centres (n, b, 3) and rotations (n, b, 3, 3) (columns the box axes). Every point and
+        axis is carried by the joint frame that moves it: one matrix product of the joint
+        frames (n, J * 3, 4) with all the points and axes (4, M) gives each in every frame,
+        and each is taken from its own (``_Prepared.rows``, ``_Prepared.cols``)."""
+        p = self._prepared
+        kin = self.arm.kin
+        n, dof = len(q), kin.dof
+        rots, origins = kin._frames(q, np.float64)  # (dof, 3 col, 3 row, n), (dof, 3, n)
+        frames = np.zeros((n, dof + 1, 3, 4))
+        frames[:, :dof, :, :3] = rots.transpose(3, 0, 2, 1)
+        frames[:, :dof, :, 3] = origins.transpose(2, 0, 1)
+        frames[:, dof, :, :3] = np.eye(3)  # links no joint moves: the chain's base frame
+        every = frames.reshape(n, 3 * (dof + 1), 4) @ p.local  # (n, J * 3, M)
+        local = every[:, p.rows, p.cols]  # (n, M, 3), the chain's base frame
+        world = local @ self.arm.base[:3, :3].T
+        nc, nb = p.n_caps, p.n_boxes
+        world[:, : 2 * nc + nb] += self.arm.base[:3, 3]  # points; the rest are axes
+        ca, cb, bc = world[:, :nc], world[:, nc : 2 * nc], world[:, 2 * nc : 2 * nc + nb]
+        br = world[:, 2 * nc + nb :].reshape(n, nb, 3, 3).transpose(0, 1, 3, 2)
+        return ca, cb, bc, br
 
     def contacts(self, q: np.ndarray) -> list[tuple[str, str]]:
         """What one configuration q (dof,) touches: ``(link, target)`` pairs, links in chain
@@ -243,16 +273,110 @@ class ValidityChecker:
                                                                            strict=True)]
 
 
-def _pairs(shapes: LinkShapes, targets: Targets, allowed: np.ndarray
-           ) -> dict[str, np.ndarray]:
-    """The target shapes' bounding spheres (capsules first, then boxes): ``t_centre`` (T, 3),
-    ``t_radius`` (T,); and ``mask`` (S, T) bool, the (link shape, target shape) pairs to
-    test (link shapes: capsules first, then boxes), those not ``allowed`` (links x targets)."""
-    t_centre = np.concatenate([0.5 * (targets.cap_a + targets.cap_b), targets.box_centre])
-    t_radius = np.concatenate([0.5 * np.linalg.norm(targets.cap_b - targets.cap_a, axis=1)
-                               + targets.cap_radius,
-                               0.5 * np.linalg.norm(targets.box_ext, axis=1)])  # fmt: skip
+_SLACK = 1e-9
+"""m: how clearly apart a cheap separation test must find two shapes to skip their exact test
+(so that only the exact tests decide a contact, to the last bit)."""
+
+
+@dataclass(frozen=True, eq=False)
+class _Prepared:
+    """What :meth:`ValidityChecker._free` needs that stays the same for a checker.
+
+    local : (4, M) the shapes' points (capsule ends ``a``, then ``b``, then box centres;
+    w = 1) and box axes (3 per box, w = 0) in the frame of the joint that moves them (J = dof
+    + 1 frames, the last the chain's base for links no joint moves); rows, cols : (M, 3) where
+    each point's world coordinates lie in the product ``frames (n, J * 3, 4) @ local``.
+    n_caps, n_boxes : the shapes' capsules and boxes (attached boxes included).
+    cap_r : (c,) capsule radii and box_h : (b, 3) box half extents, grown by the margin;
+    t_h : (Tb, 3) the target boxes' half extents. t_centre : (T, 3) the target shapes'
+    bounding spheres' centres (capsules first, then boxes); reach : (S, T) the sum of a shape's
+    and a target shape's bounding radii; mask : (S, T) bool, the pairs to test (not allowed).
+    """
+
+    local: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+    n_caps: int
+    n_boxes: int
+    cap_r: np.ndarray
+    box_h: np.ndarray
+    t_h: np.ndarray
+    t_centre: np.ndarray
+    reach: np.ndarray
+    mask: np.ndarray
+
+
+def _prepare(arm: ArmModel, shapes: LinkShapes, n_attached: int, targets: Targets,
+             allowed: np.ndarray, margin: float) -> _Prepared:
+    """The :class:`_Prepared` of ``shapes`` (the arm's links' shapes, then ``n_attached``
+    boxes carried in the tool frame) against ``targets``; ``allowed`` (links x targets)."""
+    kin = arm.kin
+    dof = kin.dof
+    tip = shapes.links.index(kin.chain.tip_link)
+    link_joint = np.asarray(kin._link_joint)
+    joint = np.where(link_joint < 0, dof, link_joint).astype(np.intp)  # (L,)
+    link_local = kin._link_local.copy()  # (L, 4, 4) link in its joint's frame
+    # The attached boxes ride on the tip link's joint, at the tool frame.
+    link_local = np.concatenate([link_local, np.repeat((link_local[tip] @ kin.tcp)[None],
+                                                       n_attached, axis=0)])  # fmt: skip
+    joint = np.concatenate([joint, np.full(n_attached, joint[tip], dtype=np.intp)])
+    c, b = len(shapes.cap_link), len(shapes.box_link)
+    ones = np.ones((c, 1))
+    cap_a = np.einsum("cij,cj->ci", link_local[shapes.cap_link], np.hstack([shapes.cap_a, ones]))
+    cap_b = np.einsum("cij,cj->ci", link_local[shapes.cap_link], np.hstack([shapes.cap_b, ones]))
+    box = link_local[shapes.box_link] @ shapes.box_pose  # (b, 4, 4) in the joint frame
+    axes = box[:, :, :3].transpose(0, 2, 1).reshape(3 * b, 4)  # each box's x, y, z axes
+    local = np.concatenate([cap_a, cap_b, box[:, :, 3], axes]).T  # (4, M)
+    owner = np.concatenate([joint[shapes.cap_link], joint[shapes.cap_link],
+                            joint[shapes.box_link], np.repeat(joint[shapes.box_link], 3)])
+    rows = 3 * owner[:, None] + np.arange(3)  # (M, 3)
+    cols = np.repeat(np.arange(len(owner))[:, None], 3, axis=1)
+    cap_r = shapes.cap_radius + margin
+    box_h = 0.5 * shapes.box_extents + margin
+    t = targets
+    t_centre = np.concatenate([0.5 * (t.cap_a + t.cap_b), t.box_centre])
+    t_radius = np.concatenate([0.5 * np.linalg.norm(t.cap_b - t.cap_a, axis=1) + t.cap_radius,
+                               0.5 * np.linalg.norm(t.box_ext, axis=1)])  # fmt: skip
+    s_radius = np.concatenate([0.5 * np.linalg.norm(shapes.cap_b - shapes.cap_a, axis=1)
+                               + cap_r, np.linalg.norm(box_h, axis=1)])  # fmt: skip
     owner_s = np.concatenate([shapes.cap_link, shapes.box_link])
-    owner_t = np.concatenate([targets.cap_target, targets.box_target])
-    mask = ~allowed[owner_s[:, None], owner_t[None, :]]
-    return {"t_centre": t_centre, "t_radius": t_radius, "mask": mask}
+    owner_t = np.concatenate([t.cap_target, t.box_target])
+    return _Prepared(local, rows, cols, c, b, cap_r, box_h, 0.5 * t.box_ext, t_centre,
+                     s_radius[:, None] + t_radius[None, :],
+                     ~allowed[owner_s[:, None], owner_t[None, :]])
+
+
+def _capsules_touch_boxes(a: np.ndarray, b: np.ndarray, r: np.ndarray, centres: np.ndarray,
+                          rots: np.ndarray, half: np.ndarray) -> np.ndarray:
+    """(m,) bool: whether capsules (ends a, b (m, 3), radii r (m,)) touch boxes (centres
+    (m, 3), rotations (m, 3, 3), half extents (m, 3)): first, in each box's frame, whether the
+    segment lies clearly beyond one of its slabs grown by r (then not), then the exact
+    segment-box distance of the others."""
+    la = np.einsum("mji,mj->mi", rots, a - centres)
+    lb = np.einsum("mji,mj->mi", rots, b - centres)
+    grown = half + (r + _SLACK)[:, None]
+    maybe = np.flatnonzero(~((np.minimum(la, lb) > grown)
+                             | (np.maximum(la, lb) < -grown)).any(axis=1))  # fmt: skip
+    touch = np.zeros(len(a), dtype=bool)
+    if len(maybe):
+        w = maybe
+        touch[w] = segment_box_distances(a[w], b[w], centres[w], rots[w], half[w]) <= r[w]
+    return touch
+
+
+def _boxes_touch(ca: np.ndarray, ra: np.ndarray, ha: np.ndarray, cb: np.ndarray,
+                 rb: np.ndarray, hb: np.ndarray) -> np.ndarray:
+    """(m,) bool: whether boxes A and B (centres (m, 3), rotations (m, 3, 3), half extents
+    (m, 3)) overlap: first the separating axes of their faces (clearly apart on one: not),
+    then :func:`~handover.geometry.collision.boxes_overlap` (all 15 axes) for the others."""
+    d = cb - ca
+    rel = np.abs(np.einsum("mji,mjk->mik", ra, rb))  # |A_i . B_k|
+    apart = (np.abs(np.einsum("mji,mj->mi", ra, d)) > ha + np.einsum("mik,mk->mi", rel, hb)
+             + _SLACK).any(axis=1)  # fmt: skip
+    apart |= (np.abs(np.einsum("mjk,mj->mk", rb, d)) > hb + np.einsum("mik,mi->mk", rel, ha)
+              + _SLACK).any(axis=1)  # fmt: skip
+    touch = np.zeros(len(ca), dtype=bool)
+    w = np.flatnonzero(~apart)
+    if len(w):
+        touch[w] = boxes_overlap(ca[w], ra[w], 2.0 * ha[w], cb[w], rb[w], 2.0 * hb[w])
+    return touch
