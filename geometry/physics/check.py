@@ -1,13 +1,19 @@
 """Run the physics check of grasps and measure it: slip per phase, drops, the receiver.
 
-:func:`check` builds the MuJoCo model (:mod:`.model`), the schedule of targets
-(:mod:`.protocol`) and runs it in one call of MuJoCo's ``rollout`` (the palm targets, finger
-targets and the support's force are its open-loop inputs, so no Python runs per step).
-Slip is the motion of the object in the holding hand's frame (the palm body, not its
-target) since the hand's grip settled: the displacement of the object's point that sat at
-the grasp origin (mm) and the angle it turned (deg). :func:`ensemble` runs the same check
-with the friction, grip force and torsion scaled (:data:`.params.DEFAULT_ENSEMBLE`) in one
-batched rollout and gives the share that pass and the worst slip.
+:func:`check` builds the schedule of targets (:mod:`.protocol`) and the MuJoCo models
+(:mod:`.model`): one per run of phases with the same hands taking part, so a hand that waits
+away from the object, or has let go and backed off, costs nothing while it touches nothing
+(a hand that comes in starts at rest on its target; the joints the models share carry
+over). Each phase is one call of MuJoCo's ``rollout`` (the palm targets, finger targets and
+the support's force are its open-loop inputs, so no Python runs per step; the solver's warm
+start is carried from call to call, so the steps are those of a single rollout), and its
+holders are measured when it ends: a run whose slip has passed a threshold fails whatever
+comes next, and stops there (``stop_early``). Slip is the motion of the object in the
+holding hand's frame (the palm body, not its target) since the hand's grip settled: the
+displacement of the object's point that sat at the grasp origin (mm) and the angle it
+turned (deg). :func:`ensemble` runs the same check with the friction, grip force and
+torsion scaled (:data:`.params.DEFAULT_ENSEMBLE`) on copies of the same models and gives
+the share that pass and the worst slip.
 
 Same inputs give identical numbers (MuJoCo is deterministic on one thread; nothing is
 sampled).
@@ -134,11 +140,17 @@ class CheckResult:
     """One check's outcome.
 
     mode : H1G1, H2G2 or H2G1. passed : no drop and every slip within the thresholds (the
-    receiver's included). dropped : some holder dropped the object; dropped_in : the first
-    phase it did, or None. receiver_held : the receiver holds it after the hand-over
-    (None without a receiver). phases : every (phase, holder) measured, in order.
-    max_translation_mm, max_rotation_deg : the largest slip of any phase. seconds : wall
-    time of the check (build, run, measure); simulated_seconds : the protocol's length.
+    receiver's included). failed_in : the first phase in which some holder's slip passed
+    ``Thresholds.max_slip_mm`` or ``max_slip_deg`` (or the drop thresholds), or None: the
+    run fails there whatever comes next, so unless asked to run on (``stop_early=False``)
+    it stops at the end of that phase and the later phases are neither simulated nor
+    measured. dropped : some holder dropped the object in the phases simulated;
+    dropped_in : the first phase it did, or None. receiver_held : the receiver holds it
+    after the hand-over (None without a receiver; False when the run stopped before it).
+    phases : every (phase, holder) measured, in order. max_translation_mm,
+    max_rotation_deg : the largest slip of any phase measured. seconds : time of the check
+    (build, run, measure); simulated_seconds : the simulated time (the protocol's length,
+    or up to the end of ``failed_in`` when the run stopped there).
     trajectory : the motion, when the check was asked to record it (not in ``to_dict``).
     """
 
@@ -153,6 +165,7 @@ class CheckResult:
     seconds: float
     simulated_seconds: float
     trajectory: Trajectory | None = None
+    failed_in: str | None = None
 
     def slip(self, phase: str, holder: str | None = None) -> PhaseSlip:
         """The :class:`PhaseSlip` of ``phase`` (and ``holder``, if several hold in it)."""
@@ -164,8 +177,9 @@ class CheckResult:
     def to_dict(self) -> dict:
         """JSON-ready, floats rounded (mm and deg to 0.01, seconds to 0.001)."""
         return {
-            "mode": self.mode, "passed": self.passed, "dropped": self.dropped,
-            "dropped_in": self.dropped_in, "receiver_held": self.receiver_held,
+            "mode": self.mode, "passed": self.passed, "failed_in": self.failed_in,
+            "dropped": self.dropped, "dropped_in": self.dropped_in,
+            "receiver_held": self.receiver_held,
             "phases": [p.to_dict() for p in self.phases],
             "max_translation_mm": round(self.max_translation_mm, 2),
             "max_rotation_deg": round(self.max_rotation_deg, 2),
@@ -180,9 +194,10 @@ class EnsembleResult:
 
     margin : the share of the perturbed runs that pass (0-1). robust : the margin reaches
     ``Thresholds.ensemble_fraction`` and the nominal passes. worst_translation_mm,
-    worst_rotation_deg : the largest slip over all runs (the nominal's included).
-    seconds : wall time of the nominal and the ensemble together (each run's own
-    ``seconds`` is its share of it: they run in one batch).
+    worst_rotation_deg : the largest slip measured over all runs (the nominal's included;
+    a run that failed is measured up to the end of the phase it failed in).
+    seconds : time of the nominal and the ensemble together (each run's own ``seconds`` is
+    its simulation and measurement and an equal share of the model building).
     """
 
     nominal: CheckResult
@@ -198,7 +213,8 @@ class EnsembleResult:
         return {
             "nominal": self.nominal.to_dict(),
             "runs": [{"label": p.label, "friction": p.friction, "force": p.force,
-                      "torsion": p.torsion, "passed": r.passed, "dropped": r.dropped,
+                      "torsion": p.torsion, "passed": r.passed, "failed_in": r.failed_in,
+                      "dropped": r.dropped,
                       "max_translation_mm": round(r.max_translation_mm, 2),
                       "max_rotation_deg": round(r.max_rotation_deg, 2)}
                      for p, r in self.runs],
@@ -209,15 +225,49 @@ class EnsembleResult:
         }  # fmt: skip
 
 
+_FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
+_STATE = mujoco.mjtState
+
+
+@dataclass
+class _Segment:
+    """Consecutive phases simulated on one model, the hands that take part in them.
+
+    phases : indices of the schedule's phases, steps ``[start, stop)``. hands : indices
+    (into the check's names) of the hands in ``built``, in its order. control : (stop -
+    start, ncontrol) the open-loop inputs per step (``_CONTROL``). data : an MjData of the
+    model (the perturbed copies share it). qpos_from, qpos_to, dof_from, dof_to : where
+    the joints this model shares with the previous segment's sit in that one's qpos and
+    qvel, and in its own. entering : the hands that come in here (indices into names).
+    """
+
+    phases: list[int]
+    start: int
+    stop: int
+    hands: list[int]
+    built: Built
+    control: np.ndarray
+    data: mujoco.MjData
+    qpos_from: np.ndarray
+    qpos_to: np.ndarray
+    dof_from: np.ndarray
+    dof_to: np.ndarray
+    entering: list[int]
+
+
 @dataclass
 class _Prepared:
-    built: Built
     schedule: Schedule
     names: list[str]
-    control: np.ndarray
-    control_spec: int
+    segments: list[_Segment]
     state0: np.ndarray
-    data: mujoco.MjData
+    quats: np.ndarray  # (H, N, 4) each hand's target orientation per step, w x y z
+    seconds: float = 0.0  # building the models and the schedule
+
+
+_CONTROL = (_STATE.mjSTATE_CTRL.value, _STATE.mjSTATE_XFRC_APPLIED.value,
+            _STATE.mjSTATE_MOCAP_POS.value, _STATE.mjSTATE_MOCAP_QUAT.value)  # fmt: skip
+_CONTROL_SPEC = sum(_CONTROL)
 
 
 def _hand_frame(grasp: Grasp) -> np.ndarray:
@@ -239,7 +289,7 @@ def _plan(grasp: Grasp, name: str) -> HandPlan:
                     axis=1 if grasp.kind == "pinch" else 2)
 
 
-def _offsets(m: mujoco.MjModel, parts: list[int]) -> dict[int, int]:
+def _offsets(m: mujoco.MjModel, parts: tuple[int, ...]) -> dict[int, int]:
     """Where each state component starts in a state vector of these ``parts`` (bit order)."""
     out, at = {}, 0
     for bit in sorted(parts):
@@ -248,9 +298,51 @@ def _offsets(m: mujoco.MjModel, parts: list[int]) -> dict[int, int]:
     return out
 
 
+def _control(built: Built, sched: Schedule, hands: list[int], quats: np.ndarray, start: int,
+             stop: int) -> np.ndarray:  # fmt: skip
+    """(stop - start, ncontrol) the model's inputs over steps ``[start, stop)``: finger
+    targets, the support's force on the object, the palms' targets (``_CONTROL``)."""
+    m = built.model
+    ctrl, xfrc, mpos, mquat = _CONTROL
+    at = _offsets(m, _CONTROL)
+    control = np.zeros((stop - start, mujoco.mj_stateSize(m, _CONTROL_SPEC)))
+    for k, h in enumerate(hands):
+        for a in built.actuators[k]:
+            control[:, at[ctrl] + a] = sched.finger_targets[h, start:stop]
+        pos = at[mpos] + 3 * built.mocap[k]
+        control[:, pos:pos + 3] = sched.hand_poses[h, start:stop, :3, 3]
+        quat = at[mquat] + 4 * built.mocap[k]
+        control[:, quat:quat + 4] = quats[h, start:stop]
+    control[:, at[xfrc] + 6 * built.object_body + 2] = built.weight * (
+        1.0 - sched.weight[start:stop])
+    return control
+
+
+def _joint_map(before: mujoco.MjModel, after: mujoco.MjModel) -> tuple[np.ndarray, ...]:
+    """(qpos in ``before``, qpos in ``after``, dofs in ``before``, dofs in ``after``) of
+    the joints both models have (by name)."""
+    qf, qt, df, dt = [], [], [], []
+    width = {int(mujoco.mjtJoint.mjJNT_FREE): (7, 6), int(mujoco.mjtJoint.mjJNT_SLIDE): (1, 1)}
+    for j in range(after.njnt):
+        name = mujoco.mj_id2name(after, mujoco.mjtObj.mjOBJ_JOINT, j)
+        i = mujoco.mj_name2id(before, mujoco.mjtObj.mjOBJ_JOINT, name)
+        if i < 0:
+            continue
+        nq, nv = width[int(after.jnt_type[j])]
+        qf += range(before.jnt_qposadr[i], before.jnt_qposadr[i] + nq)
+        qt += range(after.jnt_qposadr[j], after.jnt_qposadr[j] + nq)
+        df += range(before.jnt_dofadr[i], before.jnt_dofadr[i] + nv)
+        dt += range(after.jnt_dofadr[j], after.jnt_dofadr[j] + nv)
+    return tuple(np.array(v, dtype=np.int64) for v in (qf, qt, df, dt))
+
+
 def _prepare(obj: ObjectModel, grasps: list[Grasp], motion: Motion, mode: str,
              receiver: Grasp | list[Grasp] | None, protocol: Protocol,
              solver: Solver) -> _Prepared:  # fmt: skip
+    """The schedule and one model per run of phases with the same hands taking part
+    (a hand waiting away from the object, or gone after letting go, is left out), each
+    model checked for a hand starting inside the object (``ValueError``)."""
+    start = time.perf_counter()
     names = [f"gripper{k}" for k in range(len(grasps))]
     plans = [_plan(g, n) for g, n in zip(grasps, names, strict=True)]
     takers = [] if receiver is None else [receiver] if isinstance(receiver, Grasp) else list(
@@ -262,39 +354,50 @@ def _prepare(obj: ObjectModel, grasps: list[Grasp], motion: Motion, mode: str,
     names += taker_names
     rplans = [_plan(g, n) for g, n in zip(takers, taker_names, strict=True)]
     sched = schedule(mode, plans, motion, protocol, solver.timestep, rplans)
-    hands = []
-    for h, (n, g) in enumerate(zip(names, everyone, strict=True)):
-        opening = g.hand.opening(g.width) if g.kind == "pinch" else 0.0
-        hands.append(HandIn(n, g.hand, g.kind, opening, sched.hand_poses[h, 0]))
-    built = build(obj, motion.pickup, hands, solver)
-    m = built.model
-    st = mujoco.mjtState
-    parts = [st.mjSTATE_CTRL.value, st.mjSTATE_XFRC_APPLIED.value, st.mjSTATE_MOCAP_POS.value,
-             st.mjSTATE_MOCAP_QUAT.value]  # fmt: skip
-    at = _offsets(m, parts)
     n = sched.steps
-    control = np.zeros((n, sum(mujoco.mj_stateSize(m, p) for p in parts)))
-    for h, acts in enumerate(built.actuators):
-        for a in acts:
-            control[:, at[parts[0]] + a] = sched.finger_targets[h]
-    lift = built.weight * (1.0 - sched.weight)
-    control[:, at[parts[1]] + 6 * built.object_body + 2] = lift
-    quats = Rotation.from_matrix(sched.hand_poses[..., :3, :3].reshape(-1, 3, 3)).as_quat(
-        scalar_first=True
-    ).reshape(len(hands), n, 4)
-    for h, mocap in enumerate(built.mocap):
-        pos = at[parts[2]] + 3 * mocap
-        control[:, pos:pos + 3] = sched.hand_poses[h, :, :3, 3]
-        quat = at[parts[3]] + 4 * mocap
-        control[:, quat:quat + 4] = quats[h]
-    data = mujoco.MjData(m)
-    data.xfrc_applied[built.object_body, 2] = built.weight
-    mujoco.mj_forward(m, data)
-    _check_start(built, data, names)
-    state0 = np.empty(mujoco.mj_stateSize(m, st.mjSTATE_FULLPHYSICS.value))
-    mujoco.mj_getState(m, data, state0, st.mjSTATE_FULLPHYSICS.value)
-    spec = sum(parts)
-    return _Prepared(built, sched, names, control, spec, state0, data)
+    # the poses are products of rotations: valid, and converted exactly as when checked
+    quats = Rotation.from_matrix(sched.hand_poses[..., :3, :3].reshape(-1, 3, 3),
+                                 assume_valid=True).as_quat(scalar_first=True)  # fmt: skip
+    quats = quats.reshape(len(names), n, 4)
+    runs: list[tuple[list[int], list[int]]] = []  # (phases, hands)
+    for k, phase in enumerate(sched.phases):
+        hands = [names.index(h) for h in phase.present] or list(range(len(names)))
+        if runs and runs[-1][1] == hands:
+            runs[-1][0].append(k)
+        else:
+            runs.append(([k], hands))
+    models: dict[tuple[int, ...], tuple[Built, mujoco.MjData]] = {}
+    segments: list[_Segment] = []
+    for phases, hands in runs:
+        key = tuple(hands)
+        if key not in models:
+            ins = []
+            for h in hands:
+                g = everyone[h]
+                opening = g.hand.opening(g.width) if g.kind == "pinch" else 0.0
+                ins.append(HandIn(names[h], g.hand, g.kind, opening, sched.hand_poses[h, 0]))
+            built = build(obj, motion.pickup, ins, solver)
+            data = mujoco.MjData(built.model)
+            data.xfrc_applied[built.object_body, 2] = built.weight
+            mujoco.mj_forward(built.model, data)  # everyone at the start: none inside
+            _check_start(built, data, names)
+            models[key] = (built, data)
+        built, data = models[key]
+        first, last = sched.phases[phases[0]], sched.phases[phases[-1]]
+        if segments:
+            before = segments[-1]
+            maps = _joint_map(before.built.model, built.model)
+            entering = [h for h in hands if h not in before.hands]
+        else:
+            maps = tuple(np.zeros(0, dtype=np.int64) for _ in range(4))
+            entering = []
+        segments.append(_Segment(phases, first.start, last.stop, hands, built,
+                                 _control(built, sched, hands, quats, first.start, last.stop),
+                                 data, *maps, entering))  # fmt: skip
+    first = segments[0]
+    state0 = np.empty(mujoco.mj_stateSize(first.built.model, _FULL))
+    mujoco.mj_getState(first.built.model, first.data, state0, _FULL)
+    return _Prepared(sched, names, segments, state0, quats, time.perf_counter() - start)
 
 
 def _check_start(built: Built, data: mujoco.MjData, names: list[str]) -> None:
@@ -317,60 +420,171 @@ def _check_start(built: Built, data: mujoco.MjData, names: list[str]) -> None:
         )
 
 
-def _poses(qpos: np.ndarray, adr: int) -> tuple[np.ndarray, Rotation]:
-    """Positions (N, 3) and rotations of a free joint's body over the run."""
-    return qpos[:, adr:adr + 3], Rotation.from_quat(qpos[:, adr + 3:adr + 7], scalar_first=True)
+def _enter(prep: _Prepared, before: _Segment, state: np.ndarray, warm: np.ndarray,
+           seg: _Segment, model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """The state (nstate,) and warm start (1, nv) ``seg``'s ``model`` starts from, where the
+    previous segment's ended in ``state`` and ``warm``: the joints both models have carry
+    over, and a hand that comes in starts at rest on its target (it waited there, away
+    from the object), fingers open."""
+    mujoco.mj_setState(before.built.model, before.data, state, _FULL)
+    d = seg.data
+    mujoco.mj_resetData(model, d)  # qpos0: fingers open
+    d.time = before.data.time
+    d.qpos[seg.qpos_to] = before.data.qpos[seg.qpos_from]
+    d.qvel[seg.dof_to] = before.data.qvel[seg.dof_from]
+    row = seg.start - 1  # the targets of the last step simulated
+    for h in seg.entering:
+        adr = int(seg.built.hand_qpos[seg.hands.index(h)])
+        d.qpos[adr:adr + 3] = prep.schedule.hand_poses[h, row, :3, 3]
+        d.qpos[adr + 3:adr + 7] = prep.quats[h, row]
+    out = np.empty(mujoco.mj_stateSize(model, _FULL))
+    mujoco.mj_getState(model, d, out, _FULL)
+    start_warm = np.zeros((1, model.nv))
+    start_warm[0, seg.dof_to] = warm[0, seg.dof_from]
+    return out, start_warm
 
 
-def _pose_matrices(positions: np.ndarray, rotations: Rotation) -> np.ndarray:
-    return transform_from(rotations.as_matrix(), positions)
+def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(n, 4) Hamilton products of quaternions w, x, y, z (n, 4) or (4,)."""
+    aw, ax, ay, az = a.T
+    bw, bx, by, bz = b.T
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
+                     aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw], axis=-1)  # fmt: skip
 
 
-def _trajectory(prep: _Prepared, states: np.ndarray) -> Trajectory:
-    m, sched = prep.built.model, prep.schedule
-    stride = max(1, int(round(1.0 / (RECORD_HZ * sched.dt))))
-    rows = np.arange(stride - 1, sched.steps, stride)
-    qpos = states[rows, 1:1 + m.nq]
-    obj = _pose_matrices(*_poses(qpos, prep.built.object_qpos))
-    hands = np.stack([_pose_matrices(*_poses(qpos, int(a))) for a in prep.built.hand_qpos])
-    joints = [m.actuator_trnid[acts[0], 0] for acts in prep.built.actuators]
-    travel = np.stack([qpos[:, m.jnt_qposadr[j]] for j in joints])
-    phases = tuple((p.name, p.start * sched.dt) for p in sched.phases)
-    return Trajectory((rows + 1) * sched.dt, obj, tuple(prep.names), hands, travel, phases)
+def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(n, 3) cross products of (n, 3) or (3,) vectors."""
+    ux, uy, uz = u.T
+    vx, vy, vz = v.T
+    return np.stack([uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx], axis=-1)
 
 
-def _measure(prep: _Prepared, states: np.ndarray, thresholds: Thresholds, mode: str,
-             seconds: float) -> CheckResult:  # fmt: skip
-    m, sched = prep.built.model, prep.schedule
-    qpos = states[:, 1:1 + m.nq]  # FULLPHYSICS: time, then qpos
-    p_obj, r_obj = _poses(qpos, prep.built.object_qpos)
-    slips = []
-    for h in range(len(prep.names)):
-        ref = int(sched.settled[h])
-        if ref < 0:
-            slips.append(None)
-            continue
-        p_hand, r_hand = _poses(qpos, int(prep.built.hand_qpos[h]))
-        inv = r_hand.inv()
-        rel_p = inv.apply(p_obj - p_hand)  # the object's origin in the hand frame
-        rel_r = inv * r_obj
-        turn = rel_r * rel_r[ref].inv()
-        moved = rel_p - turn.apply(rel_p[ref])  # where the hand-origin point went
-        slips.append((np.linalg.norm(moved, axis=1) * 1000.0, np.degrees(turn.magnitude())))
+def _qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(n, 3) the vectors ``v`` turned by the unit quaternions ``q`` (w, x, y, z)."""
+    t = 2.0 * _cross(q[..., 1:], v)
+    return v + q[..., :1] * t + _cross(q[..., 1:], t)
+
+
+_CONJ = np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _relative(obj: np.ndarray, hand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The object's origin (..., 3) and orientation (..., 4) in the hand's frame, from
+    free-joint poses (..., 7): position, quaternion w x y z."""
+    qh = hand[..., 3:] / np.linalg.norm(hand[..., 3:], axis=-1, keepdims=True)
+    qo = obj[..., 3:] / np.linalg.norm(obj[..., 3:], axis=-1, keepdims=True)
+    inv = qh * _CONJ
+    return _qrot(inv, obj[..., :3] - hand[..., :3]), _qmul(inv, qo)
+
+
+def _slip(obj: np.ndarray, hand: np.ndarray, ref: int, rows: slice) -> tuple[float, float]:
+    """The largest slip (mm, deg) over ``rows`` of the object in the hand's frame since
+    step ``ref``: the displacement of the object's point that sat at the hand's origin,
+    and the angle it turned. obj, hand : (N, 7) free-joint poses per step."""
+    p, q = _relative(obj[rows], hand[rows])
+    p0, q0 = _relative(obj[ref], hand[ref])
+    turn = _qmul(q, q0 * _CONJ)
+    moved = p - _qrot(turn, p0)
+    angle = 2.0 * np.arctan2(np.linalg.norm(turn[:, 1:], axis=1), np.abs(turn[:, 0]))
+    return (float(np.linalg.norm(moved, axis=1).max() * 1000.0),
+            float(np.degrees(angle).max()))  # fmt: skip
+
+
+@dataclass
+class _Run:
+    """One simulated run: ``poses`` (H + 1, N, 7) the object's and each hand's free joint
+    per step (position, quaternion w x y z; NaN where a hand is not simulated or past
+    ``steps``), ``travel`` (H, N) m each hand's finger (or press) joint, ``steps`` the
+    steps simulated, ``phases`` the slips measured, ``seconds`` wall time."""
+
+    poses: np.ndarray
+    travel: np.ndarray
+    steps: int
+    phases: list[PhaseSlip]
+    seconds: float
+
+
+def _simulate(prep: _Prepared, models: list[mujoco.MjModel], thresholds: Thresholds,
+              stop_early: bool) -> _Run:  # fmt: skip
+    """Run the schedule on ``models`` (one per segment, the prepared ones or perturbed
+    copies), one phase per MuJoCo ``rollout`` (the warm start carried over, so the steps
+    are those of one rollout), measuring each phase's holders as it ends; with
+    ``stop_early``, stop after the first phase whose slip passes a threshold."""
+    start = time.perf_counter()
+    sched, names = prep.schedule, prep.names
+    n, hands = sched.steps, len(names)
+    runner = rollout.Rollout(nthread=0)  # on this thread
+    poses = np.full((hands + 1, n, 7), np.nan)
+    travel = np.zeros((hands, n))
     phases: list[PhaseSlip] = []
-    dropped_in = None
-    for phase in sched.phases:
-        for holder in phase.holders:
-            h = prep.names.index(holder)
-            t, r = slips[h]
-            mm = float(t[phase.start:phase.stop].max())
-            deg = float(r[phase.start:phase.stop].max())
-            drop = mm > thresholds.drop_mm or deg > thresholds.drop_deg
-            if drop and dropped_in is None:
-                dropped_in = phase.name
-            phases.append(PhaseSlip(phase.name, holder, mm, deg, drop))
-    within = all(p.translation_mm <= thresholds.max_slip_mm and
-                 p.rotation_deg <= thresholds.max_slip_deg for p in phases)  # fmt: skip
+    state, warm = prep.state0, None
+    before: _Segment | None = None
+    for seg, m in zip(prep.segments, models, strict=True):
+        if before is not None:
+            state, warm = _enter(prep, before, state, warm, seg, m)
+        built = seg.built
+        out = np.empty((seg.stop - seg.start, mujoco.mj_stateSize(m, _FULL)))
+        cols = [1 + built.object_qpos] + [1 + int(a) for a in built.hand_qpos]
+        fingers = [1 + int(m.jnt_qposadr[m.actuator_trnid[a[0], 0]]) for a in built.actuators]
+        for k in seg.phases:
+            phase = sched.phases[k]
+            a, b = phase.start - seg.start, phase.stop - seg.start
+            runner.rollout([m], [seg.data], state[None], seg.control[None, a:b],
+                           control_spec=_CONTROL_SPEC, nstep=b - a, initial_warmstart=warm,
+                           state=out[None, a:b], skip_checks=True)  # fmt: skip
+            warm = seg.data.qacc_warmstart.copy()[None]
+            state = out[b - 1]
+            rows = slice(phase.start, phase.stop)
+            for which, col in zip([0] + [h + 1 for h in seg.hands], cols, strict=True):
+                poses[which, rows] = out[a:b, col:col + 7]
+            for h, col in zip(seg.hands, fingers, strict=True):
+                travel[h, rows] = out[a:b, col]
+            failed = False
+            for holder in phase.holders:
+                h = names.index(holder)
+                mm, deg = _slip(poses[0], poses[h + 1], int(sched.settled[h]), rows)
+                drop = mm > thresholds.drop_mm or deg > thresholds.drop_deg
+                phases.append(PhaseSlip(phase.name, holder, mm, deg, drop))
+                failed |= mm > thresholds.max_slip_mm or deg > thresholds.max_slip_deg
+            if failed and stop_early:
+                return _Run(poses, travel, phase.stop, phases, time.perf_counter() - start)
+        before = seg
+    return _Run(poses, travel, n, phases, time.perf_counter() - start)
+
+
+def _pose_matrices(poses: np.ndarray) -> np.ndarray:
+    """(..., 4, 4) of free-joint poses (..., 7)."""
+    flat = poses.reshape(-1, 7)
+    rot = Rotation.from_quat(flat[:, 3:], scalar_first=True).as_matrix()
+    return transform_from(rot, flat[:, :3]).reshape(*poses.shape[:-1], 4, 4)
+
+
+def _trajectory(prep: _Prepared, run: _Run) -> Trajectory:
+    """The simulated motion sampled at :data:`RECORD_HZ` (a hand not simulated in a phase
+    is where its target is, fingers open)."""
+    sched = prep.schedule
+    stride = max(1, int(round(1.0 / (RECORD_HZ * sched.dt))))
+    rows = np.arange(stride - 1, run.steps, stride)
+    obj = _pose_matrices(run.poses[0, rows])
+    hands = np.empty((len(prep.names), len(rows), 4, 4))
+    for h in range(len(prep.names)):
+        here = ~np.isnan(run.poses[h + 1, rows, 0])
+        hands[h] = sched.hand_poses[h, rows]
+        if here.any():
+            hands[h, here] = _pose_matrices(run.poses[h + 1, rows[here]])
+    phases = tuple((p.name, p.start * sched.dt) for p in sched.phases if p.start < run.steps)
+    return Trajectory((rows + 1) * sched.dt, obj, tuple(prep.names), hands,
+                      run.travel[:, rows], phases)  # fmt: skip
+
+
+def _result(prep: _Prepared, run: _Run, thresholds: Thresholds, mode: str,
+            seconds: float) -> CheckResult:  # fmt: skip
+    phases = run.phases
+    dropped_in = next((p.phase for p in phases if p.dropped), None)
+    failed_in = next((p.phase for p in phases if p.translation_mm > thresholds.max_slip_mm
+                      or p.rotation_deg > thresholds.max_slip_deg), None)  # fmt: skip
     receiver_held = None
     if any(n.startswith("receiver") for n in prep.names):
         mine = [p for p in phases if p.holder.startswith("receiver")]
@@ -380,20 +594,12 @@ def _measure(prep: _Prepared, states: np.ndarray, thresholds: Thresholds, mode: 
         )
     dropped = dropped_in is not None
     return CheckResult(
-        mode=mode, passed=within and not dropped, dropped=dropped, dropped_in=dropped_in,
-        receiver_held=receiver_held, phases=tuple(phases),
+        mode=mode, passed=failed_in is None and not dropped, dropped=dropped,
+        dropped_in=dropped_in, receiver_held=receiver_held, phases=tuple(phases),
         max_translation_mm=max((p.translation_mm for p in phases), default=0.0),
         max_rotation_deg=max((p.rotation_deg for p in phases), default=0.0),
-        seconds=seconds, simulated_seconds=sched.steps * sched.dt,
+        seconds=seconds, simulated_seconds=run.steps * prep.schedule.dt, failed_in=failed_in,
     )  # fmt: skip
-
-
-def _run(prep: _Prepared, models: list[mujoco.MjModel]) -> np.ndarray:
-    """States (len(models), N, nstate) of the schedule run on each model, one thread."""
-    state, _ = rollout.rollout(models, prep.data, prep.state0[None],
-                               prep.control[None], control_spec=prep.control_spec,
-                               nstep=prep.schedule.steps)  # fmt: skip
-    return state
 
 
 def check(
@@ -406,6 +612,7 @@ def check(
     solver: Solver | None = None,
     thresholds: Thresholds | None = None,
     record: bool = False,
+    stop_early: bool = True,
 ) -> CheckResult:
     """Simulate the grasps through the protocol and measure how the object slips.
 
@@ -419,17 +626,19 @@ def check(
         grippers open and retreat; or None.
     protocol, solver, thresholds : the parameters (their defaults if None).
     record : also return the motion (``CheckResult.trajectory``) for drawing.
+    stop_early : stop at the end of the first phase whose slip passes a threshold (the
+        run fails whatever follows; ``CheckResult.failed_in``); False runs every phase.
     Raises ``ValueError`` on inconsistent input (mode against grasps and motion, a grasp
-    wider than its hand opens).
+    wider than its hand opens, a hand starting inside the object).
     """
     start = time.perf_counter()
     protocol, solver = protocol or Protocol(), solver or Solver()
     thresholds = thresholds or Thresholds()
     prep = _prepare(obj, list(grasps), motion, mode, receiver, protocol, solver)
-    states = _run(prep, [prep.built.model])[0]
-    result = _measure(prep, states, thresholds, mode, time.perf_counter() - start)
+    run = _simulate(prep, [s.built.model for s in prep.segments], thresholds, stop_early)
+    result = _result(prep, run, thresholds, mode, time.perf_counter() - start)
     if record:
-        result = replace(result, trajectory=_trajectory(prep, states))
+        result = replace(result, trajectory=_trajectory(prep, run))
     return result
 
 
@@ -456,20 +665,28 @@ def ensemble(
     solver: Solver | None = None,
     thresholds: Thresholds | None = None,
     perturbations: tuple[Perturbation, ...] = DEFAULT_ENSEMBLE,
+    stop_early: bool = True,
 ) -> EnsembleResult:
     """The nominal :func:`check` and one run per perturbation (friction, grip force and
-    torsion of every hand scaled), batched in one rollout on one thread. Arguments as for
-    :func:`check`; raises ``ValueError`` for an empty ``perturbations``."""
+    torsion of every hand scaled), one after the other on one thread, on the same models
+    and schedule (built once). Arguments as for :func:`check`; raises ``ValueError`` for
+    an empty ``perturbations``."""
     if not perturbations:
         raise ValueError("an ensemble needs at least one perturbation")
     start = time.perf_counter()
     protocol, solver = protocol or Protocol(), solver or Solver()
     thresholds = thresholds or Thresholds()
     prep = _prepare(obj, list(grasps), motion, mode, receiver, protocol, solver)
-    models = [prep.built.model] + [_perturbed(prep.built, p) for p in perturbations]
-    states = _run(prep, models)
-    seconds = time.perf_counter() - start
-    results = [_measure(prep, s, thresholds, mode, seconds / len(models)) for s in states]
+    sets = [[s.built.model for s in prep.segments]]
+    sets += [[_perturbed(s.built, p) for s in prep.segments] for p in perturbations]
+    share = (time.perf_counter() - start) / len(sets)
+    results = []
+    for models in sets:
+        run = _simulate(prep, models, thresholds, stop_early)
+        measured = time.perf_counter()
+        result = _result(prep, run, thresholds, mode, 0.0)
+        seconds = share + run.seconds + time.perf_counter() - measured
+        results.append(replace(result, seconds=seconds))
     nominal, runs = results[0], results[1:]
     margin = sum(r.passed for r in runs) / len(runs)
     return EnsembleResult(

@@ -94,12 +94,17 @@ class HandPlan:
 @dataclass(frozen=True)
 class Phase:
     """Steps ``[start, stop)`` of one phase; ``holders``: the hands whose grip is measured
-    (they hold the object, their grip settled before the phase began)."""
+    (they hold the object, their grip settled before the phase began); ``present``: the
+    hands that take part in it (hold, come in, close, or let go and back off), in the
+    schedule's order. The others wait ``approach_distance`` back from their grasp or have
+    backed off after letting go: they touch nothing, so the check leaves them out of the
+    phase's model (empty: every hand)."""
 
     name: str
     start: int
     stop: int
     holders: tuple[str, ...]
+    present: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -173,6 +178,7 @@ class _Builder:
         self.finger_now = np.zeros(len(hands))
         self.weight_now = 0.0
         self.settled = np.full(len(hands), -1, dtype=np.int64)
+        self.present: set[int] = set()  # the hands taking part from now on
 
     def steps(self, duration: float) -> int:
         return max(1, int(round(duration / self.dt)))
@@ -187,7 +193,8 @@ class _Builder:
             np.repeat(self.finger_now[:, None], n, 1) if fingers is None else fingers
         )
         self.weights.append(np.full(n, self.weight_now) if weight is None else weight)
-        self.phases.append(Phase(name, self.n, self.n + n, holders))
+        present = tuple(h.name for k, h in enumerate(self.hands) if k in self.present)
+        self.phases.append(Phase(name, self.n, self.n + n, holders, present))
         self.n += n
         self.pose = objs[-1]
         self.back_now = self.back[-1][:, -1].copy()
@@ -248,9 +255,11 @@ class _Builder:
         back = np.concatenate([np.repeat(self.back_now[:, None], n_open, 1), back], axis=1)
         objs = np.repeat(self.pose[None], n_open + n_back, axis=0)
         self.add(name, holders, objs, back=back, fingers=fingers)
+        self.present -= set(which)  # backed off: it touches the object no more
 
     def approach(self, name: str, which: list[int], holders: tuple[str, ...]) -> None:
         p = self.protocol
+        self.present |= set(which)
         self.add(name, holders, self.still(p.approach_time),
                  back=self.move_back(which, 0.0, p.approach_time))
 
@@ -320,7 +329,9 @@ def schedule(
     The phases: close, lift, carry, hold, shake; in H2G2 then regrasp_approach,
     regrasp_close, regrasp_release, regrasp_carry, regrasp_hold, regrasp_shake; with a
     receiver handover_approach, handover_close, handover_release, handover_hold.
-    Hands that take the object later start ``approach_distance`` back along their approach.
+    Hands that take the object later start ``approach_distance`` back along their approach
+    and take part from their approach on; hands that let go take part until they have
+    backed off (:attr:`Phase.present`).
     Raises ``ValueError`` if the mode, the number of grippers or the motion do not agree.
     """
     if mode not in MODES:
@@ -340,6 +351,7 @@ def schedule(
     first = [0, 1] if mode == "H2G1" else [0]
     later = list(range(1, len(hands))) if mode == "H2G2" else list(range(len(first), len(hands)))
     b.back_now[later] = p.approach_distance
+    b.present = set(first)
     holding = tuple(names[h] for h in first)
     b.close("close", first, ())
     b.lift(holding)
