@@ -35,6 +35,14 @@ DECIMALS = 6
 def to_jsonable(value: Any) -> Any:
     """Numpy arrays and scalars to lists and floats, rounded to ``DECIMALS``; NaN/inf to None;
     dict keys to strings. Idempotent (JSON-able data comes back equal)."""
+    kind = type(value)
+    if kind is float:  # the commonest leaf first (a result holds some 10^4 of them)
+        if not math.isfinite(value):
+            return None
+        r = round(value, DECIMALS)
+        return 0.0 if r == 0 else r  # no "-0.0"
+    if kind is str or kind is int or kind is bool or value is None:
+        return value
     if isinstance(value, dict):
         return {str(k): to_jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
