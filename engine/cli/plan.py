@@ -165,7 +165,8 @@ def _render_what_if(data: dict, console) -> None:
 def _group_line(group: dict) -> str:
     who = ", ".join(f"{g['hand']} grasp {g['id']}" for g in group["grasps"])
     verdict = "holds" if group["passed"] else (
-        f"drops in {group['dropped_in']}" if group["dropped_in"] else "slips")
+        f"drops in {group['dropped_in']}" if group["dropped_in"] else
+        f"slips in {group['failed_in']}" if group.get("failed_in") else "slips")
     return (f"{who}: {verdict} (slip {group['max_translation_mm']:.1f} mm / "
             f"{group['max_rotation_deg']:.1f} deg, margin {group['margin']:.2f}, "
             f"{group['seconds']:.2f} s)")

@@ -263,8 +263,9 @@ class GraspCheck:
         return self.result.nominal.passed
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON block: grasps (hand, id), passed, dropped_in, slip per phase (mm, deg),
-        margin, robust, the ensemble's runs, seconds."""
+        """The JSON block: grasps (hand, id), passed, failed_in, dropped_in, slip per phase
+        (mm, deg; up to the end of the phase it failed in), margin, robust, the ensemble's
+        runs, seconds."""
         nominal, ens = self.result.nominal, self.result.to_dict()
         holder = {f"gripper{k}": h for k, h in enumerate(self.hands)}
         slip = []
@@ -275,7 +276,8 @@ class GraspCheck:
         return {
             "mode": self.mode,
             "grasps": [{"hand": h, "id": i} for h, i in zip(self.hands, self.ids, strict=True)],
-            "passed": self.passed, "dropped_in": nominal.dropped_in,
+            "passed": self.passed, "failed_in": nominal.failed_in,
+            "dropped_in": nominal.dropped_in,
             "receiver_held": nominal.receiver_held, "slip": slip,
             "max_translation_mm": round(nominal.max_translation_mm, 2),
             "max_rotation_deg": round(nominal.max_rotation_deg, 2),
@@ -465,9 +467,9 @@ def check_alternatives(kb: KB, ctx: PlanContext, data: dict, physics: PlanPhysic
 
 def record_plan(kb: KB, data: dict, cache_dir: str | Path | None = None) -> Trajectory:
     """The nominal check of a plan's chosen grasps (as :func:`check_plan`, without the
-    ensemble or the receiver), recorded: the simulated object and hands over time
-    (:class:`handover.geometry.physics.Trajectory`, 50 Hz), for the recording's ``physics``
-    timeline."""
+    ensemble or the receiver, every phase simulated even after a slip), recorded: the
+    simulated object and hands over time (:class:`handover.geometry.physics.Trajectory`,
+    50 Hz), for the recording's ``physics`` timeline."""
     from handover.geometry.physics import check
 
     obj_spec, grip_spec = _specs(kb, data)
@@ -476,7 +478,7 @@ def record_plan(kb: KB, data: dict, cache_dir: str | Path | None = None) -> Traj
     grasps = plan_grasps(hand, data, squeeze_hand(kb, data, hand))
     try:
         result = check(obj, [g for _, _, g in grasps], plan_motion(data), mode=data["mode"],
-                       record=True)
+                       record=True, stop_early=False)  # drawn to the end, a drop included
     except ValueError as e:
         raise UsageError(f"the plan's grasp cannot be simulated: {e}") from None
     return result.trajectory

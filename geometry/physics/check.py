@@ -444,52 +444,47 @@ def _enter(prep: _Prepared, before: _Segment, state: np.ndarray, warm: np.ndarra
     return out, start_warm
 
 
-def _qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(n, 4) Hamilton products of quaternions w, x, y, z (n, 4) or (4,)."""
-    aw, ax, ay, az = a.T
-    bw, bx, by, bz = b.T
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw], axis=-1)  # fmt: skip
-
-
-def _cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(n, 3) cross products of (n, 3) or (3,) vectors."""
-    ux, uy, uz = u.T
-    vx, vy, vz = v.T
-    return np.stack([uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx], axis=-1)
-
-
-def _qrot(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """(n, 3) the vectors ``v`` turned by the unit quaternions ``q`` (w, x, y, z)."""
-    t = 2.0 * _cross(q[..., 1:], v)
-    return v + q[..., :1] * t + _cross(q[..., 1:], t)
-
-
+# (a ⊗ b) = L(a) b for quaternions w, x, y, z: L(a) = a[_LEFT] * _LEFT_SIGN
+_LEFT = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
+_LEFT_SIGN = np.array([[1.0, -1, -1, -1], [1, 1, -1, 1], [1, 1, 1, -1], [1, -1, 1, 1]])
+# A unit quaternion's rotation matrix (row-major, 9) from its products q_k q_l, k <= l
+_PAIRS = np.array([(k, m) for k in range(4) for m in range(k, 4)]).T  # ww wx wy wz xx ...
+_MATRIX = np.zeros((10, 9))
+for _row, _entries in enumerate([
+    {0: 1, 4: 1, 8: 1}, {5: -2, 7: 2}, {2: 2, 6: -2}, {1: -2, 3: 2},  # ww wx wy wz
+    {0: 1, 4: -1, 8: -1}, {1: 2, 3: 2}, {2: 2, 6: 2},  # xx xy xz
+    {0: -1, 4: 1, 8: -1}, {5: 2, 7: 2}, {0: -1, 4: -1, 8: 1},  # yy yz zz
+]):
+    for _col, _value in _entries.items():
+        _MATRIX[_row, _col] = _value
 _CONJ = np.array([1.0, -1.0, -1.0, -1.0])
 
 
-def _relative(obj: np.ndarray, hand: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The object's origin (..., 3) and orientation (..., 4) in the hand's frame, from
-    free-joint poses (..., 7): position, quaternion w x y z."""
-    qh = hand[..., 3:] / np.linalg.norm(hand[..., 3:], axis=-1, keepdims=True)
-    qo = obj[..., 3:] / np.linalg.norm(obj[..., 3:], axis=-1, keepdims=True)
-    inv = qh * _CONJ
-    return _qrot(inv, obj[..., :3] - hand[..., :3]), _qmul(inv, qo)
+def _rotations(q: np.ndarray) -> np.ndarray:
+    """(n, 3, 3) rotation matrices of unit quaternions (n, 4), w x y z."""
+    return ((q[:, _PAIRS[0]] * q[:, _PAIRS[1]]) @ _MATRIX).reshape(-1, 3, 3)
+
+
+def _unit(q: np.ndarray) -> np.ndarray:
+    return q / np.sqrt((q * q).sum(axis=-1, keepdims=True))
 
 
 def _slip(obj: np.ndarray, hand: np.ndarray, ref: int, rows: slice) -> tuple[float, float]:
     """The largest slip (mm, deg) over ``rows`` of the object in the hand's frame since
     step ``ref``: the displacement of the object's point that sat at the hand's origin,
-    and the angle it turned. obj, hand : (N, 7) free-joint poses per step."""
-    p, q = _relative(obj[rows], hand[rows])
-    p0, q0 = _relative(obj[ref], hand[ref])
-    turn = _qmul(q, q0 * _CONJ)
-    moved = p - _qrot(turn, p0)
-    angle = 2.0 * np.arctan2(np.linalg.norm(turn[:, 1:], axis=1), np.abs(turn[:, 0]))
-    return (float(np.linalg.norm(moved, axis=1).max() * 1000.0),
-            float(np.degrees(angle).max()))  # fmt: skip
+    and the angle it turned. obj, hand : (N, 7) free-joint poses per step (position,
+    quaternion w x y z)."""
+    at = np.r_[ref, np.arange(rows.start, rows.stop)]  # the reference first
+    o, h = obj[at], hand[at]
+    qh, qo = _unit(h[:, 3:]), _unit(o[:, 3:])
+    # the object's origin and orientation in the hand's frame
+    p = np.einsum("nji,nj->ni", _rotations(qh), o[:, :3] - h[:, :3])
+    q = np.einsum("nij,nj->ni", (qh * _CONJ)[:, _LEFT] * _LEFT_SIGN, qo)
+    turn = np.einsum("nij,j->ni", q[1:, _LEFT] * _LEFT_SIGN, q[0] * _CONJ)  # since ref
+    moved = p[1:] - np.einsum("nij,j->ni", _rotations(turn), p[0])
+    angle = 2.0 * np.arctan2(np.sqrt((turn[:, 1:] ** 2).sum(axis=1)), np.abs(turn[:, 0]))
+    return (float(np.sqrt((moved * moved).sum(axis=1)).max() * 1000.0),
+            float(np.degrees(angle.max())))  # fmt: skip
 
 
 @dataclass

@@ -73,9 +73,19 @@ class Built:
     weight: float
 
 
+_QUATS: dict[bytes, np.ndarray] = {}
+
+
 def _quat(rotation: np.ndarray) -> np.ndarray:
-    """(4,) w, x, y, z of a rotation matrix."""
-    return Rotation.from_matrix(rotation).as_quat(scalar_first=True)
+    """(4,) w, x, y, z of a rotation matrix (3, 3). Remembered (up to 1,024): a check
+    builds a model per run of phases, each with the same shapes and hands' start poses."""
+    key = np.ascontiguousarray(rotation, dtype=float).tobytes()
+    quat = _QUATS.get(key)
+    if quat is None:
+        if len(_QUATS) >= 1024:
+            _QUATS.clear()
+        quat = _QUATS[key] = Rotation.from_matrix(rotation).as_quat(scalar_first=True)
+    return quat.copy()
 
 
 def _add_shapes(body: mujoco.MjsBody, spec: mujoco.MjSpec, obj: ObjectModel) -> None:

@@ -161,6 +161,52 @@ def test_the_same_check_twice_gives_identical_numbers():
     assert first.max_rotation_deg > 0.0  # it moves, so equality says something
 
 
+def test_a_run_stops_at_the_end_of_the_phase_it_failed_in():
+    # The end of the hammer's handle drops in the lift; a knife held at its blade tip
+    # turns past 5 deg in the lift without dropping. Nothing after can make them pass.
+    end = Grasp(HAND, frame(*FROM_ABOVE, [0.03, 0, 0]), width=0.032)
+    tip = Grasp(HAND, frame([1, 0, 0], [0, 0, 1], [0, -1, 0], [0.17, 0, -0.015]), 0.02)
+    for obj, grasp, dropped in ((hammer(), end, "lift"), (knife(), tip, None)):
+        early = check(obj, [grasp], MOTION)
+        full = check(obj, [grasp], MOTION, stop_early=False)
+        assert not early.passed and not full.passed
+        assert early.failed_in == full.failed_in == "lift"
+        assert early.dropped_in == full.dropped_in == dropped
+        assert [p.phase for p in early.phases] == ["lift"]
+        assert early.phases == full.phases[:1]  # the phase measured in full, exact floats
+        assert early.simulated_seconds == pytest.approx(0.8)  # close 0.3 s, lift 0.5 s
+        assert full.simulated_seconds == pytest.approx(4.8)
+        assert [p.phase for p in full.phases] == ["lift", "carry", "hold", "shake"]
+    # A receiver never reached does not hold it.
+    stopped = check(hammer(), [end], MOTION, receiver=Grasp(
+        Hand.receiver_pads(receiver_grip_force("adult")),
+        frame([1, 0, 0], [0, 1, 0], [0, 0, 1], [0.15, 0, 0]), 0.032))  # fmt: skip
+    assert stopped.failed_in == "lift" and stopped.receiver_held is False
+
+
+def test_only_the_hands_taking_part_in_a_phase_are_simulated_in_it():
+    from handover.geometry.physics.check import _plan
+    from handover.geometry.physics.protocol import schedule
+
+    midair = transform_from(None, [0.55, 0.1, 0.35])
+    motion = Motion(PICK, midair[None], regrasp_carry=END[None])
+    below = Grasp(HAND, frame([0, 1, 0], [-1, 0, 0], [0, 0, 1], [0, 0, -0.03]), width=0.06)
+    pads = receiver_from_below("adult")
+    plans = [_plan(g, n) for g, n in ((BOX_TOP, "g0"), (below, "g1"), (pads, "r"))]
+    phases = schedule("H2G2", plans[:2], motion, Protocol(), 0.002, plans[2:]).phases
+    present = {p.name: p.present for p in phases}
+    assert present["shake"] == ("g0",)  # the second gripper and the receiver wait away
+    assert present["regrasp_approach"] == present["regrasp_release"] == ("g0", "g1")
+    assert present["regrasp_shake"] == ("g1",)  # the first has let go and backed off
+    assert present["handover_close"] == ("g1", "r") and present["handover_hold"] == ("r",)
+    # A check with hands coming and going measures each where it holds.
+    result = check(box(), [BOX_TOP, below], motion, mode="H2G2", receiver=pads, record=True)
+    assert result.passed and result.receiver_held
+    traj = result.trajectory
+    waiting = traj.times < 4.8  # the receiver waits away until the regrasp is done
+    assert np.allclose(traj.travel[2, waiting], 0.0)
+
+
 def test_a_crate_too_wide_for_one_gripper_is_held_by_two_squeezing_it():
     crate = ObjectModel((Primitive("box", (0.40, 0.30, 0.20)),), mass=1.2)
     with pytest.raises(ValueError, match="more than the hand opens"):
