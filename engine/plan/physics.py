@@ -321,8 +321,10 @@ class PlanPhysics:
 def failing_grasps(check: GraspCheck) -> dict[int, str]:
     """The candidate ids of a failed group's grippers that let the object slip or drop,
     each with how (``slipped 6.2 mm / 14.1 deg in shake``): the holders whose slip passed
-    the thresholds in some phase (every gripper of the group when the receiver's hands, or
-    nothing it can tell, failed)."""
+    the thresholds in some phase simulated (the run stops at the end of the phase it failed
+    in: a gripper that slips there is named, one that would have slipped only later is
+    not), or every gripper of the group when the receiver's hands, or nothing it can tell,
+    failed."""
     from handover.geometry.physics import Thresholds
 
     t = Thresholds()

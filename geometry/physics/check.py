@@ -257,12 +257,15 @@ class _Segment:
 
 @dataclass
 class _Prepared:
+    """What every run of a check shares: the schedule, the hands' names (grippers, then
+    receivers), the segments with their models, the first model's start state (nstate,)
+    and the hands' target orientations."""
+
     schedule: Schedule
     names: list[str]
     segments: list[_Segment]
     state0: np.ndarray
     quats: np.ndarray  # (H, N, 4) each hand's target orientation per step, w x y z
-    seconds: float = 0.0  # building the models and the schedule
 
 
 _CONTROL = (_STATE.mjSTATE_CTRL.value, _STATE.mjSTATE_XFRC_APPLIED.value,
@@ -342,7 +345,6 @@ def _prepare(obj: ObjectModel, grasps: list[Grasp], motion: Motion, mode: str,
     """The schedule and one model per run of phases with the same hands taking part
     (a hand waiting away from the object, or gone after letting go, is left out), each
     model checked for a hand starting inside the object (``ValueError``)."""
-    start = time.perf_counter()
     names = [f"gripper{k}" for k in range(len(grasps))]
     plans = [_plan(g, n) for g, n in zip(grasps, names, strict=True)]
     takers = [] if receiver is None else [receiver] if isinstance(receiver, Grasp) else list(
@@ -397,7 +399,7 @@ def _prepare(obj: ObjectModel, grasps: list[Grasp], motion: Motion, mode: str,
     first = segments[0]
     state0 = np.empty(mujoco.mj_stateSize(first.built.model, _FULL))
     mujoco.mj_getState(first.built.model, first.data, state0, _FULL)
-    return _Prepared(sched, names, segments, state0, quats, time.perf_counter() - start)
+    return _Prepared(sched, names, segments, state0, quats)
 
 
 def _check_start(built: Built, data: mujoco.MjData, names: list[str]) -> None:
