@@ -145,8 +145,14 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
     """The stages of robot grasp ``grasp`` (the ``index``-th chosen of ``attempt``) and their
     joints: the plan's at pick-up, midair and handover, inverse kinematics between.
     ``valid(q (dof,), where, holding) -> bool``: whether joints found between the stages are
-    collision-free in plan stage ``where`` (None: not checked); joints that are not are
-    replaced by other answers of inverse kinematics, the nearest valid one."""
+    collision-free in plan stage ``where`` (None: not checked; with a ``many(q (k, dof),
+    where, holding) -> (k,) bool`` method, answers are checked in one batch); joints that are
+    not are replaced by other answers of inverse kinematics, the nearest valid one.
+
+    The first try of every stage between (its straight walk, at its first back-off distance)
+    is solved for all of them together, step by step (a target's answer depends on it and its
+    start alone, so this gives what solving them one by one gives, to the bit); the stages are
+    then judged in order, the first failure returned."""
     from handover.engine.plan.corridors import lift
 
     arms = ctx.arms
@@ -165,48 +171,74 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
     holding: list[bool] = []
     world: list[str] = []
 
-    def solve(name: str, pose: np.ndarray, seed: np.ndarray, where: str, carried: bool
-              ) -> np.ndarray | MotionFailure:
-        """Joints for ``pose`` near ``seed``: the tool moved there in steps of at most
-        :data:`IK_STEP` m along the straight line, each solved from the last (no restarts,
-        so the arm stays on its branch); where that fails or touches something, the nearest
-        (in joints) valid answer of :data:`IK_ANSWERS` from the start library."""
-        q = np.asarray(seed, dtype=float)
-        start = arms.fk(side, q[None])[0]
-        steps = max(1, int(np.ceil(np.linalg.norm(pose[:3, 3] - start[:3, 3]) / IK_STEP)))
-        for t in np.arange(1, steps + 1) / steps:
-            target = pose.copy()
-            target[:3, 3] = start[:3, 3] + t * (pose[:3, 3] - start[:3, 3])
-            found = arms.solve(side, target[None], q0=q, restarts=0)
-            if not found.ok[0]:
-                break
-            q = found.q[0]
-        else:
-            if valid is None or valid(q, where, carried):
-                return q
-        many = arms.solve_each(side, pose[None], IK_ANSWERS)
-        answers = [a for a, ok in zip(many.q[0], many.ok[0], strict=True)
-                   if ok and (valid is None or valid(a, where, carried))]
-        if not answers:
-            said = ""
-            if valid is not None and hasattr(valid, "contacts"):
-                touch = valid.contacts(q, where, carried)
-                said = (" (on the straight way there, " + ", ".join(
-                    f"{a} touches {b}" for a, b in touch[:3]) + ")") if touch else ""
-            return MotionFailure(grasp.id, side, name, "inverse kinematics found no "
-                                 f"collision-free joints for the {name} pose{said}")
-        return min(answers, key=lambda a: float(np.abs(a - seed).max()))
+    def many(q: np.ndarray, where: str, carried: bool) -> np.ndarray:
+        """(k,) bool: whether joints q (k, dof) are collision-free in ``where``."""
+        if valid is None or not len(q):
+            return np.ones(len(q), dtype=bool)
+        if hasattr(valid, "many"):
+            return np.asarray(valid.many(q, where, carried), dtype=bool)
+        return np.array([bool(valid(a, where, carried)) for a in q], dtype=bool)
 
-    def backed(name: str, tool: np.ndarray, distances, seed: np.ndarray, where: str,
-               carried: bool) -> np.ndarray | MotionFailure:
-        """Joints for ``tool`` backed off along ``-a`` by the first of ``distances`` (m)
-        that has collision-free joints."""
-        found: np.ndarray | MotionFailure = MotionFailure(grasp.id, side, name, "no distance")
-        for d in dict.fromkeys(float(x) for x in distances):
-            found = solve(name, _backed(tool, d), seed, where, carried)
-            if not isinstance(found, MotionFailure):
-                return found
-        return found
+    def walks(requests: list[tuple[np.ndarray, np.ndarray]]) -> list[tuple[np.ndarray, bool]]:
+        """Per ``(pose (4, 4), seed (dof,))``: the tool moved from where ``seed`` puts it to
+        ``pose`` in steps of at most :data:`IK_STEP` m along the straight line, each solved
+        from the last (no restarts, so the arm stays on its branch): the last joints found
+        and whether they reach ``pose``. All requests step together, one batch per step."""
+        qs_ = [np.asarray(seed, dtype=float) for _, seed in requests]
+        starts = [arms.fk(side, q[None])[0] for q in qs_]
+        counts = [max(1, int(np.ceil(np.linalg.norm(pose[:3, 3] - start[:3, 3]) / IK_STEP)))
+                  for (pose, _), start in zip(requests, starts, strict=True)]
+        going = [True] * len(requests)
+        for k in range(1, max(counts, default=0) + 1):
+            rows = [r for r, c in enumerate(counts) if going[r] and k <= c]
+            if not rows:
+                break
+            targets = []
+            for r in rows:
+                pose, start = requests[r][0], starts[r]
+                t = (np.arange(1, counts[r] + 1) / counts[r])[k - 1]
+                target = pose.copy()
+                target[:3, 3] = start[:3, 3] + t * (pose[:3, 3] - start[:3, 3])
+                targets.append(target)
+            found = arms.solve(side, np.array(targets), q0=np.array([qs_[r] for r in rows]),
+                               restarts=0)
+            for j, r in enumerate(rows):
+                if found.ok[j]:
+                    qs_[r] = found.q[j]
+                else:
+                    going[r] = False
+        return list(zip(qs_, going, strict=True))
+
+    def backed(name: str, tool: np.ndarray, distances, direction: np.ndarray | None,
+               seed: np.ndarray, where: str, carried: bool, first: tuple[np.ndarray, bool]
+               ) -> np.ndarray | MotionFailure:
+        """Joints for ``tool`` backed off along ``direction`` (None: ``-a``) by the first of
+        ``distances`` (m) that has collision-free joints: at each distance, the straight walk
+        there from ``seed`` (``first``: the walk to the first distance, done), else the
+        nearest (in joints) valid answer of :data:`IK_ANSWERS` from the start library."""
+        poses = [_backed(tool, d, direction) for d in distances]
+        walked = [first, *walks([(p, seed) for p in poses[1:]])] if len(poses) > 1 else [first]
+        reached = [r for r, (_, ok) in enumerate(walked) if ok]
+        clear = dict(zip(reached, many(np.array([walked[r][0] for r in reached]).reshape(
+            -1, len(seed)), where, carried), strict=True))
+        # The distances tried before the first whose walk is clear need their answers.
+        stop = next((r for r in range(len(poses)) if clear.get(r)), len(poses))
+        if stop:
+            found = arms.solve_each(side, np.array(poses[:stop]), IK_ANSWERS)
+            for r in range(stop):
+                good = found.q[r][found.ok[r]]
+                good = good[many(good, where, carried)]
+                if len(good):
+                    return min(good, key=lambda a: float(np.abs(a - seed).max()))
+        if stop < len(poses):
+            return walked[stop][0]
+        said = ""
+        if valid is not None and hasattr(valid, "contacts"):
+            touch = valid.contacts(walked[-1][0], where, carried)
+            said = (" (on the straight way there, " + ", ".join(
+                f"{a} touches {b}" for a, b in touch[:3]) + ")") if touch else ""
+        return MotionFailure(grasp.id, side, name, "inverse kinematics found no "
+                             f"collision-free joints for the {name} pose{said}")
 
     least = min(spec.approach_min, SHORTEST)
 
@@ -217,61 +249,67 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
         names.append(name)
         qs.append(np.asarray(q, dtype=float))
 
-    add("rest", rest, False, "pickup")
     midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
     joins = _joins(q_of)  # takes hold at the handover
-    grasp_stage, object_pose = 0, np.asarray(grasp.pose_world @ np.linalg.inv(grasp.pose))
+    # Every stage between: (name, tool pose at the stage it backs off from, back-off
+    # distances, direction (None: -a), seed, world, carried), in the order judged.
+    between: list[tuple] = []
     if "pickup" in q_of:  # from the table
         q_grasp = q_of["pickup"]
         tool = arms.fk(side, q_grasp[None])[0]
         distance = spec.approach if grasp.approach is None else grasp.approach.distance
-        pre = backed("pregrasp", tool, (distance, spec.approach_min), q_grasp, "pickup", False)
-        if isinstance(pre, MotionFailure):
-            return pre
         _, directions = lift(ctx, np.array([chosen.grasp]))
-        up = solve("lift", _backed(tool, spec.lift, directions[0]), q_grasp, "pickup", True)
-        if isinstance(up, MotionFailure):
-            return up
-        add("pregrasp", pre, False, "pickup")
-        add("grasp", q_grasp, False, "pickup")
-        grasp_stage = len(names) - 1
-        object_pose = ctx.initial
-        add("lift", up, True, "pickup")
+        between += [("pregrasp", tool, (distance, spec.approach_min), None, q_grasp, "pickup",
+                     False),
+                    ("lift", tool, (spec.lift,), directions[0], q_grasp, "pickup", True)]
     elif not joins:  # H2G2's second grasp: taken at the midair regrasp
         q_mid = q_of["midair"]
         tool = arms.fk(side, q_mid[None])[0]
-        pre = backed("pregrasp", tool, (spec.retreat, spec.approach_min, least), q_mid, "midair",
-                     False)
-        if isinstance(pre, MotionFailure):
-            return pre
-        add("pregrasp", pre, False, "midair")
-        add("midair", q_mid, False, "midair")
-        grasp_stage = len(names) - 1
-        object_pose = np.eye(4) if midair_at is None else np.asarray(midair_at, dtype=float)
+        between.append(("pregrasp", tool, (spec.retreat, spec.approach_min, least), None,
+                        q_mid, "midair", False))
     if "handover" in q_of:
         q_hand = q_of["handover"]
         tool = arms.fk(side, q_hand[None])[0]
-        near = solve("approach", _backed(tool, spec.approach), q_hand, "handover", not joins)
-        if isinstance(near, MotionFailure):
-            return near
-        back = backed("retreat", tool, (spec.retreat, spec.approach_min, least), q_hand,
-                      "handover", False)
-        if isinstance(back, MotionFailure):
-            return back
-        add("approach", near, not joins, "handover")
-        add("handover", q_hand, not joins, "handover")
-        if joins:
-            grasp_stage = len(names) - 1
-        add("retreat", back, False, "handover")
+        between += [("approach", tool, (spec.approach,), None, q_hand, "handover", not joins),
+                    ("retreat", tool, (spec.retreat, spec.approach_min, least), None, q_hand,
+                     "handover", False)]
     elif "midair" in q_of and "pickup" in q_of:  # H2G2's first grasp lets go at midair
         q_mid = q_of["midair"]
         tool = arms.fk(side, q_mid[None])[0]
-        back = backed("release", tool, (spec.retreat, spec.approach_min, least), q_mid,
-                      "midair", False)
-        if isinstance(back, MotionFailure):
-            return back
-        add("midair", q_mid, True, "pickup")  # the second arm waits until it is there
-        add("release", back, False, "midair")
+        between.append(("release", tool, (spec.retreat, spec.approach_min, least), None,
+                        q_mid, "midair", False))
+    between = [(name, tool, list(dict.fromkeys(float(x) for x in d)), *more)
+               for name, tool, d, *more in between]
+    firsts = walks([(_backed(tool, d[0], u), seed) for _, tool, d, u, seed, _, _ in between])
+    found: dict[str, np.ndarray] = {}
+    for (name, *how), first in zip(between, firsts, strict=True):
+        q = backed(name, *how, first)
+        if isinstance(q, MotionFailure):
+            return q
+        found[name] = q
+
+    add("rest", rest, False, "pickup")
+    grasp_stage, object_pose = 0, np.asarray(grasp.pose_world @ np.linalg.inv(grasp.pose))
+    if "pickup" in q_of:
+        add("pregrasp", found["pregrasp"], False, "pickup")
+        add("grasp", q_of["pickup"], False, "pickup")
+        grasp_stage = len(names) - 1
+        object_pose = ctx.initial
+        add("lift", found["lift"], True, "pickup")
+    elif not joins:
+        add("pregrasp", found["pregrasp"], False, "midair")
+        add("midair", q_of["midair"], False, "midair")
+        grasp_stage = len(names) - 1
+        object_pose = np.eye(4) if midair_at is None else np.asarray(midair_at, dtype=float)
+    if "handover" in q_of:
+        add("approach", found["approach"], not joins, "handover")
+        add("handover", q_of["handover"], not joins, "handover")
+        if joins:
+            grasp_stage = len(names) - 1
+        add("retreat", found["retreat"], False, "handover")
+    elif "midair" in q_of and "pickup" in q_of:
+        add("midair", q_of["midair"], True, "pickup")  # the second arm waits until it is there
+        add("release", found["release"], False, "midair")
     add("rest", rest, False, "pickup")
     return StagePlan(side, tuple(names), np.array(qs), tuple(holding), tuple(world),
                      np.asarray(object_pose, dtype=float), grasp_stage)
@@ -336,79 +374,117 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
     """The arms' motion for the robot grasps ``grasps`` of a feasible ``attempt`` (the
     result's records, the chosen grasps first, in ``attempt.chosen``'s order): one tuple of
     :class:`~handover.geometry.motion.planner.Segment` per grasp (empty for a supporting
-    gripper or a grasp without an arm), or the first failure."""
-    from handover.geometry.motion import ArmModel, ValidityChecker, plan_segment
+    gripper or a grasp without an arm), or a failure.
+
+    The cheap checks come first, so that a grasp without motion costs little: every grasp's
+    stages (:func:`stage_plan`, inverse kinematics), then every segment's start and goal
+    (:func:`~handover.geometry.motion.planner.ends_failure`), then the segments are planned,
+    grasp by grasp; the failure is the first found in that order."""
+    from handover.geometry.motion import ends_failure, plan_segment
 
     settings = settings or SETTINGS or _settings()
-    from handover.engine.plan.corridors import held_box
-
-    out: list[tuple[Segment, ...]] = []
+    staged: list[tuple[RobotGrasp, StagePlan, object] | None] = []
     for index, grasp in enumerate(grasps):
         if index >= len(attempt.chosen) or grasp.arm is None or grasp.supports is not None:
-            out.append(())
+            staged.append(None)
             continue
-        side = grasp.arm
-        a = ctx.arms.arm(side)
-        model = ArmModel(a.kin, a.shapes, a.base)
-        open_boxes = ctx.gripper.boxes(float(grasp.width))
-        closed = ctx.gripper.boxes(max(float(grasp.width) - 2 * ctx.gripper.clearance, 0.0))
-        # The object's box in the tool frame, where the gripper closes on it.
-        taking = next(s for s in ("pickup", "midair", "handover") if s in grasp.joints)
-        midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
-        object_pose = {"pickup": ctx.initial,
-                       "midair": np.eye(4) if midair_at is None else np.asarray(midair_at),
-                       "handover": grasp.pose_world @ np.linalg.inv(grasp.pose)}[taking]
-        q_take = np.array([grasp.joints[taking][n] for n in a.chain.joint_names])
-        tool = ctx.arms.fk(side, q_take[None])[0]
-        ((_, ext, box),) = held_box(ctx, object_pose)
-        held = [("held object", ext, np.linalg.inv(tool) @ box)]
-        checkers: dict = {}
-
-        def checker(where: str, carried: bool, start: str = "", *, _side=side, _model=model,
-                    _open=open_boxes, _closed=closed, _held=held, _memo=checkers,
-                    _index=index, _q_take=q_take) -> ValidityChecker:
-            key = (where, carried, start == "grasp")
-            if key not in _memo:
-                targets = segment_targets(ctx, attempt, _index, _side, where,
-                                          _other_joints(ctx, grasps, _side, where, carried))
-                allowed = []
-                if carried:  # another gripper may hold it; it leaves the table
-                    allowed = [("held object", t) for t in targets.names
-                               if t.startswith("arm:") or (start == "grasp" and "table" in t)]
-                    # what its bounding box (coarser than the object) touches where the
-                    # gripper takes it, as MoveIt's allowed collision matrix would
-                    taken = ValidityChecker(_model, targets, attached=[*_closed, *_held])
-                    allowed += [(link, t) for link, t in taken.contacts(_q_take)
-                                if link == "held object" and (link, t) not in allowed]
-                _memo[key] = ValidityChecker(_model, targets,
-                                             attached=[*_closed, *_held] if carried
-                                             else _open, allowed=allowed)
-            return _memo[key]
-
-        class _Valid:
-            """Whether joints are collision-free in a plan stage (and what they touch)."""
-
-            def __init__(self, make) -> None:
-                self.make = make
-
-            def __call__(self, q: np.ndarray, where: str, carried: bool) -> bool:
-                return bool(self.make(where, carried).valid(q[None])[0])
-
-            def contacts(self, q: np.ndarray, where: str, carried: bool) -> list:
-                return self.make(where, carried).contacts(q)
-
-        valid = _Valid(checker)
-
-        plan = stage_plan(ctx, attempt, index, grasp, valid)
+        checker = _checkers(ctx, attempt, grasps, index, grasp)
+        plan = stage_plan(ctx, attempt, index, grasp, _Valid(checker))
         if isinstance(plan, MotionFailure):
             return MotionPlan((), plan)
-        segments = []
+        staged.append((grasp, plan, checker))
+
+    def segments(plan: StagePlan, checker):
+        """(name, checker, start, goal) of each segment of ``plan``."""
         for i in range(len(plan.names) - 1):
-            name = f"{plan.names[i]}->{plan.names[i + 1]}"
-            check = checker(plan.world[i], plan.holding[i], plan.names[i])
-            seg = plan_segment(check, plan.q[i], plan.q[i + 1], name=name, settings=settings)
+            yield (f"{plan.names[i]}->{plan.names[i + 1]}",
+                   checker(plan.world[i], plan.holding[i], plan.names[i]), plan.q[i],
+                   plan.q[i + 1])
+
+    for grasp, plan, checker in filter(None, staged):
+        for name, check, start, goal in segments(plan, checker):
+            failure = ends_failure(check, start, goal, name=name)
+            if failure is not None:
+                return MotionPlan((), MotionFailure(grasp.id, plan.side, name, failure.reason))
+    out: list[tuple[Segment, ...]] = []
+    for entry in staged:
+        if entry is None:
+            out.append(())
+            continue
+        grasp, plan, checker = entry
+        found = []
+        for name, check, start, goal in segments(plan, checker):
+            seg = plan_segment(check, start, goal, name=name, settings=settings)
             if not hasattr(seg, "positions"):
                 return MotionPlan((), MotionFailure(grasp.id, plan.side, name, seg.reason))
-            segments.append(seg)
-        out.append(tuple(segments))
+            found.append(seg)
+        out.append(tuple(found))
     return MotionPlan(tuple(out))
+
+
+class _Valid:
+    """``valid(q (dof,), where, carried) -> bool``: whether joints are collision-free in a
+    plan stage, through a checker factory (:func:`_checkers`); ``many`` asks it of several
+    at once, ``contacts`` says what they touch."""
+
+    def __init__(self, make) -> None:
+        self.make = make
+
+    def __call__(self, q: np.ndarray, where: str, carried: bool) -> bool:
+        return bool(self.make(where, carried).valid(q[None])[0])
+
+    def many(self, q: np.ndarray, where: str, carried: bool) -> np.ndarray:
+        """(k,) bool for joints q (k, dof), in one batch."""
+        return self.make(where, carried).valid(q)
+
+    def contacts(self, q: np.ndarray, where: str, carried: bool) -> list:
+        return self.make(where, carried).contacts(q)
+
+
+def _checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index: int,
+              grasp: RobotGrasp):
+    """The validity checkers of robot grasp ``grasp`` (the ``index``-th of ``grasps``), made
+    on first use and kept: ``checker(where, carried, start="")`` for a segment checked in plan
+    stage ``where`` (``pickup`` | ``midair`` | ``handover``), the object held or not, from
+    stage ``start`` (from ``grasp``, the held object may touch the table it is lifted
+    from)."""
+    from handover.engine.plan.corridors import held_box
+    from handover.geometry.motion import ArmModel, ValidityChecker
+
+    side = grasp.arm
+    a = ctx.arms.arm(side)
+    model = ArmModel(a.kin, a.shapes, a.base)
+    open_boxes = ctx.gripper.boxes(float(grasp.width))
+    closed = ctx.gripper.boxes(max(float(grasp.width) - 2 * ctx.gripper.clearance, 0.0))
+    # The object's box in the tool frame, where the gripper closes on it.
+    taking = next(s for s in ("pickup", "midair", "handover") if s in grasp.joints)
+    midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
+    object_pose = {"pickup": ctx.initial,
+                   "midair": np.eye(4) if midair_at is None else np.asarray(midair_at),
+                   "handover": grasp.pose_world @ np.linalg.inv(grasp.pose)}[taking]
+    q_take = np.array([grasp.joints[taking][n] for n in a.chain.joint_names])
+    tool = ctx.arms.fk(side, q_take[None])[0]
+    ((_, ext, box),) = held_box(ctx, object_pose)
+    held = [("held object", ext, np.linalg.inv(tool) @ box)]
+    memo: dict = {}
+
+    def checker(where: str, carried: bool, start: str = "") -> ValidityChecker:
+        key = (where, carried, start == "grasp")
+        if key not in memo:
+            targets = segment_targets(ctx, attempt, index, side, where,
+                                      _other_joints(ctx, grasps, side, where, carried))
+            allowed = []
+            if carried:  # another gripper may hold it; it leaves the table
+                allowed = [("held object", t) for t in targets.names
+                           if t.startswith("arm:") or (start == "grasp" and "table" in t)]
+                # what its bounding box (coarser than the object) touches where the
+                # gripper takes it, as MoveIt's allowed collision matrix would
+                taken = ValidityChecker(model, targets, attached=[*closed, *held])
+                allowed += [(link, t) for link, t in taken.contacts(q_take)
+                            if link == "held object" and (link, t) not in allowed]
+            memo[key] = ValidityChecker(model, targets,
+                                        attached=[*closed, *held] if carried else open_boxes,
+                                        allowed=allowed)
+        return memo[key]
+
+    return checker

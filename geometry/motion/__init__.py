@@ -4,7 +4,8 @@ arm, planned with OMPL, timed with ruckig.
 - :mod:`~handover.geometry.motion.checker`: :class:`ArmModel` (a URDF chain in the world) and
   :class:`ValidityChecker` (its links and carried boxes against fixed targets, vectorised).
 - :mod:`~handover.geometry.motion.planner`: :func:`plan_segment`, one stage's motion as a
-  :class:`Segment` or a :class:`PlanningFailure`.
+  :class:`Segment` or a :class:`PlanningFailure`; :func:`ends_failure`, its check of the
+  start and the goal alone.
 - :mod:`~handover.geometry.motion.timing`: :func:`time_parameterise`, rest-to-rest motion
   along a polyline under velocity, acceleration and jerk limits.
 """
@@ -17,6 +18,7 @@ from handover.geometry.motion.planner import (
     PlanningFailure,
     Segment,
     densify,
+    ends_failure,
     plan_segment,
 )
 from handover.geometry.motion.timing import (
@@ -36,6 +38,7 @@ __all__ = [
     "PlanningFailure",
     "Segment",
     "densify",
+    "ends_failure",
     "plan_segment",
     "DEFAULT_ACCELERATION",
     "DEFAULT_JERK",

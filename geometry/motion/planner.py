@@ -4,8 +4,11 @@
 
 1. the start and the goal are checked (within the joint limits, touching nothing): a
    :class:`PlanningFailure` names what the links touch;
-2. the straight line between them is tried first (most stages are short and free);
-3. otherwise OMPL plans in the joints' box (``RealVectorStateSpace`` bounded by the limits)
+2. the straight line between them is tried first (most stages are short and free): it is
+   taken when its configurations at ``resolution`` and every sample of its timed motion
+   (step 5) touch nothing;
+3. otherwise (also where only a sample of the line's motion, between its dense checks,
+   touches something) OMPL plans in the joints' box (``RealVectorStateSpace`` bounded by the limits)
    with RRTConnect (or :attr:`PlannerSettings.planner`), its validity checker the project's
    vectorised link model (:class:`~handover.geometry.motion.checker.ValidityChecker`): states
    one by one, and every edge as one batch, discretised so that no joint moves more than
@@ -49,6 +52,7 @@ __all__ = [
     "PlanningFailure",
     "Segment",
     "densify",
+    "ends_failure",
     "plan_segment",
 ]
 
@@ -193,12 +197,29 @@ def _endpoint_failure(checker: ValidityChecker, q: np.ndarray, name: str, which:
         return PlanningFailure(name, kind, f"the {which} puts {chain.joint_names[i]} at "
                                f"{q[i]:.4f}, outside its limits [{chain.lower[i]:.4f}, "
                                f"{chain.upper[i]:.4f}]")  # fmt: skip
+    if checker.valid(q[None])[0]:  # what it touches only where it touches something
+        return None
     contacts = checker.contacts(q)
     if contacts:
         said = ", ".join(f"{link} touches {target}" for link, target in contacts[:4])
         more = f" (and {len(contacts) - 4} more)" if len(contacts) > 4 else ""
         return PlanningFailure(name, kind, f"the {which} is in collision: {said}{more}",
                                tuple(contacts))
+    return None
+
+
+def ends_failure(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray, *,
+                 name: str = "segment") -> PlanningFailure | None:
+    """Step 1 of :func:`plan_segment` alone: the failure it gives where ``start`` or ``goal``
+    ((dof,) rad each) lies outside the joint limits or touches something (``start_invalid``
+    | ``goal_invalid``, naming the contacts), else None. A caller with many segments checks
+    all their ends first, before searching any."""
+    dof = checker.arm.dof
+    for which, q in (("start", _check_q(start, dof, "start")),
+                     ("goal", _check_q(goal, dof, "goal"))):
+        failure = _endpoint_failure(checker, q, name, which)
+        if failure is not None:
+            return failure
     return None
 
 
@@ -226,30 +247,47 @@ def plan_segment(
     dof = checker.arm.dof
     start = _check_q(start, dof, "start")
     goal = _check_q(goal, dof, "goal")
-    for which, q in (("start", start), ("goal", goal)):
-        failure = _endpoint_failure(checker, q, name, which)
-        if failure is not None:
-            return failure
+    failure = ends_failure(checker, start, goal, name=name)
+    if failure is not None:
+        return failure
     res = settings.resolution
-    if checker.valid(densify(np.array([start, goal]), res)[1:-1]).all():
-        waypoints, used = np.array([start, goal]), "direct"
-    else:
-        found = _search(checker, start, goal, settings)
-        if isinstance(found, str):
-            return PlanningFailure(name, "no_path", found)
-        waypoints, used = found, settings.planner
-        if not checker.valid(densify(waypoints, res)).all():
-            return PlanningFailure(name, "no_path", "the simplified path failed the final "
-                                   f"dense check at {res} rad")  # fmt: skip
     limits = checker.arm.kin.chain.velocity_limits() if velocity is None else velocity
-    positions, times = time_parameterise(waypoints, limits, acceleration, jerk,
-                                         resolution=res, period=settings.period)
-    bad = np.flatnonzero(~checker.valid(positions))
-    if len(bad):
-        contacts = checker.contacts(positions[bad[0]])
+
+    def timed(waypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray, int | None]:
+        """The trajectory along ``waypoints``: positions, times and its first sample that
+        touches something (None: none)."""
+        positions, times = time_parameterise(waypoints, limits, acceleration, jerk,
+                                             resolution=res, period=settings.period)
+        bad = np.flatnonzero(~checker.valid(positions))
+        return positions, times, (int(bad[0]) if len(bad) else None)
+
+    # The straight line, where it is free and so is every sample of its motion; else (a
+    # sample between its dense checks may graze something) a search.
+    line = np.array([start, goal])
+    if checker.valid(densify(line, res)[1:-1]).all():
+        positions, times, bad = timed(line)
+        if bad is None:
+            return _segment(checker, name, positions, times, line, "direct", goal,
+                            checks_before, began)
+    found = _search(checker, start, goal, settings)
+    if isinstance(found, str):
+        return PlanningFailure(name, "no_path", found)
+    if not checker.valid(densify(found, res)).all():
+        return PlanningFailure(name, "no_path", "the simplified path failed the final "
+                               f"dense check at {res} rad")  # fmt: skip
+    positions, times, bad = timed(found)
+    if bad is not None:
+        contacts = checker.contacts(positions[bad])
         return PlanningFailure(name, "trajectory_invalid", f"the trajectory's sample at "
-                               f"{times[bad[0]]:.3f} s touches: " + ", ".join(
+                               f"{times[bad]:.3f} s touches: " + ", ".join(
                                    f"{a} - {b}" for a, b in contacts), tuple(contacts))
+    return _segment(checker, name, positions, times, found, settings.planner, goal,
+                    checks_before, began)
+
+
+def _segment(checker: ValidityChecker, name: str, positions: np.ndarray, times: np.ndarray,
+             waypoints: np.ndarray, used: str, goal: np.ndarray, checks_before: int,
+             began: float) -> Segment:
     positions[-1] = goal  # exactly (the last sample is the goal up to rounding)
     return Segment(name, checker.arm.joint_names, positions, times, waypoints, used,
                    checker.checks - checks_before, time.perf_counter() - began)
