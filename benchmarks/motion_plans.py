@@ -1,9 +1,10 @@
 """The arms' motion of the built-in plans as shipped: how long planning it costs a caller.
 
     .venv/bin/python benchmarks/motion_plans.py [--runs 3] [--receivers adult,elder]
-        [--objects ball,hammer]
+        [--cultures common,korean] [--objects ball,hammer]
 
-For each built-in object (and receiver, default ``adult``), a run plans the handover with its
+For each built-in object (and receiver, default ``adult``; and culture, default
+``common``), a run plans the handover with its
 motion, as ``Planner.plan(obj, motion=True)`` and ``handover plan`` do
 (:func:`handover.engine.planner.plan` with ``motion=True``): the motion of the plan's chosen
 grasps (:func:`handover.engine.plan.motion.motion_plan`) and, where a grasp's arm has no
@@ -68,6 +69,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--receivers", default="adult")
+    parser.add_argument("--cultures", default="common")
     parser.add_argument("--objects", default=",".join(OBJECTS))
     args = parser.parse_args()
     kb = load_kb()
@@ -75,9 +77,11 @@ def main() -> None:
           f"{'duration':>8} {'shipped s':>9} {'passed s':>8} {'n':>2} {'motion s':>8} "
           f"{'plan s':>7}  failure / passed over")
     worst, worst_at = 0.0, "-"
-    for receiver in args.receivers.split(","):
+    pairs = [(r, c) for c in args.cultures.split(",") for r in args.receivers.split(",")]
+    for who, culture in pairs:
+        receiver = who if culture == "common" else f"{who}/{culture}"  # the printed name
         for obj in args.objects.split(","):
-            query = Query(object=obj, receiver=receiver)
+            query = Query(object=obj, receiver=who, culture=culture)
             runs = [one_run(kb, query) for _ in range(max(1, args.runs))]
             best = min(runs, key=lambda r: sum(s for s, _ in r["calls"]))
             result = best["planned"].result
