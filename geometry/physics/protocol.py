@@ -304,8 +304,10 @@ class _Builder:
         back = np.concatenate(self.back, axis=1)
         hand_poses = np.empty((len(self.hands), len(objs), 4, 4))
         for h, hand in enumerate(self.hands):
-            offset = transform_from(translation=np.outer(-back[h], [0.0, 0.0, 1.0]))
-            hand_poses[h] = objs @ hand.pose @ offset
+            # objs @ pose @ (a translation by -back along z), written out: the same numbers
+            poses = hand_poses[h]
+            np.matmul(objs, hand.pose, out=poses)
+            poses[:, :3, 3] += poses[:, :3, 2] * -back[h][:, None]
         return Schedule(self.dt, objs, hand_poses, np.concatenate(self.fingers, axis=1),
                         np.concatenate(self.weights), tuple(self.phases),
                         self.settled.copy())  # fmt: skip
