@@ -401,11 +401,13 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
                    checker(plan.world[i], plan.holding[i], plan.names[i]), plan.q[i],
                    plan.q[i + 1])
 
-    for grasp, plan, checker in filter(None, staged):
-        for name, check, start, goal in segments(plan, checker):
-            failure = ends_failure(check, start, goal, name=name)
-            if failure is not None:
-                return MotionPlan((), MotionFailure(grasp.id, plan.side, name, failure.reason))
+    ends = [(grasp, plan.side, *segment) for grasp, plan, checker in filter(None, staged)
+            for segment in segments(plan, checker)]
+    clear = _ends_clear(ends)
+    for (grasp, side, name, check, start, goal), ok in zip(ends, clear, strict=True):
+        failure = None if ok else ends_failure(check, start, goal, name=name)
+        if failure is not None:
+            return MotionPlan((), MotionFailure(grasp.id, side, name, failure.reason))
     out: list[tuple[Segment, ...]] = []
     for entry in staged:
         if entry is None:
@@ -414,12 +416,24 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
         grasp, plan, checker = entry
         found = []
         for name, check, start, goal in segments(plan, checker):
-            seg = plan_segment(check, start, goal, name=name, settings=settings)
+            seg = plan_segment(check, start, goal, name=name, settings=settings,
+                               ends_checked=True)
             if not hasattr(seg, "positions"):
                 return MotionPlan((), MotionFailure(grasp.id, plan.side, name, seg.reason))
             found.append(seg)
         out.append(tuple(found))
     return MotionPlan(tuple(out))
+
+
+def _ends_clear(ends: list[tuple]) -> list[bool]:
+    """Per segment ``(grasp, side, name, checker, start, goal)``: whether its start and goal
+    are valid in its checker, every checker asked once for all its segments' ends."""
+    by: dict[int, tuple] = {}
+    for _, _, _, check, start, goal in ends:
+        by.setdefault(id(check), (check, []))[1].extend((start, goal))
+    valid = {key: iter(check.valid(np.array(q)).reshape(-1, 2).all(axis=1))
+             for key, (check, q) in by.items()}
+    return [bool(next(valid[id(check)])) for _, _, _, check, _, _ in ends]
 
 
 class _Valid:

@@ -196,8 +196,20 @@ class ValidityChecker:
             ok[rows] = self._free(q[rows])
         return ok
 
-    def _free(self, q: np.ndarray) -> np.ndarray:
-        """(n,) bool: no shape touches any target, for q (n, dof) within the limits."""
+    def all_valid(self, q: np.ndarray) -> bool:
+        """Whether every configuration of q (n, dof) is :meth:`valid` (n = 0: True); stops at
+        the first that is not (an edge or a path that touches something costs less)."""
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        if not self.within_limits(q).all():
+            return False
+        if not len(q) or not len(self.targets):
+            return True
+        self.checks += len(q)
+        return bool(self._free(q, stop=True).all())
+
+    def _free(self, q: np.ndarray, stop: bool = False) -> np.ndarray:
+        """(n,) bool: no shape touches any target, for q (n, dof) within the limits. stop:
+        return at the first touch found (then only ``.all()`` of the answer is right)."""
         n = len(q)
         free = np.ones(n, dtype=bool)
         p = self._prepared
@@ -240,6 +252,8 @@ class ValidityChecker:
                 touch = _boxes_touch(bc[i, s], br[i, s], box_h[s], t.box_centre[k],
                                      t.box_rot[k], t_h[k])  # fmt: skip
             free[i[touch]] = False
+            if stop and not free.all():
+                break
         return free
 
     def _posed(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -63,9 +63,12 @@ one joint's step moves the gripper up to 2.2 cm; a ``margin`` on the checker cov
 between checked configurations where that matters."""
 
 PLANNERS = ("RRTConnect", "RRT", "BKPIECE1", "LBKPIECE1")
-
-_COARSE = 4  # an edge's every fourth configuration is checked first
 """The OMPL planners :class:`PlannerSettings` may name."""
+
+_STRIDES = ((16, 48), (4, 1))
+"""An edge's configurations are checked in batches, coarse to fine, so that an edge that
+collides is found out early: ``(stride, fewest)``, every stride-th configuration (and the
+last) when the edge has at least ``fewest`` of them, then the ones left."""
 
 
 @dataclass(frozen=True)
@@ -233,12 +236,14 @@ def plan_segment(
     velocity: np.ndarray | None = None,
     acceleration: np.ndarray | float | None = None,
     jerk: np.ndarray | float | None = None,
+    ends_checked: bool = False,
 ) -> Segment | PlanningFailure:
     """A collision-free timed motion from ``start`` to ``goal`` (each (dof,) rad) for the
     checker's arm, or a :class:`PlanningFailure` saying why there is none (see the module
     docstring). velocity : (dof,) rad/s (default: the URDF's, :meth:`Chain.velocity_limits
     <handover.geometry.urdf.Chain.velocity_limits>`); acceleration, jerk : see
-    :func:`~handover.geometry.motion.timing.time_parameterise`.
+    :func:`~handover.geometry.motion.timing.time_parameterise`. ends_checked : the caller
+    found the start and the goal valid (:func:`ends_failure` gives None), step 1 is skipped.
     Raises ``ValueError`` only for malformed input (wrong shapes, bad settings).
     """
     settings = settings or PlannerSettings()
@@ -247,7 +252,7 @@ def plan_segment(
     dof = checker.arm.dof
     start = _check_q(start, dof, "start")
     goal = _check_q(goal, dof, "goal")
-    failure = ends_failure(checker, start, goal, name=name)
+    failure = None if ends_checked else ends_failure(checker, start, goal, name=name)
     if failure is not None:
         return failure
     res = settings.resolution
@@ -258,13 +263,14 @@ def plan_segment(
         touches something (None: none)."""
         positions, times = time_parameterise(waypoints, limits, acceleration, jerk,
                                              resolution=res, period=settings.period)
-        bad = np.flatnonzero(~checker.valid(positions))
-        return positions, times, (int(bad[0]) if len(bad) else None)
+        if checker.all_valid(positions):
+            return positions, times, None
+        return positions, times, int(np.flatnonzero(~checker.valid(positions))[0])
 
     # The straight line, where it is free and so is every sample of its motion; else (a
     # sample between its dense checks may graze something) a search.
     line = np.array([start, goal])
-    if checker.valid(densify(line, res)[1:-1]).all():
+    if checker.all_valid(densify(line, res)[1:-1]):
         positions, times, bad = timed(line)
         if bad is None:
             return _segment(checker, name, positions, times, line, "direct", goal,
@@ -272,7 +278,7 @@ def plan_segment(
     found = _search(checker, start, goal, settings)
     if isinstance(found, str):
         return PlanningFailure(name, "no_path", found)
-    if not checker.valid(densify(found, res)).all():
+    if not checker.all_valid(densify(found, res)):
         return PlanningFailure(name, "no_path", "the simplified path failed the final "
                                f"dense check at {res} rad")  # fmt: skip
     positions, times, bad = timed(found)
@@ -309,18 +315,23 @@ def _search(checker: ValidityChecker, start: np.ndarray, goal: np.ndarray,
 
     class BatchMotionValidator(ob.MotionValidator):
         """An edge valid when every configuration on it, at most ``resolution`` apart (the
-        first excepted: OMPL's contract), passes the checker: every fourth configuration
-        and the last in one batch, then, if those pass, the others in another (an edge that
-        collides is found out at a quarter of the cost)."""
+        first excepted: OMPL's contract), passes the checker: in batches coarse to fine
+        (:data:`_STRIDES`: on a long edge every 16th configuration and the last, then every
+        4th, then the others; an edge that collides is found out at a fraction of the
+        cost)."""
 
         def checkMotion(self, s1, s2) -> bool:  # noqa: N802 (OMPL's name)
             qa, qb = values(s1), values(s2)
             steps = max(1, int(np.ceil(np.abs(qb - qa).max() / res - 1e-9)))
             j = np.arange(1, steps + 1)
-            coarse = (j % _COARSE == 0) | (j == steps)
-            for part in (j[coarse], j[~coarse]):
-                if len(part) and not checker.valid(qa + (part / steps)[:, None] * (qb - qa)
-                                                   ).all():  # fmt: skip
+            left = np.ones(steps, dtype=bool)
+            for stride, fewest in (*_STRIDES, (1, 1)):
+                if steps < fewest:
+                    continue
+                part = j[left & ((j % stride == 0) | (j == steps))]
+                left[part - 1] = False
+                if len(part) and not checker.all_valid(qa + (part / steps)[:, None]
+                                                       * (qb - qa)):  # fmt: skip
                     return False
             return True
 
