@@ -258,23 +258,33 @@ class ValidityChecker:
 
     def _posed(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The shapes at configurations q (n, dof), world: capsule ends (n, c, 3) twice, box
-        centres (n, b, 3) and rotations (n, b, 3, 3) (columns the box axes). Every point and
-        axis is carried by the joint frame that moves it: one matrix product of the joint
-        frames (n, J * 3, 4) with all the points and axes (4, M) gives each in every frame,
-        and each is taken from its own (``_Prepared.rows``, ``_Prepared.cols``)."""
+        centres (n, b, 3) and rotations (n, b, 3, 3) (columns the box axes). The joint
+        frames in the world, ``F_i = F_(i-1) A_i Z(q_i)`` (``A_0`` with the chain's base
+        folded in; ``Z``: a turn about z, or a slide along it), then every point and axis
+        carried by the frame that moves it: one matrix product of the frames (n, J * 3, 4)
+        with all the points and axes (4, M) gives each in every frame, and each is taken from
+        its own (``_Prepared.rows``, ``_Prepared.cols``)."""
         p = self._prepared
-        kin = self.arm.kin
-        n, dof = len(q), kin.dof
-        rots, origins = kin._frames(q, np.float64)  # (dof, 3 col, 3 row, n), (dof, 3, n)
-        frames = np.zeros((n, dof + 1, 3, 4))
-        frames[:, :dof, :, :3] = rots.transpose(3, 0, 2, 1)
-        frames[:, :dof, :, 3] = origins.transpose(2, 0, 1)
-        frames[:, dof, :, :3] = np.eye(3)  # links no joint moves: the chain's base frame
+        n, dof = len(q), len(p.fold)
+        cos, sin = np.cos(q)[..., None], np.sin(q)[..., None]  # (n, dof, 1)
+        step = np.repeat(p.fold[None], n, axis=0)  # (n, dof, 4, 4): A_i Z(q_i)
+        x, y = p.fold[:, :, 0], p.fold[:, :, 1]  # (dof, 4)
+        step[..., 0] = cos * x + sin * y
+        step[..., 1] = cos * y - sin * x
+        if p.slides.any():
+            k = p.slides
+            step[:, k, :, :2] = p.fold[k, :, :2]
+            step[:, k, :, 3] = p.fold[k, :, 3] + q[:, k, None] * p.fold[k, :, 2]
+        frames = np.empty((n, dof + 1, 3, 4))
+        frame = step[:, 0]
+        frames[:, 0] = frame[:, :3]
+        for i in range(1, dof):
+            frame = frame @ step[:, i]
+            frames[:, i] = frame[:, :3]
+        frames[:, dof] = self.arm.base[:3]  # links no joint moves: the chain's base
         every = frames.reshape(n, 3 * (dof + 1), 4) @ p.local  # (n, J * 3, M)
-        local = every[:, p.rows, p.cols]  # (n, M, 3), the chain's base frame
-        world = local @ self.arm.base[:3, :3].T
+        world = every[:, p.rows, p.cols]  # (n, M, 3)
         nc, nb = p.n_caps, p.n_boxes
-        world[:, : 2 * nc + nb] += self.arm.base[:3, 3]  # points; the rest are axes
         ca, cb, bc = world[:, :nc], world[:, nc : 2 * nc], world[:, 2 * nc : 2 * nc + nb]
         br = world[:, 2 * nc + nb :].reshape(n, nb, 3, 3).transpose(0, 1, 3, 2)
         return ca, cb, bc, br
@@ -296,6 +306,9 @@ _SLACK = 1e-9
 class _Prepared:
     """What :meth:`ValidityChecker._free` needs that stays the same for a checker.
 
+    fold : (dof, 4, 4) each joint's fixed transform from the frame before it (the kinematics'
+    folded ``A_i``, the first from the world: the chain's base folded in); slides : (dof,)
+    bool, the prismatic joints.
     local : (4, M) the shapes' points (capsule ends ``a``, then ``b``, then box centres;
     w = 1) and box axes (3 per box, w = 0) in the frame of the joint that moves them (J = dof
     + 1 frames, the last the chain's base for links no joint moves); rows, cols : (M, 3) where
@@ -307,6 +320,8 @@ class _Prepared:
     and a target shape's bounding radii; mask : (S, T) bool, the pairs to test (not allowed).
     """
 
+    fold: np.ndarray
+    slides: np.ndarray
     local: np.ndarray
     rows: np.ndarray
     cols: np.ndarray
@@ -324,7 +339,7 @@ def _prepare(arm: ArmModel, shapes: LinkShapes, n_attached: int, targets: Target
              allowed: np.ndarray, margin: float) -> _Prepared:
     """The :class:`_Prepared` of ``shapes`` (the arm's links' shapes, then ``n_attached``
     boxes carried in the tool frame) against ``targets``; ``allowed`` (links x targets)."""
-    kin = arm.kin
+    kin = arm.kin  # its folded joint transforms and link offsets, as Kinematics keeps them
     dof = kin.dof
     tip = shapes.links.index(kin.chain.tip_link)
     link_joint = np.asarray(kin._link_joint)
@@ -355,8 +370,11 @@ def _prepare(arm: ArmModel, shapes: LinkShapes, n_attached: int, targets: Target
                                + cap_r, np.linalg.norm(box_h, axis=1)])  # fmt: skip
     owner_s = np.concatenate([shapes.cap_link, shapes.box_link])
     owner_t = np.concatenate([t.cap_target, t.box_target])
-    return _Prepared(local, rows, cols, c, b, cap_r, box_h, 0.5 * t.box_ext, t_centre,
-                     s_radius[:, None] + t_radius[None, :],
+    fold = np.zeros((dof, 4, 4))
+    fold[:, :3, :3], fold[:, :3, 3], fold[:, 3, 3] = kin._a_rot, kin._a_t, 1.0
+    fold[0] = arm.base @ fold[0]
+    return _Prepared(fold, np.asarray(kin.prismatic, dtype=bool), local, rows, cols, c, b,
+                     cap_r, box_h, 0.5 * t.box_ext, t_centre, s_radius[:, None] + t_radius[None, :],
                      ~allowed[owner_s[:, None], owner_t[None, :]])
 
 
