@@ -31,8 +31,7 @@ from mujoco import rollout
 from scipy.spatial.transform import Rotation
 
 from handover.geometry.frames import transform_from
-from handover.geometry.gripper import check_poses
-from handover.geometry.physics.hands import Hand, squeeze_target
+from handover.geometry.physics.hands import squeeze_target
 from handover.geometry.physics.model import Built, HandIn, build
 from handover.geometry.physics.params import (
     DEFAULT_ENSEMBLE,
@@ -42,7 +41,17 @@ from handover.geometry.physics.params import (
     Thresholds,
 )
 from handover.geometry.physics.protocol import HandPlan, Motion, Schedule, schedule
+from handover.geometry.physics.results import (
+    GRASP_KINDS,
+    RECORD_HZ,
+    CheckResult,
+    EnsembleResult,
+    Grasp,
+    PhaseSlip,
+    Trajectory,
+)
 from handover.geometry.physics.shapes import ObjectModel
+from handover.geometry.physics.slip import slip_since
 
 __all__ = [
     "GRASP_KINDS",
@@ -56,174 +65,7 @@ __all__ = [
     "ensemble",
 ]
 
-GRASP_KINDS = ("pinch", "squeeze")
-"""``pinch``: the jaws close on the object across ``width``. ``squeeze``: the jaws stay
-closed and the fingertips press a face along the approach axis (two arms squeezing an object
-no single gripper spans)."""
-
 _CLOSE_PAST = 0.01  # m: the closed target lies this far past the contact (force-limited)
-
-RECORD_HZ = 50.0
-"""Hz, how often a recorded :class:`Trajectory` samples the simulation."""
-
-
-@dataclass(frozen=True)
-class Grasp:
-    """One hand's grasp on the object.
-
-    hand : the :class:`~.hands.Hand` (a gripper, or the receiver's pads).
-    pose : (4, 4) the grasp frame in the object frame: for a pinch, origin midway between
-        the pads' contacts, ``o`` closing, ``a`` approach; for a squeeze, origin on the face
-        pressed, ``a`` into the object.
-    width : m, the object's width between the pads (pinch; ignored for a squeeze).
-    kind : ``"pinch"`` or ``"squeeze"``.
-    """
-
-    hand: Hand
-    pose: np.ndarray
-    width: float = 0.0
-    kind: str = "pinch"
-
-    def __post_init__(self) -> None:
-        if self.kind not in GRASP_KINDS:
-            raise ValueError(f"unknown grasp kind {self.kind!r}: expected one of {GRASP_KINDS}")
-        object.__setattr__(self, "pose", check_poses(self.pose, 0.0)[0][0])
-        if not (np.isfinite(self.width) and self.width >= 0):
-            raise ValueError(f"a grasp's width must be a non-negative length, got {self.width}")
-        if self.kind == "pinch" and self.width > self.hand.max_opening:
-            raise ValueError(
-                f"the grasp is {self.width * 1000:.0f} mm across, more than the hand opens "
-                f"({self.hand.max_opening * 1000:.0f} mm)"
-            )
-
-
-@dataclass(frozen=True)
-class PhaseSlip:
-    """The slip of the object in one holder's frame during one phase: the largest over the
-    phase of the displacement (mm) and turn (deg) since the holder's grip settled; dropped
-    if the displacement passed the drop threshold in this phase."""
-
-    phase: str
-    holder: str
-    translation_mm: float
-    rotation_deg: float
-    dropped: bool
-
-    def to_dict(self) -> dict:
-        """JSON-ready, floats rounded to 0.01."""
-        return {"phase": self.phase, "holder": self.holder,
-                "translation_mm": round(self.translation_mm, 2),
-                "rotation_deg": round(self.rotation_deg, 2), "dropped": self.dropped}  # fmt: skip
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """The simulated motion for drawing (a recording), sampled at :data:`RECORD_HZ`.
-
-    times : (T,) s from the start. object_poses : (T, 4, 4) the object's frame, world.
-    hands : the hands' names; hand_poses : (H, T, 4, 4) each hand body (its grasp frame;
-    for a squeeze, set back from the face), world; travel : (H, T) m, how far each hand's
-    fingers (or a squeeze's press) have moved from open towards the object.
-    phases : (name, start s) of each phase in order.
-    """
-
-    times: np.ndarray
-    object_poses: np.ndarray
-    hands: tuple[str, ...]
-    hand_poses: np.ndarray
-    travel: np.ndarray
-    phases: tuple[tuple[str, float], ...]
-
-
-@dataclass(frozen=True)
-class CheckResult:
-    """One check's outcome.
-
-    mode : H1G1, H2G2 or H2G1. passed : no drop and every slip within the thresholds (the
-    receiver's included). failed_in : the first phase in which some holder's slip passed
-    ``Thresholds.max_slip_mm`` or ``max_slip_deg`` (or the drop thresholds), or None: the
-    run fails there whatever comes next, so unless asked to run on (``stop_early=False``)
-    it stops at the end of that phase and the later phases are neither simulated nor
-    measured. dropped : some holder dropped the object in the phases simulated;
-    dropped_in : the first phase it did, or None. receiver_held : the receiver holds it
-    after the hand-over (None without a receiver; False when the run stopped before it).
-    phases : every (phase, holder) measured, in order. max_translation_mm,
-    max_rotation_deg : the largest slip of any phase measured. seconds : time of the check
-    (build, run, measure); simulated_seconds : the simulated time (the protocol's length,
-    or up to the end of ``failed_in`` when the run stopped there).
-    trajectory : the motion, when the check was asked to record it (not in ``to_dict``).
-    """
-
-    mode: str
-    passed: bool
-    dropped: bool
-    dropped_in: str | None
-    receiver_held: bool | None
-    phases: tuple[PhaseSlip, ...]
-    max_translation_mm: float
-    max_rotation_deg: float
-    seconds: float
-    simulated_seconds: float
-    trajectory: Trajectory | None = None
-    failed_in: str | None = None
-
-    def slip(self, phase: str, holder: str | None = None) -> PhaseSlip:
-        """The :class:`PhaseSlip` of ``phase`` (and ``holder``, if several hold in it)."""
-        for p in self.phases:
-            if p.phase == phase and (holder is None or p.holder == holder):
-                return p
-        raise KeyError(f"no measured phase {phase!r} for holder {holder!r}")
-
-    def to_dict(self) -> dict:
-        """JSON-ready, floats rounded (mm and deg to 0.01, seconds to 0.001)."""
-        return {
-            "mode": self.mode, "passed": self.passed, "failed_in": self.failed_in,
-            "dropped": self.dropped, "dropped_in": self.dropped_in,
-            "receiver_held": self.receiver_held,
-            "phases": [p.to_dict() for p in self.phases],
-            "max_translation_mm": round(self.max_translation_mm, 2),
-            "max_rotation_deg": round(self.max_rotation_deg, 2),
-            "seconds": round(self.seconds, 3),
-            "simulated_seconds": round(self.simulated_seconds, 3),
-        }  # fmt: skip
-
-
-@dataclass(frozen=True)
-class EnsembleResult:
-    """The nominal check and its perturbed runs.
-
-    margin : the share of the perturbed runs that pass (0-1). robust : the margin reaches
-    ``Thresholds.ensemble_fraction`` and the nominal passes. worst_translation_mm,
-    worst_rotation_deg : the largest slip measured over all runs (the nominal's included;
-    a run that failed is measured up to the end of the phase it failed in).
-    seconds : time of the nominal and the ensemble together (each run's own ``seconds`` is
-    its simulation and measurement and an equal share of the model building).
-    """
-
-    nominal: CheckResult
-    runs: tuple[tuple[Perturbation, CheckResult], ...]
-    margin: float
-    robust: bool
-    worst_translation_mm: float
-    worst_rotation_deg: float
-    seconds: float
-
-    def to_dict(self) -> dict:
-        """JSON-ready: the nominal, each run's label, pass and slips, the margin."""
-        return {
-            "nominal": self.nominal.to_dict(),
-            "runs": [{"label": p.label, "friction": p.friction, "force": p.force,
-                      "torsion": p.torsion, "passed": r.passed, "failed_in": r.failed_in,
-                      "dropped": r.dropped,
-                      "max_translation_mm": round(r.max_translation_mm, 2),
-                      "max_rotation_deg": round(r.max_rotation_deg, 2)}
-                     for p, r in self.runs],
-            "margin": round(self.margin, 3), "robust": self.robust,
-            "worst_translation_mm": round(self.worst_translation_mm, 2),
-            "worst_rotation_deg": round(self.worst_rotation_deg, 2),
-            "seconds": round(self.seconds, 3),
-        }  # fmt: skip
-
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
 _STATE = mujoco.mjtState
@@ -446,49 +288,6 @@ def _enter(prep: _Prepared, before: _Segment, state: np.ndarray, warm: np.ndarra
     return out, start_warm
 
 
-# (a ⊗ b) = L(a) b for quaternions w, x, y, z: L(a) = a[_LEFT] * _LEFT_SIGN
-_LEFT = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
-_LEFT_SIGN = np.array([[1.0, -1, -1, -1], [1, 1, -1, 1], [1, 1, 1, -1], [1, -1, 1, 1]])
-# A unit quaternion's rotation matrix (row-major, 9) from its products q_k q_l, k <= l
-_PAIRS = np.array([(k, m) for k in range(4) for m in range(k, 4)]).T  # ww wx wy wz xx ...
-_MATRIX = np.zeros((10, 9))
-for _row, _entries in enumerate([
-    {0: 1, 4: 1, 8: 1}, {5: -2, 7: 2}, {2: 2, 6: -2}, {1: -2, 3: 2},  # ww wx wy wz
-    {0: 1, 4: -1, 8: -1}, {1: 2, 3: 2}, {2: 2, 6: 2},  # xx xy xz
-    {0: -1, 4: 1, 8: -1}, {5: 2, 7: 2}, {0: -1, 4: -1, 8: 1},  # yy yz zz
-]):
-    for _col, _value in _entries.items():
-        _MATRIX[_row, _col] = _value
-_CONJ = np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def _rotations(q: np.ndarray) -> np.ndarray:
-    """(n, 3, 3) rotation matrices of unit quaternions (n, 4), w x y z."""
-    return ((q[:, _PAIRS[0]] * q[:, _PAIRS[1]]) @ _MATRIX).reshape(-1, 3, 3)
-
-
-def _unit(q: np.ndarray) -> np.ndarray:
-    return q / np.sqrt((q * q).sum(axis=-1, keepdims=True))
-
-
-def _slip(obj: np.ndarray, hand: np.ndarray, ref: int, rows: slice) -> tuple[float, float]:
-    """The largest slip (mm, deg) over ``rows`` of the object in the hand's frame since
-    step ``ref``: the displacement of the object's point that sat at the hand's origin,
-    and the angle it turned. obj, hand : (N, 7) free-joint poses per step (position,
-    quaternion w x y z)."""
-    at = np.r_[ref, np.arange(rows.start, rows.stop)]  # the reference first
-    o, h = obj[at], hand[at]
-    qh, qo = _unit(h[:, 3:]), _unit(o[:, 3:])
-    # the object's origin and orientation in the hand's frame
-    p = np.einsum("nji,nj->ni", _rotations(qh), o[:, :3] - h[:, :3])
-    q = np.einsum("nij,nj->ni", (qh * _CONJ)[:, _LEFT] * _LEFT_SIGN, qo)
-    turn = np.einsum("nij,j->ni", q[1:, _LEFT] * _LEFT_SIGN, q[0] * _CONJ)  # since ref
-    moved = p[1:] - np.einsum("nij,j->ni", _rotations(turn), p[0])
-    angle = 2.0 * np.arctan2(np.sqrt((turn[:, 1:] ** 2).sum(axis=1)), np.abs(turn[:, 0]))
-    return (float(np.sqrt((moved * moved).sum(axis=1)).max() * 1000.0),
-            float(np.degrees(angle.max())))  # fmt: skip
-
-
 @dataclass
 class _Run:
     """One simulated run: ``poses`` (H + 1, N, 7) the object's and each hand's free joint
@@ -541,7 +340,7 @@ def _simulate(prep: _Prepared, models: list[mujoco.MjModel], thresholds: Thresho
             failed = False
             for holder in phase.holders:
                 h = names.index(holder)
-                mm, deg = _slip(poses[0], poses[h + 1], int(sched.settled[h]), rows)
+                mm, deg = slip_since(poses[0], poses[h + 1], int(sched.settled[h]), rows)
                 drop = mm > thresholds.drop_mm or deg > thresholds.drop_deg
                 phases.append(PhaseSlip(phase.name, holder, mm, deg, drop))
                 failed |= mm > thresholds.max_slip_mm or deg > thresholds.max_slip_deg
