@@ -72,7 +72,8 @@ between two stages are solved, each from the last."""
 
 SETTINGS = None
 """The planner's settings (None: :func:`_settings`, RRTConnect seeded 1, at most 5,000
-iterations per segment, 0.02 rad resolution)."""
+iterations per segment, 0.02 rad resolution; a second search seeded 2 where the first's path
+grazes something between its checked configurations)."""
 
 
 @dataclass(frozen=True)

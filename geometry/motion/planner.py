@@ -17,7 +17,9 @@
    close vertices; each a fixed number of seeded random tries, never time-bounded);
 5. the final path is re-checked densely at ``resolution``, time-parameterised under the
    URDF's velocity limits (:func:`~handover.geometry.motion.timing.time_parameterise`,
-   ruckig), and every sample of the trajectory is checked once more.
+   ruckig), and every sample of the trajectory is checked once more; where the path grazes
+   something between its checked configurations (a sample touches), the search is tried
+   again with the next seed (:attr:`PlannerSettings.searches`).
 
 Deterministic: OMPL's random numbers are re-seeded (``ompl.util.RNG.setSeed``) before each
 planner and simplifier is made, and the planner's budget is a number of iterations, so the
@@ -38,7 +40,7 @@ Joint values in radians (metres for prismatic joints), times in seconds.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -83,6 +85,10 @@ class PlannerSettings:
     seed : OMPL's random seed (> 0). simplify_steps : tries per simplification pass (0:
         OMPL's default, the path's vertex count); simplify_rounds : passes of vertex
         reduction (fewer if a pass changes nothing).
+    searches : how many searches are tried, seeded ``seed``, ``seed + 1``, ...: another
+        where the path found grazes something between its checked configurations (its final
+        dense check fails, or a sample of its timed motion touches something); a failure
+        names the first search's.
     period : s, the trajectory's longest sampling period.
     """
 
@@ -94,6 +100,7 @@ class PlannerSettings:
     seed: int = 1
     simplify_steps: int = 0
     simplify_rounds: int = 5
+    searches: int = 2
     period: float = 0.01
 
     def __post_init__(self) -> None:
@@ -106,7 +113,7 @@ class PlannerSettings:
                 raise ValueError(f"PlannerSettings.{name} must be a positive number, got {value}")
         if not (np.isfinite(self.range) and self.range >= 0):
             raise ValueError(f"PlannerSettings.range must be >= 0, got {self.range}")
-        for name in ("max_iterations", "seed"):
+        for name in ("max_iterations", "seed", "searches"):
             if int(getattr(self, name)) < 1:
                 raise ValueError(f"PlannerSettings.{name} must be at least 1")
         if self.simplify_steps < 0 or self.simplify_rounds < 0:
@@ -275,20 +282,24 @@ def plan_segment(
         if bad is None:
             return _segment(checker, name, positions, times, line, "direct", goal,
                             checks_before, began)
-    found = _search(checker, start, goal, settings)
-    if isinstance(found, str):
-        return PlanningFailure(name, "no_path", found)
-    if not checker.all_valid(densify(found, res)):
-        return PlanningFailure(name, "no_path", "the simplified path failed the final "
-                               f"dense check at {res} rad")  # fmt: skip
-    positions, times, bad = timed(found)
-    if bad is not None:
+    first: PlanningFailure | None = None
+    for attempt in range(int(settings.searches)):
+        found = _search(checker, start, goal, replace(settings, seed=settings.seed + attempt))
+        if isinstance(found, str):  # within its budget, none: another seed would not be fair
+            return first or PlanningFailure(name, "no_path", found)
+        if not checker.all_valid(densify(found, res)):
+            first = first or PlanningFailure(name, "no_path", "the simplified path failed the "
+                                             f"final dense check at {res} rad")  # fmt: skip
+            continue
+        positions, times, bad = timed(found)
+        if bad is None:
+            return _segment(checker, name, positions, times, found, settings.planner, goal,
+                            checks_before, began)
         contacts = checker.contacts(positions[bad])
-        return PlanningFailure(name, "trajectory_invalid", f"the trajectory's sample at "
-                               f"{times[bad]:.3f} s touches: " + ", ".join(
-                                   f"{a} - {b}" for a, b in contacts), tuple(contacts))
-    return _segment(checker, name, positions, times, found, settings.planner, goal,
-                    checks_before, began)
+        first = first or PlanningFailure(name, "trajectory_invalid", f"the trajectory's sample "
+                                         f"at {times[bad]:.3f} s touches: " + ", ".join(
+                                             f"{a} - {b}" for a, b in contacts), tuple(contacts))
+    return first
 
 
 def _segment(checker: ValidityChecker, name: str, positions: np.ndarray, times: np.ndarray,
