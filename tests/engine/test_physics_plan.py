@@ -111,6 +111,31 @@ def test_plan_with_physics_has_its_block_in_the_json(capsys):
     assert 0.0 <= chosen["margin"] <= 1.0 and len(chosen["ensemble"]) == 6
 
 
+BUILT_IN = ("ball", "book", "bottle", "hammer", "knife", "mug", "pen", "scissors",
+            "screwdriver", "tray")
+
+
+@pytest.mark.parametrize("obj", BUILT_IN)
+def test_every_built_in_default_plan_holds_in_physics(capsys, obj):
+    """``handover plan OBJ --physics`` as a user runs it (the arms' motion planned, which can
+    pass over grasps): a handover whose chosen grasps are the ones checked, each holder's
+    slip in every phase within the pass thresholds."""
+    from handover.geometry.physics import Thresholds
+
+    code, out, _ = _run(capsys, "plan", obj, "--physics", "--json")
+    data = json.loads(out)
+    assert code == 0 and data["outcome"] == "handover"
+    chosen = data["physics"]["chosen"]
+    grasps = [data["regrasp"]["first"], data["regrasp"]["second"]] \
+        if data["mode"] == "H2G2" else data["robot_grasps"]
+    assert chosen["grasps"] == [{"hand": g["hand"], "id": g["id"]} for g in grasps]
+    t = Thresholds()
+    assert data["physics"]["passed"] and chosen["passed"] and chosen["dropped_in"] is None
+    for slip in chosen["slip"]:
+        assert slip["translation_mm"] <= t.max_slip_mm, slip
+        assert slip["rotation_deg"] <= t.max_slip_deg, slip
+
+
 def test_plan_without_physics_has_no_block(capsys):
     code, out, _ = _run(capsys, "plan", "book", "--json", "--no-db")
     assert code == 0 and "physics" not in json.loads(out)
