@@ -1,0 +1,143 @@
+"""What a plan's arm motion is checked against (:mod:`handover.engine.plan.motion` plans it):
+per segment, the world the plan's arm checks use at the stage it goes to or comes from and the
+other arm where it works at the same time (:func:`segment_targets`, :func:`other_joints`), and
+per robot grasp the validity checkers of its segments, with the gripper open or closed on the
+object's bounding box carried in the tool frame (:func:`checkers`, :class:`Valid`).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from handover.engine.plan.attempt import Attempt
+    from handover.engine.plan.context import PlanContext
+    from handover.engine.plan.phase import Phase
+    from handover.engine.plan.records import RobotGrasp
+    from handover.geometry.motion import ValidityChecker
+
+__all__ = ["segment_targets", "joins_at_handover", "other_joints", "Valid", "checkers"]
+
+
+def _phase_stage(phase: Phase, where: str) -> str:
+    from handover.engine.plan.arms.stages import stages
+
+    held = stages(phase)
+    return where if where in held else held[0]
+
+
+def segment_targets(ctx: PlanContext, attempt: Attempt, index: int, side: str, where: str,
+                    others: dict[str, np.ndarray]):
+    """What the arm on ``side`` must not touch on a segment checked in the plan stage
+    ``where`` (``pickup`` | ``midair`` | ``handover``):
+    :class:`~handover.geometry.armcollision.Targets` of the plan's link world there and of the
+    other arm at ``others[side]`` (its joints at that stage) where it works at the same time."""
+    from handover.engine.plan.arms.links import link_targets
+    from handover.engine.plan.arms.stages import other_arm_idle
+    from handover.geometry.motion import ArmModel, obstacles
+
+    phase = attempt.chosen[index].phase
+    stage = _phase_stage(phase, where)
+    body = link_targets(ctx, phase, side, stage)
+    extra = []
+    if not other_arm_idle(phase, stage):
+        for other, q in others.items():
+            if other == side:
+                continue
+            a = ctx.arms.arm(other)
+            extra.append(ArmModel(a.kin, a.shapes, a.base).targets(q, f"arm:{other}:"))
+    return obstacles(bodies=[body], others=extra)
+
+
+def joins_at_handover(joints) -> bool:
+    """Whether a grasp with joints at these stages (``pickup`` | ``midair`` | ``handover``)
+    takes hold only at the handover (H2G1's second hand)."""
+    return "pickup" not in joints and "midair" not in joints
+
+
+def other_joints(ctx: PlanContext, grasps: list[RobotGrasp], side: str, where: str,
+                  carried: bool = False) -> dict[str, np.ndarray]:
+    """The other arms' joints at plan stage ``where`` (``pickup`` | ``midair`` |
+    ``handover``), those that hold a grasp there. While this arm carries the object to the
+    handover (``carried``), an arm that only joins there (H2G1's second hand, which takes
+    hold at the presentation) still waits at its rest: it comes once the object is there."""
+    out = {}
+    for g in grasps:
+        if g.arm is None or g.arm == side or where not in g.joints:
+            continue
+        rest = ctx.arms.arm(g.arm).rest
+        if carried and where == "handover" and joins_at_handover(g.joints) and rest is not None:
+            out[g.arm] = np.asarray(rest, dtype=float)
+            continue
+        out[g.arm] = np.array(list(g.joints[where].values()), dtype=float)
+    return out
+
+
+class Valid:
+    """``valid(q (dof,), where, carried) -> bool``: whether joints are collision-free in a
+    plan stage, through a checker factory (:func:`checkers`); ``many`` asks it of several
+    at once, ``contacts`` says what they touch."""
+
+    def __init__(self, make) -> None:
+        self.make = make
+
+    def __call__(self, q: np.ndarray, where: str, carried: bool) -> bool:
+        return bool(self.make(where, carried).valid(q[None])[0])
+
+    def many(self, q: np.ndarray, where: str, carried: bool) -> np.ndarray:
+        """(k,) bool for joints q (k, dof), in one batch."""
+        return self.make(where, carried).valid(q)
+
+    def contacts(self, q: np.ndarray, where: str, carried: bool) -> list:
+        return self.make(where, carried).contacts(q)
+
+
+def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index: int,
+              grasp: RobotGrasp):
+    """The validity checkers of robot grasp ``grasp`` (the ``index``-th of ``grasps``), made
+    on first use and kept: ``checker(where, carried, start="")`` for a segment checked in plan
+    stage ``where`` (``pickup`` | ``midair`` | ``handover``), the object held or not, from
+    stage ``start`` (from ``grasp``, the held object may touch the table it is lifted
+    from)."""
+    from handover.engine.plan.corridors import held_box
+    from handover.geometry.motion import ArmModel, ValidityChecker
+
+    side = grasp.arm
+    a = ctx.arms.arm(side)
+    model = ArmModel(a.kin, a.shapes, a.base)
+    open_boxes = ctx.gripper.boxes(float(grasp.width))
+    closed = ctx.gripper.boxes(max(float(grasp.width) - 2 * ctx.gripper.clearance, 0.0))
+    # The object's box in the tool frame, where the gripper closes on it.
+    taking = next(s for s in ("pickup", "midair", "handover") if s in grasp.joints)
+    midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
+    object_pose = {"pickup": ctx.initial,
+                   "midair": np.eye(4) if midair_at is None else np.asarray(midair_at),
+                   "handover": grasp.pose_world @ np.linalg.inv(grasp.pose)}[taking]
+    q_take = np.array([grasp.joints[taking][n] for n in a.chain.joint_names])
+    tool = ctx.arms.fk(side, q_take[None])[0]
+    ((_, ext, box),) = held_box(ctx, object_pose)
+    held = [("held object", ext, np.linalg.inv(tool) @ box)]
+    memo: dict = {}
+
+    def checker(where: str, carried: bool, start: str = "") -> ValidityChecker:
+        key = (where, carried, start == "grasp")
+        if key not in memo:
+            targets = segment_targets(ctx, attempt, index, side, where,
+                                      other_joints(ctx, grasps, side, where, carried))
+            allowed = []
+            if carried:  # another gripper may hold it; it leaves the table
+                allowed = [("held object", t) for t in targets.names
+                           if t.startswith("arm:") or (start == "grasp" and "table" in t)]
+                # what its bounding box (coarser than the object) touches where the
+                # gripper takes it, as MoveIt's allowed collision matrix would
+                taken = ValidityChecker(model, targets, attached=[*closed, *held])
+                allowed += [(link, t) for link, t in taken.contacts(q_take)
+                            if link == "held object" and (link, t) not in allowed]
+            memo[key] = ValidityChecker(model, targets,
+                                        attached=[*closed, *held] if carried else open_boxes,
+                                        allowed=allowed)
+        return memo[key]
+
+    return checker
