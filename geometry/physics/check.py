@@ -42,7 +42,6 @@ from handover.geometry.physics.params import (
 )
 from handover.geometry.physics.protocol import HandPlan, Motion, Schedule, schedule
 from handover.geometry.physics.results import (
-    GRASP_KINDS,
     RECORD_HZ,
     CheckResult,
     EnsembleResult,
@@ -53,17 +52,7 @@ from handover.geometry.physics.results import (
 from handover.geometry.physics.shapes import ObjectModel
 from handover.geometry.physics.slip import slip_since
 
-__all__ = [
-    "GRASP_KINDS",
-    "Grasp",
-    "PhaseSlip",
-    "Trajectory",
-    "RECORD_HZ",
-    "CheckResult",
-    "EnsembleResult",
-    "check",
-    "ensemble",
-]
+__all__ = ["check", "ensemble"]
 
 _CLOSE_PAST = 0.01  # m: the closed target lies this far past the contact (force-limited)
 
