@@ -136,6 +136,17 @@ class Kinematics:
             ]
         ).reshape(-1, 4, 4)
 
+    @property
+    def folded(self) -> np.ndarray:
+        """(dof, 4, 4) the folded ``A_i``: joint frames ``F_i = F_(i-1) A_i Z_i(q_i)``."""
+        return np.concatenate([np.concatenate([self._a_rot, self._a_t[:, :, None]], axis=2),
+                               np.tile([[[0.0, 0.0, 0.0, 1.0]]], (self.dof, 1, 1))], axis=1)
+
+    @property
+    def link_frames(self) -> tuple[np.ndarray, np.ndarray]:
+        """(L,) the joint moving each link (-1: none), (L, 4, 4) the link in that frame."""
+        return np.asarray(self._link_joint, dtype=np.int64), self._link_local.copy()
+
     # ------------------------------------------------------------------ forward kinematics
 
     def _check_q(self, q: np.ndarray) -> np.ndarray:

@@ -226,18 +226,13 @@ def retreat(ctx: PlanContext, hands: Hands, gi: np.ndarray, pk: np.ndarray) -> C
                                None if sites.options is None else int(j))
             boxes += found
             box_groups += [g] * len(found)
-    poses = _world_poses_rows(hands.poses[pk], ctx.gripper_poses()[gi])
+    poses = np.einsum("rij,rjk->rik", hands.poses[pk], ctx.gripper_poses()[gi])  # world
     return check_corridors(ctx.gripper, poses, ctx.candidates.width[gi], -poses[:, :3, 2],
                            length, world=BoxWorld(boxes) if boxes else None,
                            bodies=bodies if len(bodies) else None, name="retreat",
                            groups=(row_groups.reshape(-1), np.array(box_groups, np.int64))
                            if boxes else None)
 
-
-def _world_poses_rows(objects: np.ndarray, grasp_poses: np.ndarray) -> np.ndarray:
-    """(R, 4, 4) each row's gripper in the world: object poses (R, 4, 4) @ grasp poses
-    (R, 4, 4), object frame."""
-    return np.einsum("rij,rjk->rik", objects, grasp_poses)
 
 BITS = {name: 1 << i for i, name in enumerate(CORRIDORS)}
 """The bit of each corridor in a ``corridor`` rule's measured value."""

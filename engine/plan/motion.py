@@ -198,7 +198,7 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
             targets = []
             for r in rows:
                 pose, start = requests[r][0], starts[r]
-                t = (np.arange(1, counts[r] + 1) / counts[r])[k - 1]
+                t = k / counts[r]
                 target = pose.copy()
                 target[:3, 3] = start[:3, 3] + t * (pose[:3, 3] - start[:3, 3])
                 targets.append(target)

@@ -330,8 +330,7 @@ def failing_grasps(check: GraspCheck) -> dict[int, str]:
     t = Thresholds()
     worst: dict[str, tuple[float, float, str, bool]] = {}
     for p in check.result.nominal.phases:
-        over = p.dropped or p.translation_mm > t.max_slip_mm or p.rotation_deg > t.max_slip_deg
-        if over and p.holder not in worst:
+        if (p.dropped or p.slipped(t)) and p.holder not in worst:
             worst[p.holder] = (p.translation_mm, p.rotation_deg, p.phase, p.dropped)
     names = {f"gripper{k}": i for k, i in enumerate(check.ids)}
     out = {}

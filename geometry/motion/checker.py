@@ -339,12 +339,11 @@ def _prepare(arm: ArmModel, shapes: LinkShapes, n_attached: int, targets: Target
              allowed: np.ndarray, margin: float) -> _Prepared:
     """The :class:`_Prepared` of ``shapes`` (the arm's links' shapes, then ``n_attached``
     boxes carried in the tool frame) against ``targets``; ``allowed`` (links x targets)."""
-    kin = arm.kin  # its folded joint transforms and link offsets, as Kinematics keeps them
+    kin = arm.kin
     dof = kin.dof
     tip = shapes.links.index(kin.chain.tip_link)
-    link_joint = np.asarray(kin._link_joint)
+    link_joint, link_local = kin.link_frames  # (L,), (L, 4, 4) link in its joint's frame
     joint = np.where(link_joint < 0, dof, link_joint).astype(np.intp)  # (L,)
-    link_local = kin._link_local.copy()  # (L, 4, 4) link in its joint's frame
     # The attached boxes ride on the tip link's joint, at the tool frame.
     link_local = np.concatenate([link_local, np.repeat((link_local[tip] @ kin.tcp)[None],
                                                        n_attached, axis=0)])  # fmt: skip
@@ -370,8 +369,7 @@ def _prepare(arm: ArmModel, shapes: LinkShapes, n_attached: int, targets: Target
                                + cap_r, np.linalg.norm(box_h, axis=1)])  # fmt: skip
     owner_s = np.concatenate([shapes.cap_link, shapes.box_link])
     owner_t = np.concatenate([t.cap_target, t.box_target])
-    fold = np.zeros((dof, 4, 4))
-    fold[:, :3, :3], fold[:, :3, 3], fold[:, 3, 3] = kin._a_rot, kin._a_t, 1.0
+    fold = kin.folded
     fold[0] = arm.base @ fold[0]
     return _Prepared(fold, np.asarray(kin.prismatic, dtype=bool), local, rows, cols, c, b,
                      cap_r, box_h, 0.5 * t.box_ext, t_centre, s_radius[:, None] + t_radius[None, :],

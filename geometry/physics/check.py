@@ -332,7 +332,7 @@ def _simulate(prep: _Prepared, models: list[mujoco.MjModel], thresholds: Thresho
                 mm, deg = slip_since(poses[0], poses[h + 1], int(sched.settled[h]), rows)
                 drop = mm > thresholds.drop_mm or deg > thresholds.drop_deg
                 phases.append(PhaseSlip(phase.name, holder, mm, deg, drop))
-                failed |= mm > thresholds.max_slip_mm or deg > thresholds.max_slip_deg
+                failed |= phases[-1].slipped(thresholds)
             if failed and stop_early:
                 return _Run(poses, travel, phase.stop, phases, time.perf_counter() - start)
         before = seg
@@ -368,15 +368,12 @@ def _result(prep: _Prepared, run: _Run, thresholds: Thresholds, mode: str,
             seconds: float) -> CheckResult:  # fmt: skip
     phases = run.phases
     dropped_in = next((p.phase for p in phases if p.dropped), None)
-    failed_in = next((p.phase for p in phases if p.translation_mm > thresholds.max_slip_mm
-                      or p.rotation_deg > thresholds.max_slip_deg), None)  # fmt: skip
+    failed_in = next((p.phase for p in phases if p.slipped(thresholds)), None)
     receiver_held = None
     if any(n.startswith("receiver") for n in prep.names):
         mine = [p for p in phases if p.holder.startswith("receiver")]
-        receiver_held = bool(mine) and all(
-            not p.dropped and p.translation_mm <= thresholds.max_slip_mm
-            and p.rotation_deg <= thresholds.max_slip_deg for p in mine
-        )
+        receiver_held = bool(mine) and not any(p.dropped or p.slipped(thresholds)
+                                               for p in mine)
     dropped = dropped_in is not None
     return CheckResult(
         mode=mode, passed=failed_in is None and not dropped, dropped=dropped,

@@ -11,7 +11,7 @@ import numpy as np
 
 from handover.geometry.gripper import check_poses
 from handover.geometry.physics.hands import Hand
-from handover.geometry.physics.params import Perturbation
+from handover.geometry.physics.params import Perturbation, Thresholds
 
 __all__ = ["GRASP_KINDS", "RECORD_HZ", "Grasp", "PhaseSlip", "Trajectory", "CheckResult",
            "EnsembleResult"]
@@ -66,6 +66,12 @@ class PhaseSlip:
     translation_mm: float
     rotation_deg: float
     dropped: bool
+
+    def slipped(self, thresholds: Thresholds) -> bool:
+        """Whether the slip passes ``thresholds``' ``max_slip_mm`` or ``max_slip_deg`` (the run
+        fails whatever comes next)."""
+        return (self.translation_mm > thresholds.max_slip_mm
+                or self.rotation_deg > thresholds.max_slip_deg)
 
     def to_dict(self) -> dict:
         """JSON-ready, floats rounded to 0.01."""

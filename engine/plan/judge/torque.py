@@ -174,13 +174,13 @@ def uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
     # the same load, judged once per grasp (row by row the same numbers).
     if len(load) and (load == load[0]).all():
         once, back = np.unique(gi, return_inverse=True)
+        once_load = np.full(len(once), load[0])
     else:
-        once, back = gi, np.arange(len(gi))
+        once, back, once_load = gi, np.arange(len(gi)), load
     cap = capacity(rule, ctx, once)
     down = np.einsum("rji,j->ri", np.broadcast_to(ctx.initial[:3, :3], (len(once), 3, 3)),
                      _DOWN)  # gravity in the object frame
-    picked = _use(rule, load_torques(ctx.gripper_poses()[once], com, down, load[:len(once)]),
-                  cap)
+    picked = _use(rule, load_torques(ctx.gripper_poses()[once], com, down, once_load), cap)
     down = np.einsum("rji,j->ri", ctx.rotations[pk], _DOWN)
     offered = _use(rule, load_torques(ctx.gripper_poses()[gi], com, down, load),
                    cap[back.reshape(-1)])
