@@ -17,6 +17,7 @@ test per lattice point.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -122,6 +123,11 @@ class SurfaceSamples:
         return cls(points=points, faces=faces, spacing=float(spacing), mesh=mesh,
                    _tree=cKDTree(points))
 
+    @cached_property
+    def _points_t(self) -> np.ndarray:
+        """(3, S) m: :attr:`points` by coordinate (rows gathered per sample in :meth:`_room`)."""
+        return np.ascontiguousarray(self.points.T)
+
     def box_depths(self, centres: np.ndarray, rotations: np.ndarray,
                    half_extents: np.ndarray) -> np.ndarray:
         """(n,) m: how deep each posed box and the solid overlap: the largest distance from a
@@ -139,13 +145,13 @@ class SurfaceSamples:
         if not len(near):
             return out
         c, rot, half = c[near], rot[near], half[near]
-        owner, idx = self._near(c, np.linalg.norm(half, axis=1))
+        counts, idx = self._near(c, np.linalg.norm(half, axis=1))
         depth_near = np.zeros(len(near))
         if len(idx):
-            local = np.einsum("nji,nj->ni", rot[owner], self.points[idx] - c[owner])
-            room = half[owner] - np.abs(local)  # (m, 3): > 0 on every axis inside the box
-            depth = np.where((room > 0).all(axis=1), room.min(axis=1), 0.0)
-            np.maximum.at(depth_near, owner, depth)
+            room = self._room(idx, counts, c, rot, half)
+            depth = np.where(room > 0, room, 0.0)  # > 0 on every axis: inside the box
+            met = counts > 0  # each box's samples are one run of ``idx``
+            depth_near[met] = np.maximum.reduceat(depth, (np.cumsum(counts) - counts)[met])
         inside = contains(self.mesh, c)
         depth_near[inside] = np.maximum(depth_near[inside], half[inside].min(axis=1))
         out[near] = depth_near
@@ -174,20 +180,43 @@ class SurfaceSamples:
         near = np.flatnonzero(self._meets_bounds(c, rot, half))
         if not len(near):
             return out
-        owner, idx = self._near(c[near], np.linalg.norm(half[near], axis=1))
+        counts, idx = self._near(c[near], np.linalg.norm(half[near], axis=1))
         if len(idx):
-            local = np.einsum("nji,nj->ni", rot[near][owner], self.points[idx] - c[near][owner])
-            inside = (np.abs(local) < half[near][owner]).all(axis=1)
+            inside = self._room(idx, counts, c[near], rot[near], half[near]) > 0
+            owner = np.repeat(np.arange(len(near)), counts)
             out[near[np.unique(owner[inside])]] = True
         return out
 
+    def _room(self, idx: np.ndarray, counts: np.ndarray, centres: np.ndarray,
+              rotations: np.ndarray, half: np.ndarray) -> np.ndarray:
+        """(m,) m: how far each sample ``idx`` (m,) lies inside the box it was found near
+        (> 0 inside, the least on any axis): box ``b``'s samples are the ``counts[b]``
+        (n,) consecutive ones of ``idx``. centres : (n, 3) m. rotations : (n, 3, 3), box
+        axes as columns. half : (n, 3) m. Computed axis by axis on (m,) rows, the box's
+        numbers repeated per sample (the local coordinate is the sum of the three products
+        in the order of ``einsum("nji,nj->ni")``)."""
+        d = self._points_t[:, idx]  # (3, m)
+        d -= np.repeat(centres.T, counts, axis=1)
+        axes = np.repeat(rotations.reshape(-1, 9).T, counts, axis=1)  # row 3j+i: R[:, j, i]
+        reach = np.repeat(half.T, counts, axis=1)
+        room = None
+        for i in range(3):
+            local = axes[i] * d[0]
+            local += axes[3 + i] * d[1]
+            local += axes[6 + i] * d[2]
+            np.abs(local, out=local)
+            np.subtract(reach[i], local, out=local)
+            room = local if room is None else np.minimum(room, local, out=room)
+        return room
+
     def _near(self, centres: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(m,) the query each sample within ``radius`` (n,) of ``centres`` (n, 3) answers,
-        and (m,) its index (in the tree's order: the same for the same inputs)."""
+        """(n,) how many samples lie within ``radius`` (n,) of each of ``centres`` (n, 3),
+        and (m,) their indices, query by query (in the tree's order: the same for the same
+        inputs)."""
         from itertools import chain
 
         near = self._tree.query_ball_point(centres, radius, return_sorted=False)
         counts = np.fromiter(map(len, near), dtype=np.int64, count=len(centres))
         total = int(counts.sum())
         idx = np.fromiter(chain.from_iterable(near), dtype=np.int64, count=total)
-        return np.repeat(np.arange(len(centres)), counts), idx
+        return counts, idx
