@@ -81,6 +81,7 @@ class Memo:
 
     # PlanContext itself
     poses: np.ndarray | None = None  # (N, 4, 4) gripper poses, object frame
+    grasps_key: str | None = None  # PlanContext.grasps_key
     pad_patches: np.ndarray | None = None  # (N, 3) pads' patch radius, extents; NaN: not yet
     gripper_boxes: PosedBoxes | None = None  # the gripper's boxes at every candidate
     d_obj: np.ndarray | None = None  # (K, 3) robot->receiver per presentation, object frame
@@ -119,7 +120,7 @@ class Memo:
     arm_pairs: dict[tuple, tuple] = field(default_factory=dict)
 
     GRASP_ONLY: ClassVar[tuple[str, ...]] = (
-        "poses", "pad_patches", "gripper_boxes", "gripper_spheres", "collision_scene",
+        "poses", "grasps_key", "pad_patches", "gripper_boxes", "gripper_spheres", "collision_scene",
         "keep_out_gripper", "interior", "world", "locations", "arms", "corridor_grasp")
     """Fields that depend on the grasps only, not on the presentations' rotations."""
 
@@ -186,6 +187,22 @@ class PlanContext:
         if self.memo.poses is None:
             self.memo.poses = self.candidates.poses()
         return self.memo.poses
+
+    def grasps_key(self) -> str:
+        """What the candidates and the object in its own frame are a function of (the
+        object's description, its surface with the faces' parts, the gripper's description,
+        the candidates' poses and widths), as a
+        :func:`~handover.engine.assets.lru.content_key`: the key of what is kept across
+        plans per candidate, object frame (computed once)."""
+        if self.memo.grasps_key is None:
+            from handover.engine.assets.lru import content_key
+
+            mesh = self.part_mesh.mesh
+            self.memo.grasps_key = content_key(
+                self.situation.obj.model_dump_json(), self.situation.gripper.model_dump_json(),
+                mesh.vertices, mesh.faces, np.asarray(self.part_mesh.face_part),
+                self.gripper_poses(), np.asarray(self.candidates.width))
+        return self.memo.grasps_key
 
     def gripper_boxes(self) -> PosedBoxes:
         """The gripper's boxes at every candidate, object frame (posed once)."""

@@ -37,6 +37,7 @@ __all__ = ["BITS", "CORRIDORS", "OBJECT_RESOLUTION", "UP", "Corridor", "approach
            "chosen_corridors", "corridors_of", "held_box", "lift", "midair", "midair_pairs",
            "object_distance", "object_hits", "retreat", "where"]
 
+from handover.engine.assets.lru import LRU, content_key
 from handover.engine.plan.records import Corridor
 from handover.engine.spec.kinds.corridor import CORRIDORS
 
@@ -87,17 +88,32 @@ def object_hits(ctx: PlanContext, gi: np.ndarray) -> CorridorHits:
                            name="object", resolution=OBJECT_RESOLUTION)
 
 
+OBJECT_DISTANCE: LRU[str, np.ndarray] = LRU(16)
+"""Per candidate, how far it backs out before touching the object (:func:`object_distance`;
+NaN: not asked yet), by the grasps (:meth:`~handover.engine.plan.context.PlanContext.
+grasps_key`) and the corridors' length, filled in as grasps are asked: a plan of an object
+this process planned before, with the same gripper, sweeps no grasp it swept before."""
+
+
 def object_distance(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
     """(R,) float, m: how far grasp ``gi`` backs out along ``-a`` before touching the object
-    (inf: never within the corridors' length; :func:`object_hits`). Memoised per grasp."""
-    known = ctx.memo.corridor_grasp.setdefault("object", np.full(ctx.n, np.nan))
+    (inf: never within the corridors' length; :func:`object_hits`). Memoised per grasp,
+    and across plans (:data:`OBJECT_DISTANCE`)."""
     gi = np.asarray(gi, dtype=np.int64)
+    if ctx.collider is None:  # no mesh to touch
+        return np.full(len(gi), np.inf)
+    memo = ctx.memo.corridor_grasp
+    if "object" not in memo:
+        spec = _spec(ctx)
+        length = max(spec.approach, spec.retreat)
+        memo["object"] = OBJECT_DISTANCE.fetch(
+            content_key(ctx.grasps_key(), repr(length), repr(OBJECT_RESOLUTION)),
+            lambda: np.full(ctx.n, np.nan))
+    known = memo["object"]
     todo = np.unique(gi[np.isnan(known[gi])])
-    if len(todo) and ctx.collider is not None:
+    if len(todo):
         hits = object_hits(ctx, todo)
         known[todo] = np.where(hits.hit, hits.distance, np.inf)
-    elif len(todo):
-        known[todo] = np.inf
     return known[gi]
 
 

@@ -202,8 +202,8 @@ def open_interior(ctx: PlanContext, tags: tuple[str, ...]) -> Interior:
 
 KEEP_OUT: LRU[str, np.ndarray] = LRU(16)
 """Per candidate, the gripper boxes that reach into an object's opening, by what that is a
-function of (the object's description, its mesh, the candidates' gripper boxes, the
-opening's tags), filled in as rows are asked: a warm plan of the same object and gripper
+function of (the grasps, :meth:`~handover.engine.plan.context.PlanContext.grasps_key`, and
+the opening's tags), filled in as rows are asked: a warm plan of the same object and gripper
 tests no box it tested before (this process's)."""
 
 
@@ -215,10 +215,7 @@ def keep_out_gripper(ctx: PlanContext, interior: Interior, key: tuple,
     posed = ctx.gripper_boxes()
     memo = ctx.memo.keep_out_gripper
     if key not in memo:
-        mesh = ctx.part_mesh.mesh
-        shared = content_key(ctx.situation.obj.model_dump_json(), "\0".join(key),
-                             mesh.vertices, mesh.faces, np.asarray(ctx.part_mesh.face_part),
-                             posed.centres, posed.rotations, posed.extents)
+        shared = content_key(ctx.grasps_key(), "\0".join(key))
         memo[key] = KEEP_OUT.fetch(shared, lambda: np.full(ctx.n, -1, dtype=np.int64))
     known = memo[key]
     todo = np.unique(gi[known[gi] < 0])

@@ -4,10 +4,13 @@ poses, location) they give each presentation."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import json
+from dataclasses import fields, is_dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from handover.engine.assets.lru import LRU, content_key
 from handover.engine.plan.grasp_sites import with_approach
 from handover.engine.plan.offer import locations, place
 from handover.engine.plan.phase import Hands, Roles
@@ -115,7 +118,9 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
     sites_key = (roles, count, grasps.key)
     sites = ctx.memo.receiver_sites.get(sites_key)
     if sites is None:
-        sites = ctx.memo.receiver_sites[sites_key] = _sites(ctx, region, count, grasps)
+        sites = ctx.memo.receiver_sites[sites_key] = RECEIVER_SITES.fetch(
+            _sites_key(ctx, roles, count, grasps),
+            lambda: _read_only(_sites(ctx, region, count, grasps)))
     receiving = (s.receiver.dominant_hand,) if count == 1 else (
         s.receiver.dominant_hand, "left" if s.receiver.dominant_hand == "right" else "right")
     placed = place(ctx, region, sites, list(location_rules), receiving, avoid)
@@ -123,6 +128,47 @@ def _hands(ctx: PlanContext, roles: Roles, count: int, location_rules: tuple,
                  poses=placed.poses, location=placed.location, located=placed.located,
                  measured=placed.measured, hits=placed.hits, receiving=receiving,
                  locations=locations(ctx, receiving[0]), avoid=avoid)
+
+
+RECEIVER_SITES: LRU[str, tuple] = LRU(128)
+"""Each receiving hand's sites with its grasp options (:func:`_sites`), by what they are a
+function of (:func:`_sites_key`): a plan of an object that this process planned before for
+the same hand, receiver, task and rules finds them here (they do not depend on the scene or
+on where the object is offered). Their arrays are read-only: every plan shares them."""
+
+
+def _sites_key(ctx: PlanContext, roles: Roles, count: int, grasps: GraspRules) -> str:
+    """What :func:`_sites` reads, as a :func:`~handover.engine.assets.lru.content_key`: the
+    object (its description, its surface with the faces' parts and its parts' tags), its
+    presentations, the direction robot -> receiver, the receiver's hand and profile (its
+    repertoire, grip and dominant hand), the task, the roles, the number of hands and the
+    rules of the receiver's grasps."""
+    s, pm = ctx.situation, ctx.part_mesh
+    people = [m.model_dump_json() if m is not None else "-"
+              for m in (s.obj, s.hand, s.receiver, s.task)]
+    tags = json.dumps([sorted(t) for t in ctx.part_tags])
+    return content_key(*people, tags, json.dumps(list(pm.part_names)), pm.mesh.vertices,
+                       pm.mesh.faces, np.asarray(pm.face_part), np.asarray(pm.mass_centre),
+                       ctx.rotations, np.asarray(s.toward),
+                       json.dumps([sorted(roles.want), sorted(roles.receiver_forbid),
+                                   sorted(roles.giver_forbid), count]), repr(grasps.key))
+
+
+def _read_only(value: Any) -> Any:
+    """``value`` (sites, options, and the tuples, lists and dicts holding them) with every
+    array in it made read-only, in place: a value kept for other plans is never written."""
+    if isinstance(value, np.ndarray):
+        value.flags.writeable = False
+    elif isinstance(value, tuple | list):
+        for v in value:
+            _read_only(v)
+    elif isinstance(value, dict):
+        for v in value.values():
+            _read_only(v)
+    elif is_dataclass(value) and not isinstance(value, type):
+        for f in fields(value):
+            _read_only(getattr(value, f.name))
+    return value
 
 
 def _sites(ctx: PlanContext, region, count: int, grasps: GraspRules) -> tuple:
