@@ -70,6 +70,31 @@ parts:
 axes:
   up: [0, 0, 1]
 """
+# A porcelain bowl of hot soup with two lug handles (a bouillon bowl): a 7 cm foot, a conical
+# bowl 15 cm across at its 7.5 cm high rim, walls 5 mm, lugs 3.5 x 5 cm x 8 mm at the rim.
+BOWL_FOOT = (0.035, 0.01)  # radius, height
+BOWL = (0.04, 0.075, 0.01, 0.075)  # radius at its bottom and its rim, z of both
+LUGS = ((0.0725, 0.1075), (-0.025, 0.025), (0.064, 0.072))  # |x|, y and z of each lug
+SOUP_BOWL = """\
+id: soup_bowl
+name: Bowl of hot soup with two lug handles
+mass: 0.6
+tags: [hot, liquid, open_container, fragile]
+geometry:
+  primitives:
+    - {shape: cylinder, part: foot, radius: 0.035, height: 0.01, position: [0, 0, 0.005]}
+    - {shape: bowl, part: bowl, profile: conical, radius: 0.075, bottom_radius: 0.04,
+       height: 0.065, thickness: 0.005, position: [0, 0, 0.0425]}
+    - {shape: box, part: lug_left, extents: [0.035, 0.05, 0.008], position: [-0.09, 0, 0.068]}
+    - {shape: box, part: lug_right, extents: [0.035, 0.05, 0.008], position: [0.09, 0, 0.068]}
+parts:
+  foot: {tags: [base]}
+  bowl: {tags: [body]}
+  lug_left: {tags: [handle]}
+  lug_right: {tags: [handle]}
+axes:
+  up: [0, 0, 1]
+"""
 
 
 @pytest.fixture(scope="module")
@@ -79,6 +104,7 @@ def kb_dir(tmp_path_factory) -> Path:
     (root / "objects" / "euro_coin.yaml").write_text(COIN, encoding="utf-8")
     (root / "objects" / "tablet.yaml").write_text(TABLET, encoding="utf-8")
     (root / "objects" / "lit_candle.yaml").write_text(CANDLE, encoding="utf-8")
+    (root / "objects" / "soup_bowl.yaml").write_text(SOUP_BOWL, encoding="utf-8")
     return root
 
 
@@ -180,3 +206,61 @@ def test_a_hot_thing_no_hand_can_take_cool_is_set_down_upright_within_reach(
     distance, reach = _leaning_distance(result, pose[:3, 3] + 0.06 * pose[:3, 2])  # the stem
     assert distance <= reach
 
+
+
+def _finger_points(grasp: dict, gripper: dict) -> np.ndarray:
+    """(2 * 27, 3) world points (corners, edge middles and centres) of the gripper's two
+    fingers at ``grasp``: boxes of the gripper's finger width, thickness and length along
+    the grasp frame's x, closing y and approach z, centred on the grasp's origin along the
+    approach, each its thickness's half beyond the grasp's width and clearance."""
+    pose = np.asarray(grasp["pose_world"], dtype=float)
+    ext = np.array([gripper["finger_width"], gripper["finger_thickness"],
+                    gripper["finger_length"]])
+    grid = np.stack(np.meshgrid(*[np.linspace(-0.5, 0.5, 3)] * 3), axis=-1).reshape(-1, 3) * ext
+    half = grasp["width"] / 2.0 + gripper["clearance"] + gripper["finger_thickness"] / 2.0
+    local = np.concatenate([grid + [0.0, -half, 0.0], grid + [0.0, half, 0.0]])
+    return local @ pose[:3, :3].T + pose[:3, 3]
+
+
+def test_a_bowl_of_hot_soup_is_set_down_upright_in_front_of_a_seated_receiver(planner, kb_dir):
+    # A waiter's way with a bowl of soup: set down before the guest, level, held by its
+    # lugs, nothing in the soup; never put in their hands.
+    plan = planner.plan("soup_bowl", receiver="seated_adult")
+    assert plan.outcome == "place" and plan.feasible, plan.reason
+    result = plan.to_dict()
+    assert "receiver_avoids_hot" in result["reason"]
+    assert result["human_grasps"] == []
+    pose = np.asarray(plan.object_pose, dtype=float)
+    assert pose[2, 2] >= np.cos(np.radians(15.0))  # upright: the soup stays in
+    scene = yaml.safe_load((kb_dir / "scenes" / "table.yaml").read_text())
+    top = float(scene["support"]["position"][2])
+    foot = _disc_points(pose, BOWL_FOOT[0], BOWL_FOOT[1]) + pose[:3, 2] * BOWL_FOOT[1] / 2.0
+    assert abs(foot[:, 2].min() - top) <= 0.001  # standing on its foot on the table top
+    # in front of the receiver, the rim's nearest point within their reach as they lean
+    receiver = result["receiver"]
+    facing = np.asarray(receiver["facing"], dtype=float)
+    centre = pose[:3, 3]
+    assert (centre - np.asarray(receiver["position"], dtype=float)) @ facing > 0.0
+    rim = _disc_points(pose, BOWL[1], 0.0) + pose[:3, 2] * BOWL[3]
+    nearest = rim[np.argmin(np.linalg.norm(rim - np.asarray(receiver["position"]), axis=1))]
+    distance, reach = _leaning_distance(result, nearest)
+    assert distance <= reach
+    # the robot holds a lug: both contacts on one of them (object frame, from the YAML)
+    grasp = result["placement"]["robot_grasp"]
+    contacts = np.abs(np.asarray(grasp["contacts"], dtype=float))
+    (x_lo, x_hi), (y_lo, y_hi), (z_lo, z_hi) = LUGS
+    tol = 1e-6
+    assert ((contacts[:, 0] >= x_lo - tol) & (contacts[:, 0] <= x_hi + tol)).all(), contacts
+    assert (contacts[:, 1] <= y_hi + tol).all() and (contacts[:, 2] >= z_lo - tol).all()
+    assert (contacts[:, 2] <= z_hi + tol).all()
+    # and no finger in the soup: every point of the fingers below the rim's height lies
+    # outside the bowl's outer wall there (object frame)
+    inv = np.linalg.inv(pose)
+    fingers = _finger_points(grasp, result["gripper"]) @ inv[:3, :3].T + inv[:3, 3]
+    r_bottom, r_rim, z_bottom, z_rim = BOWL
+    low = fingers[fingers[:, 2] <= z_rim]
+    wall = r_bottom + (r_rim - r_bottom) * np.clip((low[:, 2] - z_bottom) / (z_rim - z_bottom),
+                                                   0.0, 1.0)
+    assert (np.linalg.norm(low[:, :2], axis=1) > wall).all()
+    above = fingers[fingers[:, 2] > z_rim]
+    assert (np.linalg.norm(above[:, :2], axis=1) > r_rim).all()  # nor over the opening
