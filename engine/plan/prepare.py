@@ -7,6 +7,7 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from handover.engine.assets.lru import LRU
 from handover.engine.plan.context import PlanContext, build_context, initial_pose
 from handover.engine.plan.situation import resolve_situation
 from handover.engine.spec.query import Query
@@ -14,7 +15,6 @@ from handover.engine.spec.query import Query
 if TYPE_CHECKING:
     import trimesh
 
-    from handover.engine.assets.lru import LRU
     from handover.engine.load.loader import KB
     from handover.engine.plan.situation import Situation
     from handover.engine.spec.schema import ObjectSpec
@@ -22,7 +22,8 @@ if TYPE_CHECKING:
     from handover.geometry.gripper import Gripper
     from handover.geometry.mesh import PartMesh
 
-__all__ = ["prepare", "mesh_file_spec", "with_squeeze_sites", "DEFAULT_DENSITY"]
+__all__ = ["prepare", "mesh_file_spec", "with_squeeze_sites", "kb_part_mesh",
+           "PART_MESHES", "DEFAULT_DENSITY"]
 
 # A mesh file with no KB entry: its mass from its volume at the density of wood/plastic.
 DEFAULT_DENSITY = 700.0  # kg/m^3
@@ -76,7 +77,7 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
         mass = volume * DEFAULT_DENSITY if volume > 0 else 0.3
         situation.obj = situation.obj.model_copy(update={"mass": max(mass, 1e-3)})
     else:
-        part_mesh = assets.object_part_mesh(kb, situation.obj)
+        part_mesh = kb_part_mesh(kb, situation.obj)
     from handover.engine.store.cultures import part_tags as tags_of_parts
     from handover.engine.store.hazards import tag_families
 
@@ -102,6 +103,39 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
                                       strict=True))
     ctx.warnings.extend(hints)
     return ctx
+
+
+PART_MESHES: LRU[str, PartMesh] = LRU(32)
+"""KB objects' part-tagged surfaces (:func:`kb_part_mesh`), by what they are built from: a
+plan of an object this process built before uses the same surface (with what trimesh
+derived from it: face centres and normals, the ray scene). Nothing writes to them."""
+
+
+def kb_part_mesh(kb: KB, obj: ObjectSpec) -> PartMesh:
+    """:func:`~handover.engine.assets.objects.object_part_mesh` of the KB object ``obj``, kept
+    in :data:`PART_MESHES` by its geometry's description and its mesh file's bytes (a file
+    edited between plans is read again). One that warned while it was built (a part not
+    closed, a union that failed) is built again every time, so that each plan warns."""
+    import warnings
+
+    import numpy as np
+
+    from handover.engine.assets import objects as assets
+    from handover.engine.assets.lru import content_key
+
+    path = kb.mesh_path(obj)
+    data = path.read_bytes() if path is not None and path.is_file() else b""
+    key = content_key(obj.geometry.model_dump_json(), np.frombuffer(data, dtype=np.uint8))
+    if key in PART_MESHES:
+        return PART_MESHES.fetch(key, lambda: None)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        part_mesh = assets.object_part_mesh(kb, obj)
+    for w in caught:  # told as they would have been
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if not caught:
+        PART_MESHES.put(key, part_mesh)
+    return part_mesh
 
 
 def with_squeeze_sites(situation: Situation, part_mesh: PartMesh, gripper: Gripper,

@@ -132,3 +132,51 @@ def test_planning_a_query_gives_the_plan_of_its_keywords(planner):
     assert by_query.to_json() == by_keywords.to_json()
     with pytest.raises(ValueError, match="unknown query field"):
         planner.plan("mug", colour="red")
+
+
+# ------------------------------------------------------------------ what a process keeps
+
+
+def _forget_everything_kept() -> None:
+    """Empty every cache this process keeps across plans (the Planner's own are new)."""
+    from handover.engine.plan import corridors, features, hands, prepare
+    from handover.engine.plan.judge import torque
+
+    for kept in (hands.RECEIVER_SITES, prepare.PART_MESHES, corridors.OBJECT_DISTANCE,
+                 features.KEEP_OUT, torque.PATCHES):
+        kept.clear()
+
+
+def test_what_is_kept_across_plans_never_changes_a_plan(tmp_path):
+    """Plans that share an object but differ in what the kept values are computed from (the
+    receiver and their hand, the culture, the scene, and the object and the hand
+    edited between plans, under the same ids) give, after one another, the bytes each gives
+    with nothing kept."""
+    import shutil
+
+    import yaml
+
+    from handover.engine.store.kb import builtin_kb_dir
+
+    edited = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), edited)
+    mug = yaml.safe_load((edited / "objects" / "mug.yaml").read_text())
+    mug["mass"] = 2.0 * float(mug["mass"])  # heavier: another load for the receiver's grasps
+    (edited / "objects" / "mug.yaml").write_text(yaml.safe_dump(mug, sort_keys=False))
+    hand = (edited / "hands" / "adult_hand.yaml").read_text()
+    assert "grip_width: 0.09 " in hand
+    (edited / "hands" / "adult_hand.yaml").write_text(
+        hand.replace("grip_width: 0.09 ", "grip_width: 0.07 "))
+    queries = [(None, dict(receiver="adult")), (None, dict(receiver="child")),
+               (None, dict(receiver="elder", culture="korean")),
+               (None, dict(scene="hammer_by_wall")), (edited, dict(receiver="adult")),
+               (edited, dict(receiver="elder"))]
+    _forget_everything_kept()
+    db = tmp_path / "db"  # the candidates, which a plan's bytes never depend on, made once
+    planners = {None: Planner(db=db), edited: Planner(edited, db=db)}
+    warm = [planners[kb].plan("mug", **asked).to_json() for kb, asked in queries]
+    for (kb, asked), made in zip(queries, warm, strict=True):
+        _forget_everything_kept()
+        alone = Planner(kb, db=db).plan("mug", **asked).to_json()
+        assert made == alone, (str(kb), asked)
+    assert warm[0] != warm[4]  # the edits change the plan: the test can tell
