@@ -158,6 +158,22 @@ class Body:
         )
 
     @classmethod
+    def _derived(cls, capsule_names: tuple[str, ...], p0: np.ndarray, p1: np.ndarray,
+                 radius: np.ndarray, box_names: tuple[str, ...], extents: np.ndarray,
+                 poses: np.ndarray) -> Body:
+        """A body made of checked bodies' parts (their names and arrays, selected,
+        concatenated or moved by a checked rigid transform), not checked again: arrays of
+        the shapes :class:`Body` holds, finite, radii and extents > 0, poses rigid."""
+        body = object.__new__(cls)
+        for name, value in (("capsule_names", capsule_names), ("p0", p0), ("p1", p1),
+                            ("radius", radius), ("box_names", box_names),
+                            ("extents", extents), ("poses", poses)):
+            if isinstance(value, np.ndarray):
+                value.flags.writeable = False
+            object.__setattr__(body, name, value)
+        return body
+
+    @classmethod
     def empty(cls) -> Body:
         """A body with no primitives."""
         return cls((), (), (), (), (), (), ())
@@ -178,14 +194,16 @@ class Body:
         """The same body after the rigid ``transform`` (4, 4) (new frame <- this frame)."""
         t = _rigid(_finite(transform, (4, 4), "transform"), "transform")
         rot, shift = t[:3, :3], t[:3, 3]
-        return Body(self.capsule_names, self.p0 @ rot.T + shift, self.p1 @ rot.T + shift,
-                    self.radius, self.box_names, self.extents, t @ self.poses)  # fmt: skip
+        return Body._derived(self.capsule_names, self.p0 @ rot.T + shift,
+                             self.p1 @ rot.T + shift, self.radius, self.box_names,
+                             self.extents, t @ self.poses)
 
     def renamed(self, prefix: str) -> Body:
         """The same body with every name written ``prefix:name``."""
-        return Body(tuple(f"{prefix}:{n}" for n in self.capsule_names), self.p0, self.p1,
-                    self.radius, tuple(f"{prefix}:{n}" for n in self.box_names), self.extents,
-                    self.poses)  # fmt: skip
+        return Body._derived(tuple(f"{prefix}:{n}" for n in self.capsule_names), self.p0,
+                             self.p1, self.radius,
+                             tuple(f"{prefix}:{n}" for n in self.box_names), self.extents,
+                             self.poses)
 
     def subset(self, keep: Sequence[bool] | np.ndarray) -> Body:
         """The primitives where ``keep`` (P,) bool is true (e.g. without the receiving arm:
@@ -194,9 +212,11 @@ class Body:
         if keep.shape != (len(self),):
             raise BodyError(f"keep must have shape ({len(self)},), got {keep.shape}")
         kc, kb = keep[: self.n_capsules], keep[self.n_capsules :]
-        return Body(tuple(np.array(self.capsule_names, dtype=object)[kc]), self.p0[kc],
-                    self.p1[kc], self.radius[kc], tuple(np.array(self.box_names,
-                    dtype=object)[kb]), self.extents[kb], self.poses[kb])  # fmt: skip
+        return Body._derived(
+            tuple(str(n) for n, k in zip(self.capsule_names, kc, strict=True) if k),
+            self.p0[kc], self.p1[kc], self.radius[kc],
+            tuple(str(n) for n, k in zip(self.box_names, kb, strict=True) if k),
+            self.extents[kb], self.poses[kb])
 
     def bounds(self) -> np.ndarray:
         """(2, 3) m, the axis-aligned bounding box (min row, max row) of every primitive."""
@@ -351,7 +371,7 @@ def concatenate(bodies: Sequence[Body], prefixes: Sequence[str] | None = None) -
         bodies = [b.renamed(p) for b, p in zip(bodies, prefixes, strict=True)]
     if not bodies:
         return Body.empty()
-    return Body(
+    return Body._derived(
         sum((b.capsule_names for b in bodies), ()),
         np.concatenate([b.p0 for b in bodies]),
         np.concatenate([b.p1 for b in bodies]),
