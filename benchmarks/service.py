@@ -10,7 +10,7 @@ that round is reported apart), then plans the 10 built-in objects for the 4 rece
 - ``first round``: every query planned for the first time (the grasp database and the
   reachability map built on the way);
 - ``second round`` and ``warm``: the same queries again (``--rounds`` times), answered from
-  the memo of the worker that takes the request when it planned that query, else planned;
+  the service's memo (every query was planned in the first round);
 - ``planned by a warm worker``: a second service with the memo off (``--memo-mb 0``), after
   one untimed round: every answer planned by a worker whose caches are warm, the cost of
   planning itself;
@@ -120,7 +120,7 @@ def main() -> None:
             cold = [ask(conn, q) for q in queries]
             stats("first round (db and maps built)", cold)
             first = [ask(conn, q) for q in queries]
-            stats("second round (memo of one worker)", first)
+            stats("second round (memo)", first)
             warm = [ask(conn, q) for _ in range(args.rounds) for q in queries]
             stats(f"warm, {args.rounds} rounds", warm)
             conn.close()

@@ -24,8 +24,8 @@ def serve(
                                      "$HANDOVER_TOKEN."),
     max_pending: int = typer.Option(64, "--max-pending", help="Requests taken at once "
                                     "(running or waiting); more are answered 503."),
-    memo_mb: float = typer.Option(64.0, "--memo-mb", help="Each worker's memo of answers, "
-                                  "MiB (0: none)."),
+    memo_mb: float = typer.Option(64.0, "--memo-mb", help="The memo of answers given, "
+                                  "whichever worker made them, MiB (0: none)."),
     db: Path | None = typer.Option(
         None, "--db", help="Grasp database folder (default: $HANDOVER_DB, else the user cache)."
     ),

@@ -5,7 +5,8 @@
 ``POST /v1/plan``            body: the query by ``handover plan``'s option names; answer: what
                              ``handover plan --json`` prints (``"format": "moveit"``: what
                              ``--format moveit`` prints; ``"mcap"``: the bag), 200 whatever
-                             the outcome (``X-Handover-Outcome`` says which)
+                             the outcome (``X-Handover-Outcome`` says which; a request
+                             asked before is answered from the memo: ``X-Handover-Memo``)
 ``POST /v1/grasp_planning``  body: a ``grasping_msgs/action/GraspPlanning`` goal
                              (``{"object": {"name", "properties"}, "group_name"}``); answer: the
                              action's result, ``{"grasps": [moveit_msgs/Grasp]}`` (docs/ros.md)
@@ -47,7 +48,9 @@ from handover.engine.service.worker import (
     Reply,
     error_body,
     error_reply,
+    grasp_planning_key,
     grasp_planning_task,
+    plan_key,
     plan_task,
     validate_task,
     verify_task,
@@ -118,8 +121,11 @@ def _deadline(request: Request) -> float | None:
 
 
 def _reply(reply: Reply) -> Response:
-    headers = {"X-Handover-Outcome": reply.outcome} if reply.outcome else None
-    return Response(reply.body, reply.status, headers=headers, media_type=reply.media_type)
+    headers = {"X-Handover-Outcome": reply.outcome} if reply.outcome else {}
+    if reply.memo:  # an answer given before, the same bytes
+        headers["X-Handover-Memo"] = "true"
+    return Response(reply.body, reply.status, headers=headers or None,
+                    media_type=reply.media_type)
 
 
 def create_app(service: Service, token: str | None = None) -> Starlette:
@@ -142,13 +148,16 @@ def create_app(service: Service, token: str | None = None) -> Starlette:
             known = service.served.kb.objects
             return _reply(error_reply(_unknown(body["object"], known)))
         request.state.object = body.get("object") if isinstance(body, dict) else None
-        return _reply(await service.run(plan_task, body, deadline=_deadline(request)))
+        return _reply(await service.run(plan_task, body, deadline=_deadline(request),
+                                        key=plan_key(body)))
 
     async def grasp_planning(request: Request) -> Response:
         goal = await _body(request)
         obj = goal.get("object") if isinstance(goal, dict) else None
         request.state.object = obj.get("name") if isinstance(obj, dict) else None
-        return _reply(await service.run(grasp_planning_task, goal, deadline=_deadline(request)))
+        key = grasp_planning_key(goal, service.served.kb)
+        return _reply(await service.run(grasp_planning_task, goal, deadline=_deadline(request),
+                                        key=key))
 
     async def verify(request: Request) -> Response:
         body = await _body(request, required=False)
@@ -236,6 +245,8 @@ def _guarded(app: Starlette, service: Service, token: str | None
                 for k, v in message.get("headers", []):
                     if k.lower() == b"x-handover-outcome":
                         seen["outcome"] = v.decode("latin-1")
+                    elif k.lower() == b"x-handover-memo":
+                        seen["memo"] = True
                 message = {**message, "headers": [*message.get("headers", []), *extra]}
             await send(message)
 
@@ -253,7 +264,8 @@ def _guarded(app: Starlette, service: Service, token: str | None
             request_log(ts=round(time.time(), 3), id=rid, method=scope.get("method"),
                         path=scope.get("path"), status=seen.get("status"),
                         ms=round((time.perf_counter() - start) * 1000, 2),
-                        outcome=seen.get("outcome"), error=seen.get("error"),
+                        outcome=seen.get("outcome"), memo=seen.get("memo", False),
+                        error=seen.get("error"),
                         kb=service.served.digest[:12] if service.pool else None)
 
     return asgi

@@ -29,7 +29,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from handover.engine.service.worker import PRELOAD, Reply, error_body, ping, start_worker
+from handover.engine.service.worker import (
+    PRELOAD,
+    AnswerMemo,
+    Reply,
+    error_body,
+    ping,
+    start_worker,
+)
 
 if TYPE_CHECKING:
     from pebble import ProcessPool
@@ -80,7 +87,9 @@ def load_served(kb_dir: Path | str | None, cache_dir: Path | None) -> ServedKB:
 
 class WorkerPool:
     """``workers`` processes serving one KB. ``db_root`` : the grasp database folder (None:
-    generate candidates). ``memo_bytes`` : each worker's memo of answers."""
+    generate candidates). ``memo_bytes`` : the memo of the answers they gave (``answers``,
+    in this process: a request asked again is answered from it, whichever worker made the
+    answer; a new KB gets a new pool, and so a new memo)."""
 
     def __init__(self, served: ServedKB, workers: int, db_root: Path | None, memo_bytes: int):
         from pebble import ProcessPool
@@ -91,10 +100,10 @@ class WorkerPool:
         context.set_forkserver_preload(list(PRELOAD))
         self.served = served
         self.workers = workers
+        self.answers = AnswerMemo(memo_bytes)
         self._pool: ProcessPool = ProcessPool(
             max_workers=workers, initializer=start_worker,
-            initargs=(served.kb, None if db_root is None else str(db_root), memo_bytes),
-            context=context)
+            initargs=(served.kb, None if db_root is None else str(db_root)), context=context)
 
     async def call(self, function: Callable[..., Reply], *args: Any,
                    deadline: float) -> Reply:
@@ -172,19 +181,30 @@ class Service:
         return self.pool.served
 
     async def run(self, function: Callable[..., Reply], *args: Any,
-                  deadline: float | None = None) -> Reply:
+                  deadline: float | None = None, key: tuple | None = None) -> Reply:
         """Run a task in the current pool within ``deadline`` (at most the service's);
-        Busy when ``max_pending`` requests are already in."""
-        if self.pool is None:
+        Busy when ``max_pending`` requests are already in. ``key`` : what decides the
+        answer's bytes: an answer the pool's memo holds under it is given at once, and a
+        200 answer is kept under it (None: neither)."""
+        pool = self.pool
+        if pool is None:
             raise RuntimeError("the service is not started")
+        if key is not None:
+            found = pool.answers.get(key)
+            if found is not None:
+                return Reply(found.status, found.body, found.media_type, found.outcome, True,
+                             found.pid, 0.0)
         if self.pending >= self.max_pending:
             raise Busy(self.max_pending)
         limit = self.deadline if deadline is None else min(deadline, self.deadline)
         self.pending += 1
         try:
-            return await self.pool.call(function, *args, deadline=limit)
+            reply = await pool.call(function, *args, deadline=limit)
         finally:
             self.pending -= 1
+        if key is not None and reply.status == 200:
+            pool.answers.put(key, reply)
+        return reply
 
     async def reload(self) -> tuple[ServedKB, ServedKB]:
         """Load the KB folder again and serve it: ``(old, new)``. Raises KBError (the old

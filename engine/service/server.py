@@ -73,9 +73,9 @@ def serve(host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, kb_dir: Path | 
     kb_dir : the KB folder (None: ``$HANDOVER_KB`` or the built-in one). db_root : the grasp
     database folder (None: candidates generated, the KB loaded in full). workers : worker
     processes. deadline : the longest a request may take, s. token : the bearer token; a
-    host that is not this machine's loopback needs one. memo_mb : each worker's memo of
-    answers, MiB. out : where the address is printed (stdout); log : where each request's
-    JSON line goes (stderr).
+    host that is not this machine's loopback needs one. memo_mb : the service's memo of the
+    answers its workers gave, MiB. out : where the address is printed (stdout); log : where
+    each request's JSON line goes (stderr).
     """
     import uvicorn
 

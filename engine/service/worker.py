@@ -1,12 +1,11 @@
 """A worker process of the plan service: what it holds and what it does.
 
 Each worker holds its own copy of the served KB (as loaded and validated by the service,
-handed over when the worker starts), the grasp database (candidates and reachability maps
-are read from it once and kept by the planning code's per-process caches), and a memo of
-the answers it gave (:class:`AnswerMemo`: plans are deterministic, so the same request
-against the same KB gives the same bytes; bounded in bytes, least recently used first out).
-Nothing is shared between workers, and a worker runs one request at a time, so no state is
-ever touched by two requests at once.
+handed over when the worker starts) and the grasp database (candidates and reachability maps
+are read from it once and kept by the planning code's per-process caches). Nothing is shared
+between workers, and a worker runs one request at a time, so no state is ever touched by two
+requests at once. The answers given are memoised by the service itself, for every worker
+(:class:`AnswerMemo`, :mod:`~handover.engine.service.pool`).
 
 Every task returns a :class:`Reply` (status, body, media type) and never raises: the
 project's errors become JSON errors with a 4xx status (:func:`error_reply`), anything else a
@@ -30,7 +29,8 @@ if TYPE_CHECKING:
     from handover.engine.store.kb import KB
 
 __all__ = ["Reply", "AnswerMemo", "WorkerState", "error_reply", "error_body", "start_worker",
-           "ping", "plan_task", "verify_task", "validate_task", "PRELOAD"]
+           "ping", "plan_task", "plan_key", "grasp_planning_task", "grasp_planning_key",
+           "verify_task", "validate_task", "PRELOAD"]
 
 PRELOAD = ("handover.engine.planner", "handover.engine.tools.answer",
            "handover.engine.report.moveit", "handover.engine.service.worker")
@@ -41,7 +41,8 @@ PRELOAD = ("handover.engine.planner", "handover.engine.tools.answer",
 class Reply:
     """A worker's answer to one request. status : HTTP status. body : the bytes to send.
     media_type : their type. outcome : a plan's outcome (for the log). memo : answered from
-    the memo. pid : the worker's process id. seconds : time spent in the worker."""
+    the service's memo. pid : the process id of the worker that made it. seconds : time
+    spent in the worker (0 from the memo)."""
 
     status: int
     body: bytes
@@ -87,7 +88,8 @@ def error_reply(error: BaseException) -> Reply:
 
 class AnswerMemo:
     """Answers by request key, at most ``max_bytes`` of bodies in all, the least recently
-    used dropped first (an answer larger than the budget is not kept)."""
+    used dropped first (an answer larger than the budget is not kept). Plans are
+    deterministic: the same request against the same KB gives the same bytes."""
 
     def __init__(self, max_bytes: int):
         self.max_bytes = max(0, int(max_bytes))
@@ -119,19 +121,18 @@ class WorkerState:
 
     kb: KB
     db: GraspDB | None
-    memo: AnswerMemo
 
 
 _STATE: WorkerState | None = None
 
 
-def start_worker(kb: KB, db_root: str | None, memo_bytes: int) -> None:
+def start_worker(kb: KB, db_root: str | None) -> None:
     """The pool's initializer: keep the served KB, open the grasp database (None: generate
-    candidates), make the memo."""
+    candidates)."""
     global _STATE
     from handover.engine.assets.graspdb import open_db
 
-    _STATE = WorkerState(kb, open_db(db_root, disabled=db_root is None), AnswerMemo(memo_bytes))
+    _STATE = WorkerState(kb, open_db(db_root, disabled=db_root is None))
 
 
 def _state() -> WorkerState:
@@ -148,48 +149,48 @@ def ping() -> int:
 
 def plan_task(body: Any) -> Reply:
     """``POST /v1/plan``: the request's answer (:func:`handover.engine.tools.answer.render`),
-    status 200 whatever the outcome, from the memo when the same request was answered."""
+    status 200 whatever the outcome."""
     start = time.perf_counter()
     try:
-        from handover.engine.errors import UsageError
-        from handover.engine.tools.answer import MEDIA_TYPES, PlanRequest, plan_request, render
-        from handover.geometry.mesh import MESH_SUFFIXES
+        from handover.engine.tools.answer import MEDIA_TYPES, plan_request, render
 
-        request = PlanRequest.from_mapping(body)
-        if Path(request.object).suffix.lower() in MESH_SUFFIXES:
-            raise UsageError(f"'{request.object}' is a mesh file: the service plans the objects "
-                             "of its knowledge base only")
+        request = _plan_request(body)
         state = _state()
-
-        def answer() -> tuple[bytes, str, str]:
-            planned = plan_request(state.kb, request, state.db)
-            return render(planned, request.format), MEDIA_TYPES[request.format], planned.outcome
-
-        return _memoised(state, request.key(), answer, start)
+        planned = plan_request(state.kb, request, state.db)
+        return Reply(200, render(planned, request.format), MEDIA_TYPES[request.format],
+                     planned.outcome, False, os.getpid(), time.perf_counter() - start)
     except Exception as e:  # noqa: BLE001 - every error is an answer
         return _timed(error_reply(e), start)
 
 
-def _memoised(state: WorkerState, key: tuple, answer, start: float) -> Reply:
-    """The reply under ``key`` in the worker's memo, else ``answer()`` (body, media type,
-    outcome) as a 200 reply, kept in the memo; timed from ``start`` (perf_counter)."""
-    found = state.memo.get(key)
-    if found is not None:
-        return Reply(found.status, found.body, found.media_type, found.outcome, True,
-                     os.getpid(), time.perf_counter() - start)
-    body, media_type, outcome = answer()
-    reply = Reply(200, body, media_type, outcome, False, os.getpid(),
-                  time.perf_counter() - start)
-    state.memo.put(key, reply)
-    return reply
+def _plan_request(body: Any):
+    """The :class:`~handover.engine.tools.answer.PlanRequest` of a ``/v1/plan`` body; raises
+    UsageError for a body that is none, or names a mesh file."""
+    from handover.engine.errors import UsageError
+    from handover.engine.tools.answer import PlanRequest
+    from handover.geometry.mesh import MESH_SUFFIXES
+
+    request = PlanRequest.from_mapping(body)
+    if Path(request.object).suffix.lower() in MESH_SUFFIXES:
+        raise UsageError(f"'{request.object}' is a mesh file: the service plans the objects "
+                         "of its knowledge base only")
+    return request
+
+
+def plan_key(body: Any) -> tuple | None:
+    """What decides the bytes of ``plan_task(body)``'s answer (the service's memo key); None
+    for a body that is no request (its worker answers the error)."""
+    try:
+        return ("plan", _plan_request(body).key())
+    except Exception:  # noqa: BLE001 - the worker says what is wrong with it
+        return None
 
 
 def grasp_planning_task(goal: Any) -> Reply:
     """``POST /v1/grasp_planning``: a ``grasping_msgs/action/GraspPlanning`` goal
     (:func:`handover.engine.tools.answer.grasp_planning_request`) answered with the action's
     result, ``{"grasps": [moveit_msgs/Grasp]}``, status 200 whatever the outcome (an
-    infeasible plan has no grasp; ``X-Handover-Outcome`` says which), from the memo when the
-    same goal was answered."""
+    infeasible plan has no grasp; ``X-Handover-Outcome`` says which)."""
     start = time.perf_counter()
     try:
         from handover.engine.report.moveit import grasp_planning_result
@@ -197,16 +198,26 @@ def grasp_planning_task(goal: Any) -> Reply:
 
         state = _state()
         request, group = grasp_planning_request(goal, state.kb)
-
-        def answer() -> tuple[bytes, str, str]:
-            planned = plan_request(state.kb, request, state.db)
-            result = grasp_planning_result(json.loads(planned.result.to_json()), group)
-            body = (json.dumps(result, indent=2, ensure_ascii=False) + "\n").encode("utf-8")
-            return body, "application/json", planned.outcome
-
-        return _memoised(state, ("grasp_planning", group, request.key()), answer, start)
+        planned = plan_request(state.kb, request, state.db)
+        result = grasp_planning_result(json.loads(planned.result.to_json()), group)
+        body = (json.dumps(result, indent=2, ensure_ascii=False) + "\n").encode("utf-8")
+        return Reply(200, body, "application/json", planned.outcome, False, os.getpid(),
+                     time.perf_counter() - start)
     except Exception as e:  # noqa: BLE001 - every error is an answer
         return _timed(error_reply(e), start)
+
+
+def grasp_planning_key(goal: Any, kb: KB) -> tuple | None:
+    """What decides the bytes of ``grasp_planning_task(goal)``'s answer with ``kb`` served
+    (the service's memo key); None for a goal that is none (its worker answers the
+    error)."""
+    from handover.engine.tools.answer import grasp_planning_request
+
+    try:
+        request, group = grasp_planning_request(goal, kb)
+    except Exception:  # noqa: BLE001 - the worker says what is wrong with it
+        return None
+    return ("grasp_planning", group, request.key())
 
 
 def verify_task(body: Any) -> Reply:

@@ -140,6 +140,22 @@ def test_a_plan_is_the_cli_s_json_byte_for_byte(service, kb_dir, body, args) -> 
     assert again == answer  # the memo gives the same bytes
 
 
+def test_a_request_asked_again_is_answered_from_the_memo_whichever_worker_planned_it(
+        service) -> None:
+    # Two workers: the old memo was each worker's, so a request asked again was planned
+    # again about every other time. Asked concurrently, both workers take some.
+    body = {"object": "scissors", "receiver": "elder", "culture": "korean"}
+    status, headers, answer = service.plan(body)
+    assert status == 200 and "x-handover-memo" not in headers  # planned
+    with ThreadPoolExecutor(4) as pool:
+        again = list(pool.map(lambda _: service.plan(body), range(8)))
+    assert all(s == 200 and h.get("x-handover-memo") == "true" and a == answer
+               for s, h, a in again)
+    logged = [json.loads(line) for line in service.log.read_text().splitlines()
+              if line.startswith("{") and '"path": "/v1/plan"' in line]
+    assert sum(1 for e in logged if e.get("memo")) >= 8
+
+
 def test_moveit_and_mcap_are_the_cli_s(service, kb_dir, tmp_path) -> None:
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
@@ -296,7 +312,7 @@ def test_32_clients_at_once_are_all_answered(service) -> None:
     invalid = [(b"{oops", 400), ({"object": "spork"}, 404),
                ({"object": "knife", "culture": "martian"}, 404),
                ({"object": "knife", "colour": 1}, 400)]
-    for body in valid:  # each worker plans these once; then they come from its memo
+    for body in valid:  # planned once; then they come from the service's memo
         assert service.plan(body)[0] == 200
     pids = [service.proc.pid, *service.health()["worker_pids"]]
     before = _rss_kib(pids)
