@@ -36,6 +36,8 @@ FEATURES: dict[str, tuple[float, str, str]] = {
     "quality": (1.0, "grasp", "grasp quality (antipodal measure, 1 is best)"),
     "torque": (1.0, "grasp", "torque of the object's weight about the grasp axis"),
     "giver_side": (2.0, "grasp x presentation", "grasp position along robot->receiver"),
+    "giver_torso": (2.0, "grasp x presentation",
+                    "robot grasp's distance from its own base axis where it is offered"),
     "approach": (2.0, "grasp x presentation", "angle of approach a to robot->receiver"),
     "clearance": (3.0, "grasp x presentation", "distance from robot grasp to receiver site"),
     "location": (1.0, "presentation", "the handover location chosen for the presentation"),
