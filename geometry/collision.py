@@ -192,8 +192,10 @@ def _check_rigid(transform: np.ndarray, what: str) -> np.ndarray:
 def _check_boxes(
     boxes: Sequence[Box],
 ) -> tuple[tuple[str, ...], np.ndarray, np.ndarray, np.ndarray]:
-    """Names, centres (K, 3), rotations (K, 3, 3), extents (K, 3) of a list of boxes."""
-    names, centres, rots, exts = [], [], [], []
+    """Names, centres (K, 3), rotations (K, 3, 3), extents (K, 3) of a list of boxes; a
+    ``ValueError`` naming the first box whose extents are not 3 positive lengths or whose
+    transform is not a finite rigid (4, 4) matrix (checked for all boxes at once)."""
+    given, exts, tfs = [], [], []
     for index, box in enumerate(boxes):
         try:
             name, extents, transform = box
@@ -201,20 +203,33 @@ def _check_boxes(
             raise ValueError(
                 f"box {index} must be a (name, extents, transform) triple, got {box!r}"
             ) from None
-        extents = np.asarray(extents, dtype=float)
-        if extents.shape != (3,) or not np.isfinite(extents).all() or (extents <= 0).any():
-            raise ValueError(f"box {name!r}: extents must be 3 positive lengths, got {extents}")
-        transform = _check_rigid(transform, f"box {name!r}: transform")
-        names.append(str(name))
-        centres.append(transform[:3, 3])
-        rots.append(transform[:3, :3])
-        exts.append(extents)
-    return (
-        tuple(names),
-        np.array(centres, dtype=float).reshape(-1, 3),
-        np.array(rots, dtype=float).reshape(-1, 3, 3),
-        np.array(exts, dtype=float).reshape(-1, 3),
+        given.append(name)
+        exts.append(np.asarray(extents, dtype=float))
+        tfs.append(np.asarray(transform, dtype=float))
+    k = len(given)
+    e = np.array([x if x.shape == (3,) else np.full(3, np.nan) for x in exts],
+                 dtype=float).reshape(k, 3)
+    t = np.array([x if x.shape == (4, 4) else np.full((4, 4), np.nan) for x in tfs],
+                 dtype=float).reshape(k, 4, 4)
+    ext_bad = ~(np.isfinite(e).all(axis=1) & (e > 0).all(axis=1))
+    tf_bad = ~np.isfinite(t).all(axis=(1, 2))
+    rot = np.where(tf_bad[:, None, None], np.eye(3), t[:, :3, :3])
+    rigid_bad = (
+        (np.abs(np.swapaxes(rot, 1, 2) @ rot - np.eye(3)).max(axis=(1, 2), initial=0.0) > 1e-6)
+        | (np.linalg.det(rot) < 0 if k else np.zeros(0, bool))
+        | (np.abs(np.nan_to_num(t[:, 3]) - (0, 0, 0, 1)).max(axis=1, initial=0.0) > 1e-12)
     )
+    bad = ext_bad | tf_bad | rigid_bad
+    if bad.any():
+        i = int(np.argmax(bad))
+        name = given[i]
+        if ext_bad[i]:
+            raise ValueError(f"box {name!r}: extents must be 3 positive lengths, got {exts[i]}")
+        what = f"box {name!r}: transform"
+        if tf_bad[i]:
+            raise ValueError(f"{what} must be a finite (4, 4) matrix, got shape {tfs[i].shape}")
+        raise ValueError(f"{what} must be a rigid transform (orthonormal right-handed rotation)")
+    return (tuple(str(n) for n in given), t[:, :3, 3].copy(), t[:, :3, :3].copy(), e)
 
 
 def _bvh_model(vertices: np.ndarray, faces: np.ndarray):
