@@ -105,7 +105,7 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
     return ctx
 
 
-PART_MESHES: LRU[str, PartMesh] = LRU(32)
+PART_MESHES: LRU[str, PartMesh] = LRU(16)
 """KB objects' part-tagged surfaces (:func:`kb_part_mesh`), by what they are built from: a
 plan of an object this process built before uses the same surface (with what trimesh
 derived from it: face centres and normals, the ray scene). Nothing writes to them."""
