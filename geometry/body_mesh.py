@@ -199,32 +199,37 @@ def _extreme_vertices(vertices: np.ndarray, centre: np.ndarray) -> np.ndarray:
     return np.array(pick)
 
 
-def _fcl_primitives(body: Body, margin: float) -> tuple[list, np.ndarray, np.ndarray]:
-    """One ``fcl.CollisionObject`` per primitive, and each one's placement in the body's
-    frame: rotations (P, 3, 3) and translations (P, 3) (fcl's capsule runs along its z)."""
+def _fcl_primitives(body: Body, margin: float, which: np.ndarray | None = None
+                    ) -> tuple[list, np.ndarray, np.ndarray]:
+    """One ``fcl.CollisionObject`` per primitive ``which`` (indices into ``body.names``, in
+    that order; None: every one), and each one's placement in the body's frame: rotations
+    (n, 3, 3) and translations (n, 3) (fcl's capsule runs along its z)."""
     import fcl
 
     from handover.geometry.frames import perpendicular
 
+    m = body.n_capsules
     objs, rots, shifts = [], [], []
-    for p0, p1, rad in zip(body.p0, body.p1, body.radius, strict=True):
-        axis = p1 - p0
-        length = float(np.linalg.norm(axis))
-        if length < 1e-12:
-            geom, rot = fcl.Sphere(float(rad) + margin), np.eye(3)
+    for j in (range(len(body)) if which is None else (int(v) for v in which)):
+        if j < m:
+            p0, p1, rad = body.p0[j], body.p1[j], body.radius[j]
+            axis = p1 - p0
+            length = float(np.linalg.norm(axis))
+            if length < 1e-12:
+                geom, rot = fcl.Sphere(float(rad) + margin), np.eye(3)
+            else:
+                z = axis / length
+                x = perpendicular(z)
+                rot = np.stack([x, np.cross(z, x), z], axis=1)
+                geom = fcl.Capsule(float(rad) + margin, length)
+            shift = 0.5 * (p0 + p1)
         else:
-            z = axis / length
-            x = perpendicular(z)
-            rot = np.stack([x, np.cross(z, x), z], axis=1)
-            geom = fcl.Capsule(float(rad) + margin, length)
+            ext, pose = body.extents[j - m], body.poses[j - m]
+            geom = fcl.Box(*(float(v) + 2 * margin for v in ext))
+            rot, shift = pose[:3, :3], pose[:3, 3]
         objs.append(fcl.CollisionObject(geom, fcl.Transform()))
         rots.append(rot)
-        shifts.append(0.5 * (p0 + p1))
-    for ext, pose in zip(body.extents, body.poses, strict=True):
-        objs.append(fcl.CollisionObject(fcl.Box(*(float(v) + 2 * margin for v in ext)),
-                                        fcl.Transform()))  # fmt: skip
-        rots.append(pose[:3, :3])
-        shifts.append(pose[:3, 3])
+        shifts.append(shift)
     return objs, np.reshape(rots, (-1, 3, 3)), np.reshape(shifts, (-1, 3))
 
 
@@ -260,13 +265,15 @@ def _fcl_pairs(
     ``inv_t`` (K, 3): body frame -> mesh frame)."""
     import fcl
 
-    prims, prim_r, prim_t = _fcl_primitives(body, margin)
-    rot = np.ascontiguousarray(inv_r[rows] @ prim_r[cols])
-    pos = np.ascontiguousarray(np.einsum("nij,nj->ni", inv_r[rows], prim_t[cols]) + inv_t[rows])
+    which = np.unique(cols)  # only the primitives asked are built
+    prims, prim_r, prim_t = _fcl_primitives(body, margin, which)
+    at = np.searchsorted(which, cols)
+    rot = np.ascontiguousarray(inv_r[rows] @ prim_r[at])
+    pos = np.ascontiguousarray(np.einsum("nij,nj->ni", inv_r[rows], prim_t[at]) + inv_t[rows])
     request = fcl.CollisionRequest()
     make, collide = fcl.Transform, fcl.collide
     hit = np.zeros(len(rows), dtype=bool)
-    for n, j in enumerate(cols.tolist()):
+    for n, j in enumerate(at.tolist()):
         prim = prims[j]
         prim.setTransform(make(rot[n], pos[n]))
         hit[n] = collide(prim, target, request) > 0
