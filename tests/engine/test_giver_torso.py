@@ -67,8 +67,9 @@ def _robot_axis(kb_dir: Path) -> np.ndarray:
 
 
 def _offering_hands(result: dict) -> list[tuple[dict, float]]:
-    """Each robot grasp that holds the object where it is offered, with the horizontal
-    distance (m) from the middle of its contacts to the robot's base axis."""
+    """Each robot grasp that holds the object where it is offered, with the middle of its
+    contacts in the world ((3,) m: the offered object's pose applied to the JSON's contacts,
+    object frame)."""
     pose = np.asarray(result["object_pose"], dtype=float)
     out = []
     for g in result["robot_grasps"]:
