@@ -81,6 +81,7 @@ class Memo:
 
     # PlanContext itself
     poses: np.ndarray | None = None  # (N, 4, 4) gripper poses, object frame
+    object_key: str | None = None  # PlanContext.object_key
     grasps_key: str | None = None  # PlanContext.grasps_key
     pad_patches: np.ndarray | None = None  # (N, 3) pads' patch radius, extents; NaN: not yet
     gripper_boxes: PosedBoxes | None = None  # the gripper's boxes at every candidate
@@ -120,8 +121,9 @@ class Memo:
     arm_pairs: dict[tuple, tuple] = field(default_factory=dict)
 
     GRASP_ONLY: ClassVar[tuple[str, ...]] = (
-        "poses", "grasps_key", "pad_patches", "gripper_boxes", "gripper_spheres", "collision_scene",
-        "keep_out_gripper", "interior", "world", "locations", "arms", "corridor_grasp")
+        "poses", "object_key", "grasps_key", "pad_patches", "gripper_boxes", "gripper_spheres",
+        "collision_scene", "keep_out_gripper", "interior", "world", "locations", "arms",
+        "corridor_grasp")
     """Fields that depend on the grasps only, not on the presentations' rotations."""
 
     def grasp_only(self) -> Memo:
@@ -188,20 +190,37 @@ class PlanContext:
             self.memo.poses = self.candidates.poses()
         return self.memo.poses
 
+    def object_key(self) -> str:
+        """What the object is, in its own frame (its description, its surface with the faces'
+        parts, its parts' names and tags, its centre of mass), as a
+        :func:`~handover.engine.assets.lru.content_key`: the start of the key of whatever is
+        kept across plans for an object (computed once)."""
+        if self.memo.object_key is None:
+            import json
+
+            from handover.engine.assets.lru import content_key
+
+            pm = self.part_mesh
+            self.memo.object_key = content_key(
+                self.situation.obj.model_dump_json(), json.dumps(list(pm.part_names)),
+                json.dumps([sorted(t) for t in self.part_tags]), pm.mesh.vertices,
+                pm.mesh.faces, np.asarray(pm.face_part), np.asarray(pm.mass_centre))
+        return self.memo.object_key
+
     def grasps_key(self) -> str:
-        """What the candidates and the object in its own frame are a function of (the
-        object's description, its surface with the faces' parts, the gripper's description,
-        the candidates' poses and widths), as a
-        :func:`~handover.engine.assets.lru.content_key`: the key of what is kept across
-        plans per candidate, object frame (computed once)."""
+        """What the candidates are besides the object (:meth:`object_key`): the gripper (its
+        description and its parts' geometry, its meshes' included) and the candidates'
+        poses, widths and sources, as a :func:`~handover.engine.assets.lru.content_key`: the
+        key of what is kept across plans per candidate, object frame (computed once)."""
         if self.memo.grasps_key is None:
             from handover.engine.assets.lru import content_key
 
-            mesh = self.part_mesh.mesh
+            g = self.gripper
+            shapes = [a for v, f in (g.collision_shapes() or []) for a in (v, f)]
             self.memo.grasps_key = content_key(
-                self.situation.obj.model_dump_json(), self.situation.gripper.model_dump_json(),
-                mesh.vertices, mesh.faces, np.asarray(self.part_mesh.face_part),
-                self.gripper_poses(), np.asarray(self.candidates.width))
+                self.object_key(), self.situation.gripper.model_dump_json(), g.part_extents(),
+                g.part_offsets(0.0), *shapes, self.gripper_poses(),
+                np.asarray(self.candidates.width), np.asarray(self.candidates.source))
         return self.memo.grasps_key
 
     def gripper_boxes(self) -> PosedBoxes:

@@ -139,17 +139,13 @@ on where the object is offered). Their arrays are read-only: every plan shares t
 
 def _sites_key(ctx: PlanContext, roles: Roles, count: int, grasps: GraspRules) -> str:
     """What :func:`_sites` reads, as a :func:`~handover.engine.assets.lru.content_key`: the
-    object (its description, its surface with the faces' parts and its parts' tags), its
+    object (:meth:`~handover.engine.plan.context.PlanContext.object_key`), its
     presentations, the direction robot -> receiver, the receiver's hand and profile (its
     repertoire, grip and dominant hand), the task, the roles, the number of hands and the
     rules of the receiver's grasps."""
-    s, pm = ctx.situation, ctx.part_mesh
-    people = [m.model_dump_json() if m is not None else "-"
-              for m in (s.obj, s.hand, s.receiver, s.task)]
-    tags = json.dumps([sorted(t) for t in ctx.part_tags])
-    return content_key(*people, tags, json.dumps(list(pm.part_names)), pm.mesh.vertices,
-                       pm.mesh.faces, np.asarray(pm.face_part), np.asarray(pm.mass_centre),
-                       ctx.rotations, np.asarray(s.toward),
+    s = ctx.situation
+    people = [m.model_dump_json() if m is not None else "-" for m in (s.hand, s.receiver, s.task)]
+    return content_key(ctx.object_key(), *people, ctx.rotations, np.asarray(s.toward),
                        json.dumps([sorted(roles.want), sorted(roles.receiver_forbid),
                                    sorted(roles.giver_forbid), count]), repr(grasps.key))
 

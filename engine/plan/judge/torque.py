@@ -53,8 +53,7 @@ def pad_patches(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
         grip = pad_grip(ctx)
         mesh, poses, widths = ctx.part_mesh.mesh, ctx.gripper_poses(), ctx.candidates.width
         squeeze = ctx.candidates.source == SOURCE_SQUEEZE
-        key = content_key(mesh.vertices, mesh.faces, poses, widths, squeeze,
-                          np.array(dataclasses.astuple(grip), dtype=float))
+        key = content_key(ctx.grasps_key(), np.array(dataclasses.astuple(grip), dtype=float))
 
         def every() -> np.ndarray:
             out = np.zeros((ctx.n, 3))
@@ -70,9 +69,10 @@ def pad_patches(ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
 
 
 PATCHES: LRU[str, np.ndarray] = LRU(16)
-"""Every candidate's pad patches by what they are a function of (the mesh, the candidates'
-poses and widths, the gripper's pads): a warm plan of the same object and gripper casts no
-rays again (this process's; the rays cost about 1 s on a 4,000-candidate ball)."""
+"""Every candidate's pad patches by what they are a function of (the grasps,
+:meth:`~handover.engine.plan.context.PlanContext.grasps_key`, and the pads' grip): a warm
+plan of the same object and gripper casts no rays again (this process's; the rays cost about
+1 s on a 4,000-candidate ball)."""
 
 
 def capacity(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray) -> np.ndarray:
