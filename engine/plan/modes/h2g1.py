@@ -62,7 +62,7 @@ if TYPE_CHECKING:
     from handover.engine.load.loader import KB
     from handover.engine.plan.context import PlanContext
 
-__all__ = ["plan_h2g1", "receiver_hand_count", "SIDE_BAND", "BALANCE_WEIGHT"]
+__all__ = ["plan_h2g1", "receiver_hand_count", "room_for_hands", "SIDE_BAND", "BALANCE_WEIGHT"]
 
 # Fraction of the object's left-right extent, at each end, where that side's hand may grasp.
 SIDE_BAND = 0.25
@@ -74,16 +74,48 @@ SIDE_POOL = 48
 ARM_PAIRS = 16
 
 
-def receiver_hand_count(cg: ConstraintGraph) -> tuple[int, str]:
+def receiver_hand_count(cg: ConstraintGraph, ctx: PlanContext | None = None
+                        ) -> tuple[int, str]:
     """How many hands the receiver uses, and why: two when an active mode rule asking for
-    H2G1 is about the object's mass or size (the large-object case), else one (etiquette)."""
+    H2G1 is about the object's mass or size (the large-object case) and, given ``ctx``, the
+    parts they may take it by leave room for two hands side by side
+    (:func:`room_for_hands`: a grip width each); else one (etiquette, or a pitcher or a pan
+    taken by its one handle)."""
     for c in cg.order:
         if c.rule.kind == "mode" and c.rule.mode == "H2G1" and c.rule.applies.is_about_load():
+            if ctx is not None:
+                room, need = room_for_hands(cg, ctx), 2.0 * ctx.situation.hand.grip_width
+                if room < need:
+                    return 1, (f"{c.id} ({c.source}) asks for two hands, but the parts the "
+                               f"receiver takes it by are {room:.2f} m across at most, no room "
+                               f"for two hands side by side ({need:.2f} m): one hand")
             return 2, f"{c.id} ({c.source}): a large or heavy object takes two hands"
     for c in cg.order:
         if c.rule.kind == "mode" and c.rule.mode == "H2G1":
             return 1, f"{c.id} ({c.source}): etiquette; the receiver takes it in one hand"
     return 1, "no rule asks for two hands; the receiver takes it in one hand"
+
+
+def room_for_hands(cg: ConstraintGraph, ctx: PlanContext) -> float:
+    """m: how far the parts the receiver may take the object by (their region under ``cg``'s
+    contact rules) extend across the receiver (the direction their two hands sit side by
+    side, ``up x toward``), in the presentation where they extend furthest; from the mesh's
+    vertices of those parts. Infinite when no part is theirs to take (nothing to measure)."""
+    from handover.engine.plan.hands import receiver_roles
+    from handover.engine.plan.receiver_sites import receiver_region
+
+    mesh = ctx.part_mesh.mesh
+    face_part = np.asarray(ctx.part_mesh.face_part)
+    roles = receiver_roles(cg, ctx)
+    region = receiver_region(np.asarray(mesh.triangles_center), face_part, ctx.part_tags,
+                             set(roles.want), set(roles.receiver_forbid))
+    if region.empty:
+        return float("inf")
+    faces = np.asarray(mesh.faces)[np.isin(face_part, np.unique(region.parts))]
+    points = np.asarray(mesh.vertices)[np.unique(faces)]
+    lateral = np.cross([0.0, 0.0, 1.0], ctx.situation.toward)
+    across = np.einsum("kji,j->ki", ctx.rotations, lateral)  # (K, 3) object frame
+    return float(np.ptp(points @ across.T, axis=0).max())
 
 
 def _palm_centres(ctx: PlanContext) -> np.ndarray:
@@ -145,7 +177,7 @@ def plan_h2g1(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     best pairs where the location rules offer the object, the presentations that had pairs
     move to their next best locations (:func:`~handover.engine.plan.modes.common.relocated`)."""
     cg = compile(kb, ctx, "H2G1")
-    count, count_why = receiver_hand_count(cg)
+    count, count_why = receiver_hand_count(cg, ctx)
     receiver = ReceiverHands(count, count_why)
     return relocated(_plan(ctx, cg, hands_for(cg, ctx, count), receiver, quick=quick),
                      lambda avoid: hands_for(cg, ctx, count, avoid=avoid),
