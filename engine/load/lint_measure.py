@@ -73,4 +73,6 @@ def lint_measurements(kb: KB) -> Iterator[KBIssue]:
                                f"{', '.join(sorted(set(ids)))} cannot measure it and a plan "
                                "will not hand it over (model the container with a cup, bowl "
                                "or tube primitive, or give it a mesh with its cavity and an "
-                               "'up' axis)", severity="warning")
+                               "'up' axis; a closed container, a kettle with its lid on or a "
+                               f"capped bottle, is tagged container, not {tags})",
+                               severity="warning")

@@ -43,7 +43,8 @@ def opening_problem(rule: KeepOutRule, ctx: PlanContext) -> str:
                 "cup, bowl or tube primitive on the parts so tagged, and its surface holds "
                 "nothing standing along 'up' (a solid): model the container with a cup, "
                 "bowl or tube primitive (or walls round a cavity), or give it a mesh with "
-                "its cavity")
+                f"its cavity; a closed container (a kettle with its lid on, a capped bottle) "
+                f"has no opening to keep out of: tag it container, not {tagged}")
     return (f"object '{obj.id}' is tagged {tagged} but no cavity that holds anything standing "
             "along its 'up' axis was found in its mesh (a closed or solid mesh, a hole in "
             "its floor, or an 'up' axis that is not the way it stands): give it a mesh with "
