@@ -54,7 +54,8 @@ if TYPE_CHECKING:
 
 __all__ = ["FALLBACKS", "GraspCheck", "PlanPhysics", "object_model", "gripper_hand",
            "squeeze_hand", "plan_motion", "plan_grasps", "receiver_grasps", "check_group",
-           "check_plan", "check_alternatives", "failing_grasps", "record_plan"]
+           "check_plan", "check_alternatives", "failing_grasps", "record_plan", "carried",
+           "SET_DOWN_NOTE"]
 
 FALLBACKS = 3
 """At most this many next best candidates are checked when the chosen grasp fails."""
@@ -347,9 +348,9 @@ def failing_grasps(check: GraspCheck) -> dict[int, str]:
 def _specs(kb: KB, data: dict) -> tuple[ObjectSpec, GripperSpec]:
     if not isinstance(data, dict) or "object" not in data or "outcome" not in data:
         raise UsageError("this is not a plan: a plan's JSON has 'object' and 'outcome'")
-    if data["outcome"] != "handover":
-        raise UsageError(f"the plan's outcome is {data['outcome']!r}: only a handover's "
-                         "grasps are checked")
+    if data["outcome"] not in ("handover", "place"):
+        raise UsageError(f"the plan's outcome is {data['outcome']!r}: only the grasps of a "
+                         "handover or of an object set down are checked")
     oid = data["object"]
     if not isinstance(oid, str) or oid not in kb.objects:
         raise UnknownIdError(f"the plan's object {oid!r} is not in the knowledge base")
@@ -372,10 +373,25 @@ def check_group(obj: ObjectModel, mode: str, grasps: list[tuple[str, Any, Grasp]
                       tuple(None if i is None else int(i) for _, i, _ in grasps), result)
 
 
+SET_DOWN_NOTE = ("set down: its grasp is checked from pick-up to where it is set down (held "
+                 "and shaken there, as a handover's); letting go on the table is not "
+                 "simulated (the model has no table)")
+"""The note of a placement's physics check (outcome ``place``)."""
+
+
+def carried(data: dict) -> dict:
+    """A plan's JSON as the physics check reads it: an object set down (outcome ``place``)
+    is one gripper's grasp (H1G1) carried to where it is set down (its ``object_pose``);
+    a handover as it is."""
+    return {**data, "mode": "H1G1"} if data.get("outcome") == "place" else data
+
+
 def check_plan(kb: KB, data: dict, cache_dir: str | Path | None = None,
                receiver: bool = False) -> PlanPhysics:
     """Check a plan's chosen grasps (its JSON result ``data``) in physics; with
     ``receiver``, the receiver's pads take the object at the handover (module docstring).
+    An object set down (outcome ``place``) is checked as one gripper's carry to where it is
+    set down (:data:`SET_DOWN_NOTE`).
 
     Raises UsageError when ``data`` is not a handover plan or its poses and grasps are not
     well formed, UnknownIdError when it names an object or gripper the KB does not hold.
@@ -386,10 +402,15 @@ def check_plan(kb: KB, data: dict, cache_dir: str | Path | None = None,
         obj = object_model(kb, obj_spec, cache_dir)
     except ValueError as e:
         raise UsageError(str(e)) from None
+    notes: list[str] = []
+    if data["outcome"] == "place":
+        data, receiver = carried(data), False
+        notes.append(SET_DOWN_NOTE)
     hand = gripper_hand(kb, grip_spec)
     grasps = plan_grasps(hand, data, squeeze_hand(kb, data, hand))
     motion = plan_motion(data)
-    taker, notes = _receiver(kb, data) if receiver else ([], [])
+    taker, said = _receiver(kb, data) if receiver else ([], [])
+    notes += said
     try:
         checked = check_group(obj, data["mode"], grasps, motion, taker)
     except ValueError as e:
@@ -476,6 +497,7 @@ def record_plan(kb: KB, data: dict, cache_dir: str | Path | None = None) -> Traj
     obj_spec, grip_spec = _specs(kb, data)
     obj = object_model(kb, obj_spec, cache_dir)
     hand = gripper_hand(kb, grip_spec)
+    data = carried(data)
     grasps = plan_grasps(hand, data, squeeze_hand(kb, data, hand))
     try:
         result = check(obj, [g for _, _, g in grasps], plan_motion(data), mode=data["mode"],

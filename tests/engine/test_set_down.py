@@ -264,3 +264,29 @@ def test_a_bowl_of_hot_soup_is_set_down_upright_in_front_of_a_seated_receiver(pl
     assert (np.linalg.norm(low[:, :2], axis=1) > wall).all()
     above = fingers[fingers[:, 2] > z_rim]
     assert (np.linalg.norm(above[:, :2], axis=1) > r_rim).all()  # nor over the opening
+
+
+def test_the_grasp_that_sets_the_soup_down_is_checked_in_physics(kb_dir, capsys, tmp_path):
+    """``--physics`` on a plan that sets the object down checks the grasp that carries it
+    there (from pick-up to where it is set down, held and shaken there), says that letting
+    go on the table is not simulated, and ``handover verify`` checks the same JSON."""
+    import json
+
+    from handover.engine.cli.app import main
+
+    code = main(["--kb", str(kb_dir), "plan", "soup_bowl", "-r", "seated_adult", "--physics",
+                 "--json", "--no-motion", "--no-db"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    result = json.loads(out)
+    assert result["outcome"] == "place"
+    physics = result["physics"]
+    grasp = result["placement"]["robot_grasp"]
+    assert physics["chosen"]["grasps"] == [{"hand": grasp["hand"], "id": grasp["id"]}]
+    assert physics["passed"] and physics["chosen"]["passed"], physics["chosen"]["slip"]
+    assert any("not simulated" in n for n in physics["notes"])
+    phases = {s["phase"] for s in physics["chosen"]["slip"]}
+    assert {"lift", "carry", "shake"} <= phases
+    path = tmp_path / "placed.json"
+    path.write_text(out, encoding="utf-8")
+    assert main(["--kb", str(kb_dir), "verify", str(path)]) == 0
