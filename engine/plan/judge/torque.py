@@ -178,30 +178,13 @@ def uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
     else:
         once, back, once_load = gi, np.arange(len(gi)), load
     cap = capacity(rule, ctx, once)
-    poses = ctx.gripper_poses()[once]
-    # the shake turns the object about the closing axis: the pads hold its inertia about
-    # that axis at the shake's angular acceleration, on top of the weight's twist
-    spin = (np.asarray(share, dtype=float)[np.unique(back.reshape(-1), return_index=True)[1]]
-            * rule.angular_acceleration * _inertia_about(ctx, once, poses[:, :3, 1]))
     down = np.einsum("rji,j->ri", np.broadcast_to(ctx.initial[:3, :3], (len(once), 3, 3)),
                      _DOWN)  # gravity in the object frame
-    picked = _use(rule, _shaken(rule, load_torques(poses, com, down, once_load), spin), cap)
+    picked = _use(rule, load_torques(ctx.gripper_poses()[once], com, down, once_load), cap)
     down = np.einsum("rji,j->ri", ctx.rotations[pk], _DOWN)
-    back = back.reshape(-1)
-    offered = _use(rule, _shaken(rule, load_torques(ctx.gripper_poses()[gi], com, down, load),
-                                 spin[back]), cap[back])
-    return np.maximum(np.maximum(0.0, picked[back]), offered)
-
-
-def _shaken(rule: TorqueRule, loads: np.ndarray, spin: np.ndarray) -> np.ndarray:
-    """``loads`` (R, 4, :func:`~handover.geometry.holding.load_torques`, the weight times the
-    rule's ``load_factor``) with the twist about the closing axis (slot 1) at least the
-    weight's own twist plus ``spin`` (R,) N m, the object's inertia about that axis turned at
-    the rule's ``angular_acceleration``: a long or wide object held near one end (a board by
-    an edge) turns in the fingers under the shake that the factor alone does not cover."""
-    twist = np.abs(loads[:, 1])
-    loads[:, 1] = np.maximum(twist, twist / rule.load_factor + spin)
-    return loads
+    offered = _use(rule, load_torques(ctx.gripper_poses()[gi], com, down, load),
+                   cap[back.reshape(-1)])
+    return np.maximum(np.maximum(0.0, picked[back.reshape(-1)]), offered)
 
 
 def pair_uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, other: np.ndarray,

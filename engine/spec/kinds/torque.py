@@ -11,10 +11,7 @@ they resist a tip by the couple of their pressure, ``F`` times the patch's exten
 their friction across the object's width, ``mu F w``; along the pads their friction holds
 ``2 mu F`` of weight. The load is the weight (each gripper's share when two hold the object)
 hanging from the centre of mass, at the pick-up and at the handover orientation, times
-``load_factor`` (lifting, carrying and a shake add 30-50 % to what the weight alone asks);
-the twist about the closing axis is at least the weight's own plus the object's inertia
-about that axis turned at ``angular_acceleration`` (the shake turns a board held at an edge
-about it).
+``load_factor`` (lifting, carrying and a shake add 30-50 % to what the weight alone asks).
 A squeeze (two arms pressing closed jaws on opposite faces) holds its share of the weight
 by the presses' friction, and the object's inertia about the press line as it is turned
 (``angular_acceleration``) by their torsion.
@@ -53,9 +50,8 @@ rad/s^2) and carry add 1.3-1.5x to the weight's torque in simulation."""
 
 ANGULAR_ACCELERATION = 41.0
 """rad/s^2, the turn a carried object must follow: the physics check's shake, +-15 deg at
-2 Hz (0.26 rad x (2 pi 2 Hz)^2) about the holding gripper's closing axis. A gripper holds
-the object's inertia about that axis against it; a squeeze holds it about its press line
-with the presses' torsion alone (the weight has no lever about that line)."""
+2 Hz (0.26 rad x (2 pi 2 Hz)^2). A squeeze holds the object's inertia about its press line
+against it with the presses' torsion alone (the weight has no lever about that line)."""
 
 ABOUT = ("all", "twist", "tip", "weight")
 """What a ``torque`` rule judges: every load at once, the twist about the closing axis, the
@@ -107,8 +103,8 @@ def pair_lever(com: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class TorqueRule(RuleBase):
     """What the pads hold of the weight (see the module docstring). about: ``twist``,
     ``tip``, ``weight`` or ``all``; load_factor: the dynamic load over the weight alone;
-    angular_acceleration: rad/s^2, the turn a gripper must hold the object's inertia through
-    about its closing axis (a squeeze: about its press line); max_nm: optional, N m, caps what the pads are taken to hold about
+    angular_acceleration: rad/s^2, the turn a squeeze must hold the object's inertia through
+    about its press line; max_nm: optional, N m, caps what the pads are taken to hold about
     each axis."""
 
     kind: Literal["torque"] = "torque"
