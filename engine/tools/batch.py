@@ -74,7 +74,8 @@ COLUMNS: dict[str, str] = {
     "candidates": "int64",  # geometric candidates of the object
     "content_hash": "string",  # KB YAML files + the object's mesh file
     "rules": "string",  # JSON {applied: [id], rejected: {id: rows}, decided: [id]} (coverage)
-    # with --physics, a handover's chosen grasps simulated (null otherwise; docs/json.md)
+    # with --physics, a handover's chosen grasps simulated, or the carry of an object set
+    # down (null otherwise; docs/json.md)
     "physics_passed": "bool",
     "physics_mm": "float64",  # the largest slip, mm and deg
     "physics_deg": "float64",
@@ -386,8 +387,9 @@ def plan_row(kb: KB, q: BatchQuery, obj: ObjectRef, content_hash: str, db: Grasp
 
 
 def _physics_columns(kb: KB, planned, db) -> dict:
-    """The physics columns of a plan (empty unless a handover): passed, largest slip, margin."""
-    if planned.result.outcome != "handover":
+    """The physics columns of a plan (empty unless a handover, or an object set down: its
+    carry): passed, largest slip, margin."""
+    if planned.result.outcome not in ("handover", "place"):
         return {}
     from handover.engine.plan.physics import check_plan
     from handover.engine.tools.answer import convex_cache
