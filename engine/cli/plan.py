@@ -143,6 +143,8 @@ def plan(
         render_physics(data["physics"], Console(highlight=False, soft_wrap=False))
     if data["outcome"] in EXIT_CODES_4:
         raise typer.Exit(EXIT_INFEASIBLE)
+    if data.get("physics") is not None and not data["physics"]["passed"]:
+        raise typer.Exit(EXIT_INFEASIBLE)  # planned, but its grasps do not hold: as verify
 
 
 def _render_what_if(data: dict, console) -> None:

@@ -33,7 +33,8 @@ if TYPE_CHECKING:
     from handover.engine.store.kb import KB
 
 __all__ = ["PlanRequest", "FORMATS", "MEDIA_TYPES", "plan_request", "render", "issue_json",
-           "validate_data", "validate_text", "kb_tests", "kb_tests_text", "json_text"]
+           "validate_data", "validate_text", "kb_tests", "kb_tests_text", "json_text",
+           "PHYSICS_FAILED"]
 
 FORMATS = ("json", "moveit", "mcap")
 """The formats of a plan's answer (the CLI prints ``json`` and ``moveit``; ``--mcap FILE``
@@ -229,11 +230,20 @@ def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
                          "is not one")
     if request.physics and planned.outcome == "handover":
         planned, checked = physics_plan(kb, request, planned, db)
-        planned.result.physics = checked.to_dict()
     elif request.physics and planned.outcome == "place":  # the carry to where it is set down
-        planned.result.physics = check_plan(kb, planned.result.to_dict(),
-                                            convex_cache(db)).to_dict()
+        checked = check_plan(kb, planned.result.to_dict(), convex_cache(db))
+    else:
+        return planned
+    planned.result.physics = checked.to_dict()
+    if not checked.passed:
+        planned.result.warnings.append(PHYSICS_FAILED)
     return planned
+
+
+PHYSICS_FAILED = ("physics: the plan's grasps do not hold in the simulated check (nor did the "
+                  "next best): do not run it as it is; its physics block says where they slip")
+"""The warning of a plan whose physics check fails (``handover plan --physics`` then exits
+4, as ``handover verify`` does)."""
 
 
 def convex_cache(db=None) -> Path:

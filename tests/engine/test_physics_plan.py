@@ -220,3 +220,30 @@ def test_when_the_chosen_grasp_fails_the_next_best_are_checked_until_one_holds(k
     assert physics.holds is not None and physics.holds.passed
     block = physics.to_dict()
     assert block["alternative_holds"]["grasps"] == [{"hand": "left", "id": tried[-1]}]
+
+
+def test_a_plan_whose_grasps_do_not_hold_exits_4_with_a_warning(capsys, tmp_path):
+    """A 1.2 m broom handle pinched by the gripper turns out of its fingers as the check
+    carries it round (it held in the analytic rules); ``handover plan --physics`` then says
+    so in the JSON's warnings and exits 4, as ``handover verify`` does for a plan that does
+    not hold, so a robot's script does not run it as if it were fine."""
+    import shutil
+
+    from handover.engine.store.kb import builtin_kb_dir
+    from handover.engine.tools.answer import PHYSICS_FAILED
+
+    root = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), root)
+    (root / "objects" / "broom.yaml").write_text(
+        "id: broom\nname: A long-handled broom\nmass: 0.4\ngeometry:\n  primitives:\n"
+        "    - {shape: cylinder, part: handle, radius: 0.013, height: 1.2,\n"
+        "       position: [0, 0, 0], rotation_deg: [0, 90, 0]}\n"
+        "parts:\n  handle: {tags: [handle]}\naxes:\n  handle: [-1, 0, 0]\n", encoding="utf-8")
+    code, out, _ = _run(capsys, "--kb", str(root), "plan", "broom", "--physics", "--json",
+                        "--no-motion", "--no-db")
+    data = json.loads(out)
+    assert data["outcome"] == "handover" and not data["physics"]["passed"]
+    assert code == 4 and PHYSICS_FAILED in data["warnings"]
+    path = tmp_path / "broom.json"
+    path.write_text(out, encoding="utf-8")
+    assert _run(capsys, "--kb", str(root), "verify", str(path))[0] == 4
