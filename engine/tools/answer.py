@@ -321,11 +321,49 @@ def physics_plan(kb: KB, request: PlanRequest, planned: Plan, db=None,
         if not more:
             break
         passed_over.update(more)
+    tried = (f"planned again without {len(passed_over)} grasps on contacts that slipped: "
+             "none found holds")
+    other = _other_mode_holds(kb, request, planned, db)
+    if other is not None:
+        again, checked = other
+        said = (f"physics: no grasp of the {planned.result.mode} plan holds ({tried}); "
+                f"handed in {again.result.mode} instead, whose grasps hold")
+        again.result.warnings.append(said)
+        return again, replace(checked, failed=tuple(failed) + checked.failed,
+                              seconds=time.perf_counter() - start,
+                              notes=checked.notes + (said.removeprefix("physics: "),))
     return planned, replace(first, failed=tuple(failed[1:]),
                             seconds=time.perf_counter() - start,
-                            notes=first.notes + (f"planned again without {len(passed_over)} "
-                                                 "grasps on contacts that slipped: none found "
-                                                 "holds; the plan keeps its grasps",))
+                            notes=first.notes + (f"{tried}; the plan keeps its grasps",))
+
+
+def _other_mode_holds(kb: KB, request: PlanRequest, planned: Plan, db=None):
+    """When the query leaves the mode to the planner (``auto``) and no grasp of the plan's
+    mode holds in physics: the plan of the first other mode (H1G1, H2G2, H2G1 in order,
+    each planned as if forced: its hard rules, the mode rules included, still hold) that
+    hands the object over with grasps that hold (:func:`physics_of`), with its check; None
+    when none does. A board pinched at one edge turns out of one gripper in the shake,
+    and held through a midair regrasp it does not."""
+    from dataclasses import replace
+
+    from handover.engine.planner import plan
+
+    if request.mode != "auto":
+        return None
+    for mode in MODES:
+        if mode == "auto" or mode.upper() == planned.result.mode:
+            continue
+        again = plan(kb, replace(request.query(), mode=mode), why_not=request.why_not,
+                     db=db, what_if=request.what_if, motion=request.motion)
+        if again.outcome != "handover":
+            continue
+        try:
+            checked = physics_of(kb, again, db)
+        except UsageError:
+            continue
+        if checked.passed:
+            return again, checked
+    return None
 
 
 def physics_of(kb: KB, planned: Plan, db=None):

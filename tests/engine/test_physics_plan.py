@@ -247,3 +247,36 @@ def test_a_plan_whose_grasps_do_not_hold_exits_4_with_a_warning(capsys, tmp_path
     path = tmp_path / "broom.json"
     path.write_text(out, encoding="utf-8")
     assert _run(capsys, "--kb", str(root), "verify", str(path))[0] == 4
+
+
+def test_a_board_no_single_gripper_holds_is_handed_in_a_mode_whose_grasps_hold(capsys,
+                                                                               tmp_path):
+    """A 0.9 kg cutting board (36 x 25 x 2 cm) lying flat can only be pinched at an edge,
+    12.5 cm or more from its centre of mass: held so by one gripper, it turns out of the
+    fingers in the check's shake, whichever edge grasp is tried. With the mode left to the
+    planner, ``--physics`` then hands it in another mode whose grasps the check holds, and
+    says so."""
+    import shutil
+
+    from handover.engine.store.kb import builtin_kb_dir
+    from handover.geometry.physics import Thresholds
+
+    root = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), root)
+    (root / "objects" / "board.yaml").write_text(
+        "id: board\nname: Cutting board\nmass: 0.9\ngeometry:\n  primitives:\n"
+        "    - {shape: box, part: board, extents: [0.36, 0.25, 0.02], position: [0, 0, 0.01]}\n"
+        "parts:\n  board: {tags: [body]}\n", encoding="utf-8")
+    code, out, _ = _run(capsys, "--kb", str(root), "plan", "board", "--physics", "--json",
+                        "--no-motion", "--no-db")
+    data = json.loads(out)
+    assert code == 0 and data["outcome"] == "handover"
+    physics = data["physics"]
+    assert physics["passed"] and data["mode"] != "H1G1"
+    failed_one_hand = [g for g in physics["alternatives_failed"] if g["mode"] == "H1G1"]
+    assert failed_one_hand and all(not g["passed"] for g in failed_one_hand)
+    assert any(w.startswith("physics: no grasp of the H1G1 plan holds") and data["mode"] in w
+               for w in data["warnings"])
+    t = Thresholds()
+    for slip in physics["chosen"]["slip"]:
+        assert slip["translation_mm"] <= t.max_slip_mm and slip["rotation_deg"] <= t.max_slip_deg
