@@ -222,54 +222,67 @@ def test_when_the_chosen_grasp_fails_the_next_best_are_checked_until_one_holds(k
     assert block["alternative_holds"]["grasps"] == [{"hand": "left", "id": tried[-1]}]
 
 
-def test_a_plan_whose_grasps_do_not_hold_exits_4_with_a_warning(capsys, tmp_path):
-    """A 1.2 m broom handle pinched by the gripper turns out of its fingers as the check
-    carries it round (it held in the analytic rules); ``handover plan --physics`` then says
-    so in the JSON's warnings and exits 4, as ``handover verify`` does for a plan that does
-    not hold, so a robot's script does not run it as if it were fine."""
+
+# Objects of our own no single gripper holds through the check's shake: a 1.2 m broom
+# handle and a 0.9 kg cutting board (36 x 25 x 2 cm) lying flat.
+OWN = {
+    "broom": "id: broom\nname: A long-handled broom\nmass: 0.4\ngeometry:\n  primitives:\n"
+             "    - {shape: cylinder, part: handle, radius: 0.013, height: 1.2,\n"
+             "       position: [0, 0, 0], rotation_deg: [0, 90, 0]}\n"
+             "parts:\n  handle: {tags: [handle]}\naxes:\n  handle: [-1, 0, 0]\n",
+    "board": "id: board\nname: Cutting board\nmass: 0.9\ngeometry:\n  primitives:\n"
+             "    - {shape: box, part: board, extents: [0.36, 0.25, 0.02], "
+             "position: [0, 0, 0.01]}\n"
+             "parts:\n  board: {tags: [body]}\n",
+}
+
+
+@pytest.fixture(scope="module")
+def own_kb(tmp_path_factory) -> Path:
     import shutil
 
     from handover.engine.store.kb import builtin_kb_dir
+
+    root = tmp_path_factory.mktemp("own") / "kb"
+    shutil.copytree(builtin_kb_dir(), root)
+    for name, text in OWN.items():
+        (root / "objects" / f"{name}.yaml").write_text(text, encoding="utf-8")
+    return root
+
+
+def _checked(capsys, root: Path, obj: str) -> tuple[int, str, dict]:
+    """``handover plan OBJ --physics --json`` with the KB at ``root``: (exit code, output,
+    its JSON)."""
+    code, out, _ = _run(capsys, "--kb", str(root), "plan", obj, "--physics", "--json",
+                        "--no-motion", "--no-db")
+    return code, out, json.loads(out)
+
+
+def test_a_plan_whose_grasps_do_not_hold_exits_4_with_a_warning(capsys, tmp_path, own_kb):
+    """A 1.2 m broom handle pinched by the gripper turns out of its fingers as the check
+    carries it round (it held in the analytic rules), in every mode the arms hold it in;
+    ``handover plan --physics`` then says so in the JSON's warnings and exits 4, as
+    ``handover verify`` does for a plan that does not hold, so a robot's script does not run
+    it as if it were fine."""
     from handover.engine.tools.answer import PHYSICS_FAILED
 
-    root = tmp_path / "kb"
-    shutil.copytree(builtin_kb_dir(), root)
-    (root / "objects" / "broom.yaml").write_text(
-        "id: broom\nname: A long-handled broom\nmass: 0.4\ngeometry:\n  primitives:\n"
-        "    - {shape: cylinder, part: handle, radius: 0.013, height: 1.2,\n"
-        "       position: [0, 0, 0], rotation_deg: [0, 90, 0]}\n"
-        "parts:\n  handle: {tags: [handle]}\naxes:\n  handle: [-1, 0, 0]\n", encoding="utf-8")
-    code, out, _ = _run(capsys, "--kb", str(root), "plan", "broom", "--physics", "--json",
-                        "--no-motion", "--no-db")
-    data = json.loads(out)
+    code, out, data = _checked(capsys, own_kb, "broom")
     assert data["outcome"] == "handover" and not data["physics"]["passed"]
     assert code == 4 and PHYSICS_FAILED in data["warnings"]
     path = tmp_path / "broom.json"
     path.write_text(out, encoding="utf-8")
-    assert _run(capsys, "--kb", str(root), "verify", str(path))[0] == 4
+    assert _run(capsys, "--kb", str(own_kb), "verify", str(path))[0] == 4
 
 
 def test_a_board_no_single_gripper_holds_is_handed_in_a_mode_whose_grasps_hold(capsys,
-                                                                               tmp_path):
-    """A 0.9 kg cutting board (36 x 25 x 2 cm) lying flat can only be pinched at an edge,
-    12.5 cm or more from its centre of mass: held so by one gripper, it turns out of the
-    fingers in the check's shake, whichever edge grasp is tried. With the mode left to the
-    planner, ``--physics`` then hands it in another mode whose grasps the check holds, and
-    says so."""
-    import shutil
-
-    from handover.engine.store.kb import builtin_kb_dir
+                                                                               own_kb):
+    """The cutting board can only be pinched at an edge, 12.5 cm or more from its centre of
+    mass: held so by one gripper, it turns out of the fingers in the check's shake,
+    whichever edge grasp is tried. With the mode left to the planner, ``--physics`` then
+    hands it in another mode whose grasps the check holds, and says so."""
     from handover.geometry.physics import Thresholds
 
-    root = tmp_path / "kb"
-    shutil.copytree(builtin_kb_dir(), root)
-    (root / "objects" / "board.yaml").write_text(
-        "id: board\nname: Cutting board\nmass: 0.9\ngeometry:\n  primitives:\n"
-        "    - {shape: box, part: board, extents: [0.36, 0.25, 0.02], position: [0, 0, 0.01]}\n"
-        "parts:\n  board: {tags: [body]}\n", encoding="utf-8")
-    code, out, _ = _run(capsys, "--kb", str(root), "plan", "board", "--physics", "--json",
-                        "--no-motion", "--no-db")
-    data = json.loads(out)
+    code, _, data = _checked(capsys, own_kb, "board")
     assert code == 0 and data["outcome"] == "handover"
     physics = data["physics"]
     assert physics["passed"] and data["mode"] != "H1G1"
