@@ -7,21 +7,21 @@ verify PLAN.json`` check the same thing, an edited plan included): the object fr
 convex parts by CoACD, cached in the grasp database's folder), the gripper from the KB
 (:func:`gripper_hand`: its boxes, ``grip_force`` and pad friction), the motion from the
 plan's stage poses (:func:`plan_motion`: the initial pose, the midair pose of a regrasp, the
-handover pose). One grasp group is checked per plan (:func:`check_plan`): H1G1's gripper,
-H2G2's two grippers one after the other (pick to midair, midair to handover) and H2G1's two
-grippers at once, each with the robustness ensemble (friction and force +-30 %, torsion
-x0.5 and x2) for a margin. When the chosen grasp of an H1G1 plan fails, the next best
-candidates of the same presentation are checked (at most :data:`FALLBACKS`,
-:func:`check_alternatives`), so the plan says which failed, how they slipped, and which
-holds.
+handover pose). One grasp group is checked per plan (:func:`check_plan`): H1G1's gripper
+(an object set down: the grasp carrying it there), H2G2's two grippers one after the other
+(pick to midair, midair to handover) and H2G1's two grippers at once, each with the
+robustness ensemble (friction and force +-30 %, torsion x0.5 and x2) for a margin. When
+the chosen grasp of an H1G1 plan fails, the next best candidates of the same presentation
+are checked (at most :data:`FALLBACKS`, :func:`check_alternatives`), so the plan says
+which failed, how they slipped, and which holds.
 
 Asked to (``receiver=True``), at the handover the receiver takes the object
-(:func:`receiver_grasps`): each of their
-hands as two pads where the plan's hand model puts the fingers and the thumb, pressing with
-the receiver's pinch force (``ReceiverProfile.pinch_force``: weaker for an elder or a child),
-then the grippers open and retreat and the receiver holds it alone. A receiver's grasp the
-pads cannot take (their model has no fingers and thumb, or the pads would start inside the
-object) is left out with a note, and the check ends after the shake. It is not asked by
+(:func:`receiver_grasps`): each of their hands as two pads where the plan's hand model puts
+the fingers and the thumb, pressing with the receiver's pinch force
+(``ReceiverProfile.pinch_force``: weaker for an elder or a child), then the grippers open and
+retreat and the receiver holds it alone. A receiver's grasp the pads cannot take (their
+model has no fingers and thumb, or the pads would start inside the object) is left out with
+a note, and the check ends after the shake. It is not asked by
 default: fingertip pads are a pinch, and the plans' receivers mostly wrap (a built-in tray's
 rim taken by two pads pinching 28.5 N each slips out, and the pads coming in push it in the
 grippers 13 mm), so the receiver's verdict would speak of the pads' model more than of the
@@ -375,14 +375,12 @@ def check_group(obj: ObjectModel, mode: str, grasps: list[tuple[str, Any, Grasp]
 
 SET_DOWN_NOTE = ("set down: its grasp is checked from pick-up to where it is set down (held "
                  "and shaken there, as a handover's); letting go on the table is not "
-                 "simulated (the model has no table)")
-"""The note of a placement's physics check (outcome ``place``)."""
+                 "simulated (the model has no table)")  # a placement's check's note
 
 
 def carried(data: dict) -> dict:
-    """A plan's JSON as the physics check reads it: an object set down (outcome ``place``)
-    is one gripper's grasp (H1G1) carried to where it is set down (its ``object_pose``);
-    a handover as it is."""
+    """A plan's JSON as the check reads it: an object set down (outcome ``place``) is one
+    gripper's grasp (H1G1) carried to where it is set down; a handover as it is."""
     return {**data, "mode": "H1G1"} if data.get("outcome") == "place" else data
 
 
@@ -390,9 +388,7 @@ def check_plan(kb: KB, data: dict, cache_dir: str | Path | None = None,
                receiver: bool = False) -> PlanPhysics:
     """Check a plan's chosen grasps (its JSON result ``data``) in physics; with
     ``receiver``, the receiver's pads take the object at the handover (module docstring).
-    An object set down (outcome ``place``) is checked as one gripper's carry to where it is
-    set down (:data:`SET_DOWN_NOTE`).
-
+    An object set down (outcome ``place``): the grasp carrying it there (:func:`carried`).
     Raises UsageError when ``data`` is not a handover plan or its poses and grasps are not
     well formed, UnknownIdError when it names an object or gripper the KB does not hold.
     """
@@ -402,15 +398,12 @@ def check_plan(kb: KB, data: dict, cache_dir: str | Path | None = None,
         obj = object_model(kb, obj_spec, cache_dir)
     except ValueError as e:
         raise UsageError(str(e)) from None
-    notes: list[str] = []
-    if data["outcome"] == "place":
-        data, receiver = carried(data), False
-        notes.append(SET_DOWN_NOTE)
+    placed, data = data["outcome"] == "place", carried(data)
     hand = gripper_hand(kb, grip_spec)
     grasps = plan_grasps(hand, data, squeeze_hand(kb, data, hand))
     motion = plan_motion(data)
-    taker, said = _receiver(kb, data) if receiver else ([], [])
-    notes += said
+    taker, notes = _receiver(kb, data) if receiver and not placed else ([], [])
+    notes = [SET_DOWN_NOTE] * placed + notes
     try:
         checked = check_group(obj, data["mode"], grasps, motion, taker)
     except ValueError as e:
