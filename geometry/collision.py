@@ -225,10 +225,7 @@ def _check_boxes(
         name = given[i]
         if ext_bad[i]:
             raise ValueError(f"box {name!r}: extents must be 3 positive lengths, got {exts[i]}")
-        what = f"box {name!r}: transform"
-        if tf_bad[i]:
-            raise ValueError(f"{what} must be a finite (4, 4) matrix, got shape {tfs[i].shape}")
-        raise ValueError(f"{what} must be a rigid transform (orthonormal right-handed rotation)")
+        _check_rigid(tfs[i], f"box {name!r}: transform")  # the same tests: it says which
     return (tuple(str(n) for n in given), t[:, :3, 3].copy(), t[:, :3, :3].copy(), e)
 
 

@@ -220,7 +220,6 @@ def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
     """Plan ``request`` with ``kb`` and the grasp database ``db`` (None: generate); with
     ``physics``, a handover's chosen grasps checked (:func:`physics_plan`), or the grasp that
     carries an object set down (to where it is set down)."""
-    from handover.engine.plan.physics import check_plan
     from handover.engine.planner import plan
 
     planned = plan(kb, request.query(), why_not=request.why_not, db=db,
@@ -231,6 +230,8 @@ def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
     if request.physics and planned.outcome == "handover":
         planned, checked = physics_plan(kb, request, planned, db)
     elif request.physics and planned.outcome == "place":  # the carry to where it is set down
+        from handover.engine.plan.physics import check_plan
+
         checked = check_plan(kb, planned.result.to_dict(), convex_cache(db))
     else:
         return planned

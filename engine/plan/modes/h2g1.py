@@ -74,21 +74,19 @@ SIDE_POOL = 48
 ARM_PAIRS = 16
 
 
-def receiver_hand_count(cg: ConstraintGraph, ctx: PlanContext | None = None
-                        ) -> tuple[int, str]:
+def receiver_hand_count(cg: ConstraintGraph, ctx: PlanContext) -> tuple[int, str]:
     """How many hands the receiver uses, and why: two when an active mode rule asking for
-    H2G1 is about the object's mass or size (the large-object case) and, given ``ctx``, the
-    parts they may take it by leave room for two hands side by side
+    H2G1 is about the object's mass or size (the large-object case) and the parts they may
+    take it by leave room for two hands side by side
     (:func:`room_for_hands`: a grip width each); else one (etiquette, or a pitcher or a pan
     taken by its one handle)."""
     for c in cg.order:
         if c.rule.kind == "mode" and c.rule.mode == "H2G1" and c.rule.applies.is_about_load():
-            if ctx is not None:
-                room, need = room_for_hands(cg, ctx), 2.0 * ctx.situation.hand.grip_width
-                if room < need:
-                    return 1, (f"{c.id} ({c.source}) asks for two hands, but the parts the "
-                               f"receiver takes it by are {room:.2f} m across at most, no room "
-                               f"for two hands side by side ({need:.2f} m): one hand")
+            room, need = room_for_hands(cg, ctx), 2.0 * ctx.situation.hand.grip_width
+            if room < need:
+                return 1, (f"{c.id} ({c.source}) asks for two hands, but the parts the "
+                           f"receiver takes it by are {room:.2f} m across at most, no room "
+                           f"for two hands side by side ({need:.2f} m): one hand")
             return 2, f"{c.id} ({c.source}): a large or heavy object takes two hands"
     for c in cg.order:
         if c.rule.kind == "mode" and c.rule.mode == "H2G1":
