@@ -180,6 +180,37 @@ def _grasp_db_in_a_temporary_folder(tmp_path_factory):
         os.environ["HANDOVER_DB"] = old
 
 
+@pytest.fixture(scope="session")
+def reach_maps(builtin_kb, _grasp_db_in_a_temporary_folder) -> Path:
+    """The folder of the built-in robot's reachability maps in this session's database
+    (built once per worker, if no plan has yet): a map depends on the robot only, and takes
+    about 20 s to build."""
+    import os
+
+    from handover.engine.assets.robot import REACH_FOLDER, RobotArms
+
+    folder = Path(os.environ["HANDOVER_DB"]) / REACH_FOLDER
+    for spec in builtin_kb.robots.values():
+        if spec.arms:
+            arms = RobotArms.load(builtin_kb, spec, reach_dir=folder)
+            for side in arms.arms:
+                for core in (False, True):
+                    arms.reach_map(side, core=core)  # read, or built and saved
+    return folder
+
+
+@pytest.fixture
+def db_with_maps(tmp_path: Path, reach_maps: Path) -> Path:
+    """A new, empty grasp database folder for subprocesses (``HANDOVER_DB``) holding only
+    a copy of the session's reachability maps, so that a process planning with it finds
+    its candidates cold without building the robot's maps again."""
+    import shutil
+
+    db = tmp_path / "db"
+    shutil.copytree(reach_maps, db / "reach")
+    return db
+
+
 # ---------------------------------------------------------------- the documentation's code
 
 ROOT = Path(__file__).resolve().parents[1]

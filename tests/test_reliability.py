@@ -572,13 +572,14 @@ QUERIES = [
 
 
 @pytest.mark.parametrize("query", QUERIES, ids=lambda q: "-".join(q))
-def test_separate_processes_give_the_same_bytes(capsys, tmp_path, query):
-    """Processes with different hash seeds (set and dict order would show), the second one
-    with a warm database, print what this process prints."""
+def test_separate_processes_give_the_same_bytes(capsys, db_with_maps, query):
+    """Processes with different hash seeds (set and dict order would show), the first one
+    with a cold database (the robot's maps only), the second with a warm one, print what
+    this process prints."""
     code, here, _ = run(capsys, *query, "--json")
     seeds = ("0", "4242") if query[0] == "plan" else ("1",)
     for seed in seeds:
-        env = dict(os.environ, PYTHONHASHSEED=seed, HANDOVER_DB=str(tmp_path / "db"))
+        env = dict(os.environ, PYTHONHASHSEED=seed, HANDOVER_DB=str(db_with_maps))
         proc = subprocess.run([str(HANDOVER), *query, "--json"], capture_output=True,
                               text=True, env=env, timeout=180)  # fmt: skip
         assert proc.returncode == code, proc.stderr

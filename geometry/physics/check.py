@@ -4,11 +4,12 @@
 (:mod:`.model`): one per run of phases with the same hands taking part, so a hand that waits
 away from the object, or has let go and backed off, costs nothing while it touches nothing
 (a hand that comes in starts at rest on its target; the joints the models share carry
-over). Each phase is one call of MuJoCo's ``rollout`` (the palm targets, finger targets and
-the support's force are its open-loop inputs, so no Python runs per step; the solver's warm
-start is carried from call to call, so the steps are those of a single rollout), and its
-holders are measured when it ends: a run whose slip has passed a threshold fails whatever
-comes next, and stops there (``stop_early``). Slip is the motion of the object in the
+over). A phase is simulated by calls of MuJoCo's ``rollout`` (the palm targets, finger
+targets and the support's force are its open-loop inputs, so no Python runs per step; the
+solver's warm start is carried from call to call, so the steps are those of a single
+rollout), and its holders are measured as it goes: a run whose slip has passed a threshold
+when a phase ends fails whatever comes next, and stops there, and a drop stops it at once
+(``stop_early``). Slip is the motion of the object in the
 holding hand's frame (the palm body, not its target) since the hand's grip settled: the
 displacement of the object's point that sat at the grasp origin (mm) and the angle it
 turned (deg). :func:`ensemble` runs the same check with the friction, grip force and
@@ -55,6 +56,7 @@ from handover.geometry.physics.slip import slip_since
 __all__ = ["check", "ensemble"]
 
 _CLOSE_PAST = 0.01  # m: the closed target lies this far past the contact (force-limited)
+_CHUNK_S = 0.2  # s: a phase is simulated in runs this long, a drop ends it (``stop_early``)
 
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS.value
 _STATE = mujoco.mjtState
@@ -296,8 +298,10 @@ def _simulate(prep: _Prepared, models: list[mujoco.MjModel], thresholds: Thresho
     """Run the schedule on ``models`` (one per segment, the prepared ones or perturbed
     copies), one phase per MuJoCo ``rollout`` (the warm start carried over, so the steps
     are those of one rollout), measuring each phase's holders as it ends; with
-    ``stop_early``, stop after the first phase whose slip passes a threshold."""
+    ``stop_early``, stop after the first phase whose slip passes a threshold, and within a
+    phase as soon as a holder has dropped the object (measured every :data:`_CHUNK_S`)."""
     start = time.perf_counter()
+    chunk = max(1, int(round(_CHUNK_S / prep.schedule.dt)))
     sched, names = prep.schedule, prep.names
     n, hands = sched.steps, len(names)
     runner = rollout.Rollout(nthread=0)  # on this thread
@@ -316,25 +320,36 @@ def _simulate(prep: _Prepared, models: list[mujoco.MjModel], thresholds: Thresho
         for k in seg.phases:
             phase = sched.phases[k]
             a, b = phase.start - seg.start, phase.stop - seg.start
-            runner.rollout([m], [seg.data], state[None], seg.control[None, a:b],
-                           control_spec=_CONTROL_SPEC, nstep=b - a, initial_warmstart=warm,
-                           state=out[None, a:b], skip_checks=True)  # fmt: skip
-            warm = seg.data.qacc_warmstart.copy()[None]
-            state = out[b - 1]
-            rows = slice(phase.start, phase.stop)
-            for which, col in zip([0] + [h + 1 for h in seg.hands], cols, strict=True):
-                poses[which, rows] = out[a:b, col:col + 7]
-            for h, col in zip(seg.hands, fingers, strict=True):
-                travel[h, rows] = out[a:b, col]
+            worst = {h: (0.0, 0.0) for h in (names.index(x) for x in phase.holders)}
+            d = b
+            for c in range(a, b, chunk if stop_early else max(1, b - a)):
+                d = min(c + chunk, b) if stop_early else b
+                runner.rollout([m], [seg.data], state[None], seg.control[None, c:d],
+                               control_spec=_CONTROL_SPEC, nstep=d - c,
+                               initial_warmstart=warm, state=out[None, c:d],
+                               skip_checks=True)  # fmt: skip
+                warm = seg.data.qacc_warmstart.copy()[None]
+                state = out[d - 1]
+                rows = slice(seg.start + c, seg.start + d)
+                for which, col in zip([0] + [h + 1 for h in seg.hands], cols, strict=True):
+                    poses[which, rows] = out[c:d, col:col + 7]
+                for h, col in zip(seg.hands, fingers, strict=True):
+                    travel[h, rows] = out[c:d, col]
+                for h, (mm, deg) in worst.items():
+                    now = slip_since(poses[0], poses[h + 1], int(sched.settled[h]), rows)
+                    worst[h] = (max(mm, now[0]), max(deg, now[1]))
+                dropped = any(mm > thresholds.drop_mm or deg > thresholds.drop_deg
+                              for mm, deg in worst.values())  # fmt: skip
+                if dropped and d < b:
+                    break  # a drop fails the phase whatever its rest does
             failed = False
-            for holder in phase.holders:
-                h = names.index(holder)
-                mm, deg = slip_since(poses[0], poses[h + 1], int(sched.settled[h]), rows)
+            for h, (mm, deg) in worst.items():
                 drop = mm > thresholds.drop_mm or deg > thresholds.drop_deg
-                phases.append(PhaseSlip(phase.name, holder, mm, deg, drop))
+                phases.append(PhaseSlip(phase.name, names[h], mm, deg, drop))
                 failed |= phases[-1].slipped(thresholds)
             if failed and stop_early:
-                return _Run(poses, travel, phase.stop, phases, time.perf_counter() - start)
+                return _Run(poses, travel, seg.start + d, phases,
+                            time.perf_counter() - start)  # fmt: skip
         before = seg
     return _Run(poses, travel, n, phases, time.perf_counter() - start)
 

@@ -122,6 +122,31 @@ def test_the_built_in_plans_have_motion(planned):
             assert any(motion["failure"]["segment"] in w for w in result["warnings"])
 
 
+def _link_poses(urdf, values: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """(m, 4, 4) each link in the URDF's base frame at m configurations (joint -> (m,)
+    values, rad), composed from the URDF's own joints as yourdfpy reads them (origin, axis;
+    revolute and fixed: the test robot has no other kind) with numpy."""
+    m = len(next(iter(values.values())))
+    poses = {urdf.base_link: np.tile(np.eye(4), (m, 1, 1))}
+    todo = list(urdf.robot.joints)
+    while todo:
+        joint = next(j for j in todo if j.parent in poses)  # parents first
+        todo.remove(joint)
+        origin = np.eye(4) if joint.origin is None else joint.origin
+        pose = poses[joint.parent] @ origin
+        if joint.type != "fixed":
+            assert joint.type == "revolute" and joint.mimic is None, joint.name
+            axis = np.asarray(joint.axis, dtype=float) / np.linalg.norm(joint.axis)
+            k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]],
+                          [-axis[1], axis[0], 0]])  # fmt: skip
+            theta = values[joint.name][:, None, None]
+            turn = np.tile(np.eye(4), (m, 1, 1))
+            turn[:, :3, :3] = np.eye(3) + np.sin(theta) * k + (1 - np.cos(theta)) * (k @ k)
+            pose = pose @ turn
+        poses[joint.child] = pose
+    return poses
+
+
 def test_every_sample_is_clear_of_the_table_and_the_receivers_body(planned, urdf):
     request = fcl.CollisionRequest()
     checked = 0
@@ -130,20 +155,36 @@ def test_every_sample_is_clear_of_the_table_and_the_receivers_body(planned, urdf
         moving = _moving(urdf, names)
         base = np.asarray(result["robot"]["base_pose"], dtype=float)
         obstacles = _obstacles(result)
-        fixed = {j: 0.0 for j in urdf.actuated_joint_names if j not in names}
-        for k, q in enumerate(segment["positions"]):
-            urdf.update_cfg({**fixed, **dict(zip(names, q, strict=True))})
-            for link in moving:
-                world = base @ urdf.get_transform(link, urdf.base_link)
-                for col in urdf.link_map[link].collisions:
-                    pose = world @ (np.eye(4) if col.origin is None else col.origin)
-                    part = fcl.CollisionObject(_fcl_shape(col.geometry),
-                                               fcl.Transform(pose[:3, :3], pose[:3, 3]))
+        q = np.asarray(segment["positions"], dtype=float)
+        values = {j: np.zeros(len(q)) for j in urdf.actuated_joint_names}
+        values.update({n: q[:, i] for i, n in enumerate(names)})
+        poses = _link_poses(urdf, values)
+        for link in moving:
+            for col in urdf.link_map[link].collisions:
+                local = np.eye(4) if col.origin is None else col.origin
+                part = fcl.CollisionObject(_fcl_shape(col.geometry))
+                for k, world in enumerate(base @ poses[link] @ local):
+                    part.setTransform(fcl.Transform(world[:3, :3], world[:3, 3]))
                     for name, other in obstacles:
                         assert not fcl.collide(part, other, request, fcl.CollisionResult()), (
                             f"{obj}: {segment['segment']} sample {k}: {link} touches {name}")
-            checked += 1
+        checked += len(q)
     assert checked > 1000
+
+
+def test_the_links_are_posed_as_yourdfpy_poses_them(planned, urdf):
+    """The numpy poses above are yourdfpy's own, at a few samples of every segment."""
+    for _, _, _, segment in _trajectories(planned):
+        names = segment["joint_names"]
+        q = np.asarray(segment["positions"], dtype=float)[::25]
+        values = {j: np.zeros(len(q)) for j in urdf.actuated_joint_names}
+        values.update({n: q[:, i] for i, n in enumerate(names)})
+        poses = _link_poses(urdf, values)
+        for k in range(len(q)):
+            urdf.update_cfg({j: v[k] for j, v in values.items()})
+            for link in _moving(urdf, names):
+                assert np.allclose(poses[link][k], urdf.get_transform(link, urdf.base_link),
+                                   atol=1e-9)
 
 
 def test_every_sample_is_within_the_joint_limits_in_small_steps(planned, urdf):
