@@ -26,7 +26,7 @@ from handover.engine.plan.physics import (  # noqa: E402
 )
 from handover.engine.planner import plan  # noqa: E402
 from handover.engine.spec.query import Query  # noqa: E402
-from handover.engine.tools.answer import convex_cache  # noqa: E402
+from handover.engine.tools.holding import convex_cache  # noqa: E402
 
 
 def main() -> None:

@@ -41,7 +41,7 @@ from handover.engine.plan.judge.torque import uses  # noqa: E402
 from handover.engine.plan.physics import gripper_hand, object_model, plan_motion  # noqa: E402
 from handover.engine.planner import plan  # noqa: E402
 from handover.engine.spec.query import Query  # noqa: E402
-from handover.engine.tools.answer import convex_cache  # noqa: E402
+from handover.engine.tools.holding import convex_cache  # noqa: E402
 from handover.geometry.physics import Grasp, Motion, check  # noqa: E402
 
 SQUEEZED = ("crate", "big_crate")

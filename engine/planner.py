@@ -84,6 +84,33 @@ def plan(kb: KB, query: Query, why_not: tuple[int, ...] = (), db=None,
     return Plan(result, ctx, d.attempt)
 
 
+def set_down(kb: KB, query: Query, why: str, db=None, why_not: tuple[int, ...] = (),
+             passed_over: dict[int, str] | None = None) -> Plan | None:
+    """The object set down within the receiver's reach (:mod:`handover.engine.plan.place`)
+    instead of the handover ``query`` asks for, because the physics check saw no mode's
+    grasps hold (``handover plan --physics``; ``why`` says what was checked): a
+    ``place`` outcome whose reason says ``why``; None when no placement is found.
+    The query's own rules still choose how it is set down, among the candidates but those
+    ``passed_over`` (id -> why: the check saw them fail)."""
+    from handover.engine.plan.compiler import compile
+    from handover.engine.plan.modes import PLANNERS
+    from handover.engine.plan.place import plan_placement
+    from handover.engine.plan.prepare import prepare
+    from handover.engine.report.assemble import build_result
+
+    ctx = prepare(kb, query, db)
+    ctx.passed_over = dict(passed_over or {})
+    placement = plan_placement(kb, ctx, [])
+    if not placement.feasible:
+        return None
+    attempt = Attempt("H1G1", False, why, graph=compile(kb, ctx, "H1G1"))
+    tried = [Attempt(m, False, f"{m}: no plan whose grasps hold in the physics check")
+             for m in PLANNERS]
+    result = build_result(ctx, attempt, tried, f"set down instead: {why}", why_not,
+                          outcome="place", placement=placement)
+    return Plan(result, placement.context, placement.attempt)
+
+
 MOTION_TRIES = 6
 """How many plans the motion planner tries: the chosen one, then (each time an arm has no
 motion) the plan the modes choose without the grasp whose arm failed."""

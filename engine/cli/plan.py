@@ -112,7 +112,7 @@ def plan(
         motion = None
         if data.get("physics") is not None:
             from handover.engine.plan.physics import record_plan
-            from handover.engine.tools.answer import convex_cache
+            from handover.engine.tools.holding import convex_cache
 
             motion = record_plan(kb, data, convex_cache(grasp_db))
         planned.record(rrd, physics=motion)
@@ -214,7 +214,8 @@ def verify(
     from handover.engine.errors import EXIT_INFEASIBLE, UsageError
     from handover.engine.load.cache import load_kb_cached
     from handover.engine.plan.physics import check_plan
-    from handover.engine.tools.answer import convex_cache, json_text
+    from handover.engine.tools.answer import json_text
+    from handover.engine.tools.holding import convex_cache
 
     try:
         data = json.loads(plan_file.read_text(encoding="utf-8"))

@@ -422,7 +422,7 @@ def reason_text(attempt: Attempt, outcome: str, placed: bool, refused: list[Comp
     if outcome == "handover":
         return None
     if placed:
-        return f"not handed over: {attempt.reason}" if refused else (
+        return f"not handed over: {attempt.reason}" if refused or not fallback else (
             f"not handed over: {attempt.reason}; "
             f"{', '.join(c.id for c in fallback)} names fallback: place")
     return attempt.reason

@@ -218,7 +218,8 @@ def _given(value: Any) -> bool:
 
 def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
     """Plan ``request`` with ``kb`` and the grasp database ``db`` (None: generate); with
-    ``physics``, a handover's chosen grasps checked (:func:`physics_plan`), or the grasp that
+    ``physics``, a handover's chosen grasps checked
+    (:func:`handover.engine.tools.holding.physics_plan`), or the grasp that
     carries an object set down (to where it is set down)."""
     from handover.engine.planner import plan
 
@@ -228,9 +229,14 @@ def plan_request(kb: KB, request: PlanRequest, db=None) -> Plan:
         raise UsageError(f"--physics checks objects of the knowledge base; '{request.object}' "
                          "is not one")
     if request.physics and planned.outcome == "handover":
-        planned, checked = physics_plan(kb, request, planned, db)
+        from handover.engine.tools.holding import physics_plan
+
+        planned, checked = physics_plan(kb, request.query(), planned, db,
+                                        why_not=request.why_not, what_if=request.what_if,
+                                        motion=request.motion)
     elif request.physics and planned.outcome == "place":  # the carry to where it is set down
         from handover.engine.plan.physics import check_plan
+        from handover.engine.tools.holding import convex_cache
 
         checked = check_plan(kb, planned.result.to_dict(), convex_cache(db))
     else:
@@ -245,138 +251,6 @@ PHYSICS_FAILED = ("physics: the plan's grasps do not hold in the simulated check
                   "next best): do not run it as it is; its physics block says where they slip")
 """The warning of a plan whose physics check fails (``handover plan --physics`` then exits
 4, as ``handover verify`` does)."""
-
-
-def convex_cache(db=None) -> Path:
-    """The folder of the physics check's convex decompositions: ``convex`` in the grasp
-    database's folder (the user's default one without a database)."""
-    from handover.engine.assets.graspdb import default_db_dir
-
-    root = getattr(db, "root", None)
-    return Path(root if root is not None else default_db_dir()) / "convex"
-
-
-def physics_plan(kb: KB, request: PlanRequest, planned: Plan, db=None,
-                 rounds: int | None = None):
-    """A handover plan whose chosen grasps hold in physics, when one can be found: the plan
-    checked (:func:`physics_of`); when its grasps fail, planned again without the grasps
-    that slipped or dropped (:attr:`PlanContext.passed_over
-    <handover.engine.plan.context.PlanContext.passed_over>`: the next best grasps, their
-    arms solved as any chosen grasp's) and checked again, at most ``rounds`` times
-    (:data:`handover.engine.plan.physics.FALLBACKS`). Returns the plan to answer with (the
-    first that holds; the original when none does) and its
-    :class:`~handover.engine.plan.physics.PlanPhysics`: the failed checks of the grasps
-    passed over, and why each was."""
-    import time
-    from dataclasses import replace
-
-    import numpy as np
-
-    from handover.engine.plan.physics import FALLBACKS, check_plan, failing_grasps
-    from handover.engine.planner import plan
-
-    start = time.perf_counter()
-    first = physics_of(kb, planned, db)
-    if first.passed:
-        return planned, first
-    cache = convex_cache(db)
-    site = planned.context.candidates.site
-
-    def with_site(ids: dict[int, str]) -> dict[int, str]:
-        """The failing grasps and every other roll and depth on the same contacts."""
-        out = {}
-        for i, why in ids.items():
-            out[i] = why
-            for j in np.flatnonzero(site == site[i]):
-                out.setdefault(int(j), f"on the contacts of grasp {i}, which {why}")
-        return out
-
-    failed = [first.checked, *first.failed]
-    passed_over = {}
-    for group in failed:
-        passed_over.update(with_site(failing_grasps(group)))
-    for _ in range(FALLBACKS if rounds is None else rounds):
-        again = plan(kb, request.query(), why_not=request.why_not, db=db,
-                     what_if=request.what_if, passed_over=passed_over,
-                     motion=request.motion)
-        if again.outcome != "handover":
-            break
-        try:
-            checked = check_plan(kb, again.result.to_dict(), cache)
-        except UsageError:
-            break
-        if checked.passed:
-            tried = [g.ids for g in failed]
-            notes = [f"grasp {', '.join(map(str, ids))} passed over: "
-                     f"{passed_over.get(ids[0], 'failed')}" for ids in tried if ids]
-            warning = ("physics: the better-scored " + "; ".join(notes) + f" (with "
-                       f"{len(passed_over)} grasps on the same contacts); the plan holds with "
-                       + ", ".join(f"grasp {i}" for i in checked.checked.ids))
-            again.result.warnings.append(warning)
-            return again, replace(checked, failed=tuple(failed),
-                                  seconds=time.perf_counter() - start,
-                                  notes=tuple(notes), passed_over=tuple(passed_over.items()))
-        failed.append(checked.checked)
-        more = {i: w for i, w in with_site(failing_grasps(checked.checked)).items()
-                if i not in passed_over}
-        if not more:
-            break
-        passed_over.update(more)
-    tried = (f"planned again without {len(passed_over)} grasps on contacts that slipped: "
-             "none found holds")
-    other = _other_mode_holds(kb, request, planned, db)
-    if other is not None:
-        again, checked = other
-        said = (f"physics: no grasp of the {planned.result.mode} plan holds ({tried}); "
-                f"handed in {again.result.mode} instead, whose grasps hold")
-        again.result.warnings.append(said)
-        return again, replace(checked, failed=tuple(failed) + checked.failed,
-                              seconds=time.perf_counter() - start,
-                              notes=checked.notes + (said.removeprefix("physics: "),))
-    return planned, replace(first, failed=tuple(failed[1:]),
-                            seconds=time.perf_counter() - start,
-                            notes=first.notes + (f"{tried}; the plan keeps its grasps",))
-
-
-def _other_mode_holds(kb: KB, request: PlanRequest, planned: Plan, db=None):
-    """When the query leaves the mode to the planner (``auto``) and no grasp of the plan's
-    mode holds in physics: the plan of the first other mode (H1G1, H2G2, H2G1 in order,
-    each planned as if forced: its hard rules, the mode rules included, still hold) that
-    hands the object over with grasps that hold (:func:`physics_of`), with its check; None
-    when none does. A board pinched at one edge turns out of one gripper in the shake,
-    and held through a midair regrasp it does not."""
-    from dataclasses import replace
-
-    from handover.engine.planner import plan
-
-    if request.mode != "auto":
-        return None
-    for mode in MODES:
-        if mode == "auto" or mode.upper() == planned.result.mode:
-            continue
-        again = plan(kb, replace(request.query(), mode=mode), why_not=request.why_not,
-                     db=db, what_if=request.what_if, motion=request.motion)
-        if again.outcome != "handover":
-            continue
-        try:
-            checked = physics_of(kb, again, db)
-        except UsageError:
-            continue
-        if checked.passed:
-            return again, checked
-    return None
-
-
-def physics_of(kb: KB, planned: Plan, db=None):
-    """The physics check of a handover plan's chosen grasps
-    (:func:`handover.engine.plan.physics.check_plan`), and when they fail, of the next best
-    candidates (:func:`~handover.engine.plan.physics.check_alternatives`)."""
-    from handover.engine.plan.physics import check_alternatives, check_plan
-
-    data = planned.result.to_dict()
-    cache = convex_cache(db)
-    checked = check_plan(kb, data, cache)
-    return check_alternatives(kb, planned.context, data, checked, cache)
 
 
 def render(planned: Plan, fmt: str = "json") -> bytes:

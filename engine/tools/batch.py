@@ -392,7 +392,7 @@ def _physics_columns(kb: KB, planned, db) -> dict:
     if planned.result.outcome not in ("handover", "place"):
         return {}
     from handover.engine.plan.physics import check_plan
-    from handover.engine.tools.answer import convex_cache
+    from handover.engine.tools.holding import convex_cache
 
     checked = check_plan(kb, planned.result.to_dict(), convex_cache(db)).checked
     nominal = checked.result.nominal

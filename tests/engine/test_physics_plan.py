@@ -230,6 +230,24 @@ OWN = {
              "    - {shape: cylinder, part: handle, radius: 0.013, height: 1.2,\n"
              "       position: [0, 0, 0], rotation_deg: [0, 90, 0]}\n"
              "parts:\n  handle: {tags: [handle]}\naxes:\n  handle: [-1, 0, 0]\n",
+    # a kettle of hot water whose short top handle leaves no room for the gripper beside
+    # the receiver's hand: the robot holds it by a handle post for a handover
+    "kettle": "id: kettle\nname: Kettle of hot water\nmass: 1.3\ntags: [container]\n"
+              "geometry:\n  primitives:\n"
+              "    - {shape: cylinder, part: body, radius: 0.08, height: 0.18, "
+              "position: [0, 0, 0.09]}\n"
+              "    - {shape: box, part: handle, extents: [0.08, 0.025, 0.02], "
+              "position: [0, 0, 0.23]}\n"
+              "    - {shape: box, part: post_a, extents: [0.015, 0.02, 0.05], "
+              "position: [0.035, 0, 0.2]}\n"
+              "    - {shape: box, part: post_b, extents: [0.015, 0.02, 0.05], "
+              "position: [-0.035, 0, 0.2]}\n"
+              "    - {shape: cylinder, part: spout, radius: 0.012, height: 0.1, "
+              "position: [0.11, 0, 0.12], rotation_deg: [0, 50, 0]}\n"
+              "parts:\n  body: {tags: [hot]}\n  handle: {tags: [handle]}\n"
+              "  post_a: {tags: [hot]}\n  post_b: {tags: [hot]}\n"
+              "  spout: {tags: [hot, nozzle]}\n"
+              "axes:\n  up: [0, 0, 1]\n  nozzle: [1, 0, 0]\n",
     "board": "id: board\nname: Cutting board\nmass: 0.9\ngeometry:\n  primitives:\n"
              "    - {shape: box, part: board, extents: [0.36, 0.25, 0.02], "
              "position: [0, 0, 0.01]}\n"
@@ -272,6 +290,35 @@ def test_a_plan_whose_grasps_do_not_hold_exits_4_with_a_warning(capsys, tmp_path
     path = tmp_path / "broom.json"
     path.write_text(out, encoding="utf-8")
     assert _run(capsys, "--kb", str(own_kb), "verify", str(path))[0] == 4
+
+
+def test_a_kettle_no_handover_grasp_holds_is_set_down_upright_by_a_grasp_that_holds(capsys,
+                                                                                   own_kb):
+    """A 1.3 kg kettle of hot water, its 8 cm top handle the receiver's: in every mode the
+    gripper holds it by a handle post, 14 cm above its centre of mass, and it turns in the
+    fingers in the check's shake. With the mode left to the planner, ``--physics`` then
+    sets it down on the table within the receiver's reach, as a careful person would:
+    upright, on the table top, the handle where the receiver takes it, carried there by a
+    grasp the check holds (exit 0); the handover's failed checks stay in the answer."""
+    code, _, data = _checked(capsys, own_kb, "kettle")
+    assert code == 0 and data["outcome"] == "place"
+    physics = data["physics"]
+    assert physics["passed"]
+    failed = physics["alternatives_failed"]
+    assert failed and all(not g["passed"] for g in failed)
+    assert any("set down within the receiver's reach instead" in w and "physics" in w
+               for w in data["warnings"])
+    assert "holds in the physics check" in data["reason"]
+    pose = np.asarray(data["object_pose"], dtype=float)
+    assert pose[:3, :3][2, 2] > 0.999  # its up axis is the world's: upright, nothing spills
+    table = next(b for b in data["scene"]["boxes"] if b["id"] == "table")
+    top = np.asarray(table["pose"])[2, 3] + table["extents"][2] / 2
+    assert pose[2, 3] == pytest.approx(top, abs=0.002)  # its base (z = 0) on the table top
+    (held,) = data["robot_grasps"]
+    assert "spout" not in held["parts"]
+    (site,) = data["human_grasps"]
+    handle = np.linalg.inv(pose) @ np.r_[site["position_world"], 1.0]
+    assert np.all(np.abs(handle[:3] - [0, 0, 0.23]) <= np.array([0.04, 0.0125, 0.01]) + 1e-6)
 
 
 def test_a_board_no_single_gripper_holds_is_handed_in_a_mode_whose_grasps_hold(capsys,

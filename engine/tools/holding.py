@@ -1,0 +1,202 @@
+"""Plans whose grasps hold in the physics check (``handover plan --physics``, the service's
+``physics``): the chosen grasps checked, and when they slip or drop, in order, the next
+best candidates, the plan made again without the grasps that failed, the other modes (when
+the mode is the planner's to choose), and the object set down within the receiver's reach
+instead. What failed on the way stays in the answer's ``physics`` block and its warnings.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import replace
+from functools import partial
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from handover.engine.errors import UsageError
+from handover.engine.spec.query import MODES, Query
+
+if TYPE_CHECKING:
+    from handover.engine.planner import Plan
+    from handover.engine.store.kb import KB
+
+__all__ = ["physics_plan", "physics_of", "convex_cache"]
+
+
+def convex_cache(db=None) -> Path:
+    """The folder of the physics check's convex decompositions: ``convex`` in the grasp
+    database's folder (the user's default one without a database)."""
+    from handover.engine.assets.graspdb import default_db_dir
+
+    root = getattr(db, "root", None)
+    return Path(root if root is not None else default_db_dir()) / "convex"
+
+
+def physics_plan(kb: KB, query: Query, planned: Plan, db=None, *,
+                 why_not: tuple[int, ...] = (), what_if: bool = False, motion: bool = False,
+                 rounds: int | None = None):
+    """A handover plan whose chosen grasps hold in physics, when one can be found: the plan
+    checked (:func:`physics_of`); when its grasps fail, planned again without the grasps
+    that slipped or dropped (``query`` and the options as :func:`~handover.engine.planner.
+    plan` planned it; :attr:`PlanContext.passed_over
+    <handover.engine.plan.context.PlanContext.passed_over>`: the next best grasps, their
+    arms solved as any chosen grasp's) and checked again, at most ``rounds`` times
+    (:data:`handover.engine.plan.physics.FALLBACKS`). Returns the plan to answer with (the
+    first that holds; the original when none does) and its
+    :class:`~handover.engine.plan.physics.PlanPhysics`: the failed checks of the grasps
+    passed over, and why each was."""
+    from handover.engine.plan.physics import FALLBACKS, check_plan, failing_grasps
+    from handover.engine.planner import plan
+
+    start = time.perf_counter()
+    replan = partial(plan, kb, why_not=why_not, db=db, what_if=what_if, motion=motion)
+    first = physics_of(kb, planned, db)
+    if first.passed:
+        return planned, first
+    cache = convex_cache(db)
+    site = planned.context.candidates.site
+
+    def with_site(ids: dict[int, str]) -> dict[int, str]:
+        return _on_the_same_contacts(site, ids)
+
+    failed = [first.checked, *first.failed]
+    passed_over = {}
+    for group in failed:
+        passed_over.update(with_site(failing_grasps(group)))
+    for _ in range(FALLBACKS if rounds is None else rounds):
+        again = replan(query, passed_over=passed_over)
+        if again.outcome != "handover":
+            break
+        try:
+            checked = check_plan(kb, again.result.to_dict(), cache)
+        except UsageError:
+            break
+        if checked.passed:
+            tried = [g.ids for g in failed]
+            notes = [f"grasp {', '.join(map(str, ids))} passed over: "
+                     f"{passed_over.get(ids[0], 'failed')}" for ids in tried if ids]
+            warning = ("physics: the better-scored " + "; ".join(notes) + f" (with "
+                       f"{len(passed_over)} grasps on the same contacts); the plan holds with "
+                       + ", ".join(f"grasp {i}" for i in checked.checked.ids))
+            again.result.warnings.append(warning)
+            return again, replace(checked, failed=tuple(failed),
+                                  seconds=time.perf_counter() - start,
+                                  notes=tuple(notes), passed_over=tuple(passed_over.items()))
+        failed.append(checked.checked)
+        more = {i: w for i, w in with_site(failing_grasps(checked.checked)).items()
+                if i not in passed_over}
+        if not more:
+            break
+        passed_over.update(more)
+    tried = (f"planned again without {len(passed_over)} grasps on contacts that slipped: "
+             "none found holds")
+    other = _other_mode_holds(kb, query, planned, replan, db)
+    if other is not None:
+        again, checked = other
+        said = (f"physics: no grasp of the {planned.result.mode} plan holds ({tried}); "
+                f"handed in {again.result.mode} instead, whose grasps hold")
+        again.result.warnings.append(said)
+        return again, replace(checked, failed=tuple(failed) + checked.failed,
+                              seconds=time.perf_counter() - start,
+                              notes=checked.notes + (said.removeprefix("physics: "),))
+    placed = _set_down_holds(kb, query, planned, tried, passed_over, why_not, db)
+    if placed is not None:
+        again, checked, said = placed
+        again.result.warnings.append(f"physics: {said}")
+        return again, replace(checked, failed=tuple(failed) + checked.failed,
+                              seconds=time.perf_counter() - start,
+                              notes=checked.notes + (said,))
+    return planned, replace(first, failed=tuple(failed[1:]),
+                            seconds=time.perf_counter() - start,
+                            notes=first.notes + (f"{tried}; the plan keeps its grasps",))
+
+
+def _other_mode_holds(kb: KB, query: Query, planned: Plan, replan: Callable[..., Plan],
+                      db=None):
+    """When the query leaves the mode to the planner (``auto``) and no grasp of the plan's
+    mode holds in physics: the plan of the first other mode (H1G1, H2G2, H2G1 in order,
+    each planned as if forced: its hard rules, the mode rules included, still hold) that
+    hands the object over with grasps that hold (:func:`physics_of`), with its check; None
+    when none does. A board pinched at one edge turns out of one gripper in the shake,
+    and held through a midair regrasp it does not."""
+    if query.mode != "auto":
+        return None
+    for mode in MODES:
+        if mode == "auto" or mode.upper() == planned.result.mode:
+            continue
+        again = replan(replace(query, mode=mode))
+        if again.outcome != "handover":
+            continue
+        try:
+            checked = physics_of(kb, again, db)
+        except UsageError:
+            continue
+        if checked.passed:
+            return again, checked
+    return None
+
+
+def _on_the_same_contacts(site: np.ndarray, ids: dict[int, str]) -> dict[int, str]:
+    """The failing grasps ``ids`` (id -> why) and every other roll and depth on the same
+    contacts (``site`` : (n,) int, the contact site of each candidate)."""
+    out = {}
+    for i, why in ids.items():
+        out[i] = why
+        for j in np.flatnonzero(site == site[i]):
+            out.setdefault(int(j), f"on the contacts of grasp {i}, which {why}")
+    return out
+
+
+def _set_down_holds(kb: KB, query: Query, planned: Plan, tried: str,
+                    passed_over: dict[int, str], why_not: tuple[int, ...] = (), db=None):
+    """When the query leaves the mode to the planner (``auto``) and no mode's grasps hold in
+    physics: the object set down within the receiver's reach instead
+    (:func:`handover.engine.planner.set_down`) by a grasp that holds in the check, from
+    pick-up to where it is set down, as (plan, its check, the sentence saying why); None
+    when no such placement is found. The grasps the handover's checks saw fail
+    (``passed_over``) are passed over here too, and a placement grasp that fails is passed
+    over for the next, at most :data:`~handover.engine.plan.physics.FALLBACKS` times. A
+    kettle of hot water whose short top handle is the receiver's is held by a handle post
+    for the handover and turns in the fingers in the shake; set down, its handle toward the
+    receiver, as a careful person does, it is carried there by its handle."""
+    from handover.engine.plan.physics import FALLBACKS, check_plan, failing_grasps
+    from handover.engine.planner import set_down
+
+    if query.mode != "auto":
+        return None
+    why = (f"no grasp of the {planned.result.mode} plan, nor of another mode, holds in the "
+           f"physics check ({tried})")
+    passed_over = dict(passed_over)
+    site = planned.context.candidates.site
+    for _ in range(FALLBACKS):
+        placed = set_down(kb, query, why, db=db, why_not=why_not, passed_over=passed_over)
+        if placed is None:
+            return None
+        try:
+            checked = check_plan(kb, placed.result.to_dict(), convex_cache(db))
+        except UsageError:
+            return None
+        if checked.passed:
+            return placed, checked, (f"{why}; set down within the receiver's reach instead, "
+                                     "carried there by a grasp that holds")
+        more = {i: w for i, w in _on_the_same_contacts(
+            site, failing_grasps(checked.checked)).items() if i not in passed_over}
+        if not more:
+            return None
+        passed_over.update(more)
+    return None
+
+
+def physics_of(kb: KB, planned: Plan, db=None):
+    """The physics check of a handover plan's chosen grasps
+    (:func:`handover.engine.plan.physics.check_plan`), and when they fail, of the next best
+    candidates (:func:`~handover.engine.plan.physics.check_alternatives`)."""
+    from handover.engine.plan.physics import check_alternatives, check_plan
+
+    data = planned.result.to_dict()
+    cache = convex_cache(db)
+    checked = check_plan(kb, data, cache)
+    return check_alternatives(kb, planned.context, data, checked, cache)
