@@ -66,9 +66,26 @@ class IKResult:
 
 
 def rotation_angle(r_a: np.ndarray, r_b: np.ndarray) -> np.ndarray:
-    """(...) rad: angle of the rotation taking frames ``r_a`` to ``r_b`` (both (..., 3, 3))."""
-    trace = (np.asarray(r_a) * np.asarray(r_b)).sum(axis=(-2, -1))
+    """(...) rad: angle of the rotation taking frames ``r_a`` to ``r_b`` (both (..., 3, 3)).
+
+    The trace is summed term by term in a fixed order, not by a reduction (whose order numpy
+    may choose by the batch's shape): a frame's angle is the same to the bit in any batch,
+    which matters near 0, where arccos turns one ulp of the trace into 1e-11 rad."""
+    p = np.asarray(r_a) * np.asarray(r_b)
+    trace = p[..., 0, 0]
+    for i, j in ((0, 1), (0, 2), (1, 0), (1, 1), (1, 2), (2, 0), (2, 1), (2, 2)):
+        trace = trace + p[..., i, j]
     return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
+
+
+def _times(a: np.ndarray, flat: np.ndarray) -> np.ndarray:
+    """``a @ flat`` for a (3, 3) or (3,) constant and ``flat`` (3, N), term by term: each
+    column's value is the same to the bit in any batch (a BLAS product's is not: its kernels
+    round the columns of a block and of its edge differently), so a pose's kinematics do not
+    depend on the poses computed with it."""
+    if a.ndim == 1:
+        return a[0] * flat[0] + a[1] * flat[1] + a[2] * flat[2]
+    return a[:, 0, None] * flat[0] + a[:, 1, None] * flat[1] + a[:, 2, None] * flat[2]
 
 
 def _z_to(axis: np.ndarray) -> np.ndarray:
@@ -176,8 +193,8 @@ class Kinematics:
         for i in range(self.dof):
             if i:
                 flat = rot.reshape(3, 3 * n)
-                pos = pos + (a_t[i] @ flat).reshape(3, n)
-                rot = (a_rot_t[i] @ flat).reshape(3, 3, n)
+                pos = pos + _times(a_t[i], flat).reshape(3, n)
+                rot = _times(a_rot_t[i], flat).reshape(3, 3, n)
             out = rots[i]
             if self.prismatic[i]:
                 pos = pos + rot[2] * qt[i]
@@ -208,8 +225,9 @@ class Kinematics:
         n = rot.shape[2]
         flat = rot.reshape(3, 3 * n)
         out = np.zeros((n, 4, 4), dtype=dtype)
-        out[:, :3, :3] = (local[:3, :3].T.astype(dtype) @ flat).reshape(3, 3, n).transpose(2, 1, 0)
-        out[:, :3, 3] = (pos + (local[:3, 3].astype(dtype) @ flat).reshape(3, n)).T
+        out[:, :3, :3] = _times(local[:3, :3].T.astype(dtype), flat).reshape(3, 3, n
+                                                                           ).transpose(2, 1, 0)
+        out[:, :3, 3] = (pos + _times(local[:3, 3].astype(dtype), flat).reshape(3, n)).T
         out[:, 3, 3] = 1.0
         return out
 
@@ -435,7 +453,7 @@ class Kinematics:
             e_pos = t_pos[active] - tip[:, :3, 3]
             r = tip[:, :3, :3]
             rt = t_rot[active]
-            pe = np.sqrt((e_pos * e_pos).sum(axis=1))
+            pe = np.sqrt(e_pos[:, 0] ** 2 + e_pos[:, 1] ** 2 + e_pos[:, 2] ** 2)  # not a reduction
             re = rotation_angle(r, rt)
             pos_err[active] = pe
             rot_err[active] = re

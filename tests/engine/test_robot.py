@@ -298,7 +298,8 @@ def _fresh(builtin_kb) -> RobotArms:
 def test_a_target_s_ik_answer_does_not_depend_on_the_others_asked_with_it(builtin_kb, idro):
     """The same target, asked alone (by arms that never saw the batch) or in a batch of
     others, gets the same joint values (a plan's answer for a row must not depend on which
-    rows were checked with it)."""
+    rows were checked with it), and the same errors to the bit (the kinematics sum term by
+    term: a BLAS product rounds a column by its place in the batch)."""
     rng = np.random.default_rng(21)
     targets = idro.fk("right", idro.arm("right").kin.random_configurations(12, rng))
     targets[:, :3, 3] += rng.normal(0.0, 0.03, (12, 3))  # some out of reach
@@ -307,6 +308,8 @@ def test_a_target_s_ik_answer_does_not_depend_on_the_others_asked_with_it(builti
         alone = _fresh(builtin_kb).solve("right", targets[k : k + 1])
         assert_allclose(alone.q[0], together.q[k], atol=0)
         assert alone.ok[0] == together.ok[k]
+        assert alone.position_error[0] == together.position_error[k]
+        assert alone.rotation_error[0] == together.rotation_error[k]
 
 
 def test_a_remembered_ik_answer_is_the_one_solving_gives(builtin_kb):
