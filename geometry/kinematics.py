@@ -78,14 +78,18 @@ def rotation_angle(r_a: np.ndarray, r_b: np.ndarray) -> np.ndarray:
     return np.arccos(np.clip(0.5 * (trace - 1.0), -1.0, 1.0))
 
 
-def _times(a: np.ndarray, flat: np.ndarray) -> np.ndarray:
-    """``a @ flat`` for a (3, 3) or (3,) constant and ``flat`` (3, N), term by term: each
-    column's value is the same to the bit in any batch (a BLAS product's is not: its kernels
-    round the columns of a block and of its edge differently), so a pose's kinematics do not
-    depend on the poses computed with it."""
-    if a.ndim == 1:
-        return a[0] * flat[0] + a[1] * flat[1] + a[2] * flat[2]
-    return a[:, 0, None] * flat[0] + a[:, 1, None] * flat[1] + a[:, 2, None] * flat[2]
+def _columns(rot: np.ndarray, pos: np.ndarray) -> np.ndarray:
+    """(3, 4, 1) the columns of the (4, 3) matrix ``[rot; pos]`` (rot (3, 3), pos (3,)), as
+    :func:`_times` takes them."""
+    return np.ascontiguousarray(np.vstack([rot, pos]).T[:, :, None])
+
+
+def _times(cols: np.ndarray, flat: np.ndarray) -> np.ndarray:
+    """(4, N) ``[rot; pos] @ flat`` for ``cols`` = :func:`_columns` (rot, pos) and ``flat``
+    (3, N), term by term: each column's value is the same to the bit in any batch (a BLAS
+    product's is not: its kernels round the columns of a block and of its edge differently),
+    so a pose's kinematics do not depend on the poses computed with it."""
+    return cols[0] * flat[0] + cols[1] * flat[1] + cols[2] * flat[2]
 
 
 def _z_to(axis: np.ndarray) -> np.ndarray:
@@ -183,7 +187,7 @@ class Kinematics:
         column, row, sample]`` and the origins (dof, 3, n). Column-major storage makes the
         product with a constant rotation one (3, 3) x (3, 3n) matrix product."""
         n = q.shape[0]
-        a_rot_t, a_t = self._constants(dtype)
+        a_rot_t, a_t, cols = self._constants(dtype)
         qt = np.ascontiguousarray(q.T, dtype=dtype)
         cos, sin = np.cos(qt), np.sin(qt)
         rots = np.empty((self.dof, 3, 3, n), dtype=dtype)
@@ -192,9 +196,9 @@ class Kinematics:
         pos = np.repeat(a_t[0][:, None], n, axis=1)
         for i in range(self.dof):
             if i:
-                flat = rot.reshape(3, 3 * n)
-                pos = pos + _times(a_t[i], flat).reshape(3, n)
-                rot = _times(a_rot_t[i], flat).reshape(3, 3, n)
+                both = _times(cols[i], rot.reshape(3, 3 * n))
+                pos = pos + both[3].reshape(3, n)
+                rot = both[:3].reshape(3, 3, n)
             out = rots[i]
             if self.prismatic[i]:
                 pos = pos + rot[2] * qt[i]
@@ -209,27 +213,38 @@ class Kinematics:
             rot = out
         return rots, origins
 
-    def _constants(self, dtype) -> tuple[np.ndarray, np.ndarray]:
-        """The folded fixed transforms in ``dtype``: rotations transposed (dof, 3, 3) and
-        origins (dof, 3), converted once per dtype."""
+    def _constants(self, dtype) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The folded fixed transforms in ``dtype``: rotations transposed (dof, 3, 3),
+        origins (dof, 3) and both as :func:`_columns` (dof, 3, 4, 1), converted once per
+        dtype."""
         key = np.dtype(dtype).str
         cache = self.__dict__.setdefault("_by_dtype", {})
         if key not in cache:
-            cache[key] = (np.ascontiguousarray(self._a_rot.transpose(0, 2, 1), dtype=dtype),
-                          np.ascontiguousarray(self._a_t, dtype=dtype))
+            rot_t = np.ascontiguousarray(self._a_rot.transpose(0, 2, 1), dtype=dtype)
+            a_t = np.ascontiguousarray(self._a_t, dtype=dtype)
+            cache[key] = (rot_t, a_t, np.stack([_columns(r, t) for r, t in zip(rot_t, a_t,
+                                                                               strict=True)]))
         return cache[key]
 
-    @staticmethod
-    def _apply(rot: np.ndarray, pos: np.ndarray, local: np.ndarray, dtype) -> np.ndarray:
-        """(n, 4, 4) poses ``[rot pos] @ local`` for component-major rot (3, 3, n), pos (3, n)."""
+    def _apply(self, rot: np.ndarray, pos: np.ndarray, local: str | int, dtype) -> np.ndarray:
+        """(n, 4, 4) poses ``[rot pos] @ local`` for component-major rot (3, 3, n), pos (3, n);
+        ``local``: "tip" (the tip or tool frame) or a link's index in ``chain.links``."""
         n = rot.shape[2]
-        flat = rot.reshape(3, 3 * n)
+        both = _times(self._local_columns(local, dtype), rot.reshape(3, 3 * n))
         out = np.zeros((n, 4, 4), dtype=dtype)
-        out[:, :3, :3] = _times(local[:3, :3].T.astype(dtype), flat).reshape(3, 3, n
-                                                                           ).transpose(2, 1, 0)
-        out[:, :3, 3] = (pos + _times(local[:3, 3].astype(dtype), flat).reshape(3, n)).T
+        out[:, :3, :3] = both[:3].reshape(3, 3, n).transpose(2, 1, 0)
+        out[:, :3, 3] = (pos + both[3].reshape(3, n)).T
         out[:, 3, 3] = 1.0
         return out
+
+    def _local_columns(self, local: str | int, dtype) -> np.ndarray:
+        """:func:`_columns` of a fixed local transform (see :meth:`_apply`), once per dtype."""
+        cache = self.__dict__.setdefault("_local_by_dtype", {})
+        key = (local, np.dtype(dtype).str)
+        if key not in cache:
+            m = self._tip if local == "tip" else self._link_local[local]
+            cache[key] = _columns(m[:3, :3].T.astype(dtype), m[:3, 3].astype(dtype))
+        return cache[key]
 
     def fk(self, q: np.ndarray, *, dtype: type = np.float64) -> np.ndarray:
         """(n, 4, 4) tip (or tool) poses for configurations q (n, dof) (or (dof,)).
@@ -240,7 +255,7 @@ class Kinematics:
         out = np.empty((q.shape[0], 4, 4), dtype=dtype)
         for s in range(0, q.shape[0], _CHUNK):  # blocks that stay in the CPU's cache
             rots, origins = self._frames(q[s : s + _CHUNK], dtype)
-            out[s : s + _CHUNK] = self._apply(rots[-1], origins[-1], self._tip, dtype)
+            out[s : s + _CHUNK] = self._apply(rots[-1], origins[-1], "tip", dtype)
         return out
 
     def link_poses(self, q: np.ndarray) -> np.ndarray:
@@ -253,7 +268,7 @@ class Kinematics:
             if j < 0:
                 out[:, k] = local
             else:
-                out[:, k] = self._apply(rots[j], origins[j], local, np.float64)
+                out[:, k] = self._apply(rots[j], origins[j], k, np.float64)
         return out
 
     def jacobian(self, q: np.ndarray) -> np.ndarray:
@@ -263,7 +278,7 @@ class Kinematics:
 
     def _fk_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         rots, origins = self._frames(q, np.float64)
-        tip = self._apply(rots[-1], origins[-1], self._tip, np.float64)
+        tip = self._apply(rots[-1], origins[-1], "tip", np.float64)
         n = q.shape[0]
         jac = np.empty((self.dof, 6, n))  # component-major, transposed once at the end
         z = rots[:, 2]  # (dof, 3, n): the joint axes in the base frame

@@ -12,6 +12,11 @@ the changes that really give a feasible plan are listed, smallest first:
 The rules to relax are read from the exact decision tables of the modes tried
 (:func:`engine.plan.blocking.blocking_sets`): each blocking set is a candidate change.
 
+The changes are verified independently of each other, so they are verified in parallel where
+the machine has the cores (:func:`verified`: forked processes, at most
+:data:`WORKERS_ENV` of them, one per core by default); the answer is the same, to the byte,
+with one process or several (each verification depends on its change alone).
+
 >>> from handover import Planner
 >>> planner = Planner()
 >>> plan = planner.plan("tray", mode="h1g1", what_if=True)
@@ -23,7 +28,12 @@ from __future__ import annotations
 
 import copy
 import math
+import multiprocessing
+import os
+import sys
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -35,7 +45,7 @@ if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.spec.query import Query
 
-__all__ = ["Change", "what_if", "without_rules", "MAX_RULE_SETS"]
+__all__ = ["Change", "what_if", "without_rules", "verified", "MAX_RULE_SETS", "WORKERS_ENV"]
 
 # How many blocking sets (of each of: without and with a safety rule) are tried.
 MAX_RULE_SETS = 6
@@ -43,6 +53,9 @@ MODES = ("h1g1", "h2g2", "h2g1")
 # Order of the kinds of change of the same size: a rule, then the plan's own options, then
 # the world.
 KIND_ORDER = {"relax_rule": 0, "mode": 1, "gripper": 2, "scene": 3, "receiver": 4}
+WORKERS_ENV = "HANDOVER_WHAT_IF_WORKERS"
+"""Environment variable: how many processes verify the changes (default: one per core this
+process may use; 1: in this process, one after the other)."""
 
 
 @dataclass(frozen=True)
@@ -87,16 +100,55 @@ def what_if(kb: KB, query: Query, ctx: PlanContext, attempt: Attempt, tried: lis
     plan as made (:func:`engine.plan.modes.choose`); ``db``, ``mesh``: as given to the plan."""
     if attempt.feasible:
         return []
-    changes: list[Change] = []
-    sets = _rule_sets(tried or [attempt])
-    for rules, safety, measured in sets:
-        change = _relax(kb, query, ctx, rules, safety, measured)
-        if change is not None:
-            changes.append(change)
-    changes += _other_modes(kb, query, ctx)
-    changes += _other_world(kb, query, db, mesh, ctx.arms_cache)
+    jobs: list[Callable[[], Change | None]] = [
+        partial(_relax, kb, query, ctx, rules, safety, measured)
+        for rules, safety, measured in _rule_sets(tried or [attempt])]
+    if query.mode != "auto":  # another forced mode
+        jobs += [partial(_other_mode, kb, ctx, mode) for mode in MODES if mode != query.mode]
+    jobs += [partial(_other_world, kb, kind, name, changed, db, mesh, ctx.arms_cache)
+             for kind, name, changed in _world_options(kb, query)]
+    changes = [c for c in verified(jobs) if c is not None]
     changes.sort(key=lambda c: (c.safety, c.size, KIND_ORDER[c.kind], c.detail))
     return [c.as_dict() for c in changes]
+
+
+_JOBS: list[Callable[[], Change | None]] = []  # what the forked processes verify
+
+
+def _run_job(i: int) -> Change | None:
+    return _JOBS[i]()
+
+
+def verified(jobs: list[Callable[[], Change | None]]) -> list[Change | None]:
+    """Each job's answer (the change it verified, or None), in the jobs' order. With more
+    than one job and more than one core (:data:`WORKERS_ENV`), the jobs run in processes
+    forked from this one (they inherit the KB, the context and every cache, and send back
+    only the answer); in this process, one after the other, where forking is not possible
+    (not Linux, or a daemonic process such as a service worker, which may not have
+    children)."""
+    workers = _workers(len(jobs))
+    if workers < 2:
+        return [job() for job in jobs]
+    _JOBS[:] = jobs
+    try:
+        with multiprocessing.get_context("fork").Pool(workers) as pool:
+            return pool.map(_run_job, range(len(jobs)), chunksize=1)
+    finally:
+        _JOBS.clear()
+
+
+def _workers(jobs: int) -> int:
+    """How many processes verify ``jobs`` changes (see :func:`verified`)."""
+    if jobs < 2 or not sys.platform.startswith("linux") \
+            or multiprocessing.current_process().daemon:
+        return 1
+    asked = os.environ.get(WORKERS_ENV, "").strip()
+    cores = len(os.sched_getaffinity(0))
+    try:
+        wanted = int(asked) if asked else cores
+    except ValueError:
+        wanted = cores
+    return max(1, min(wanted, cores, jobs))
 
 
 def _rule_sets(tried: list[Attempt]) -> list[tuple[list, bool, dict]]:
@@ -192,24 +244,16 @@ def _outward(value: float, up: bool) -> float:
     return f(value * 1000.0 - (1e-6 if up else -1e-6)) / 1000.0
 
 
-def _other_modes(kb: KB, query: Query, ctx: PlanContext) -> list[Change]:
-    """Another forced mode (or auto) that is feasible, when the plan forced one."""
-    if query.mode == "auto":
-        return []
-    out = []
-    for mode in MODES:
-        if mode == query.mode:
-            continue
-        attempt = _feasible(kb, ctx, mode)
-        if attempt is not None:
-            out.append(Change("mode", None, False, f"--mode {mode}: feasible in {attempt.mode}"))
-    return out
+def _other_mode(kb: KB, ctx: PlanContext, mode: str) -> Change | None:
+    """Another forced ``mode`` (the plan forced one), when it is feasible."""
+    attempt = _feasible(kb, ctx, mode)
+    if attempt is None:
+        return None
+    return Change("mode", None, False, f"--mode {mode}: feasible in {attempt.mode}")
 
 
-def _other_world(kb: KB, query: Query, db, mesh, arms_cache) -> list[Change]:
-    """Another gripper, scene or receiver of the KB with which the plan is feasible (each
-    prepared with the plan's ``db``, ``mesh`` and ``arms_cache``)."""
-    from handover.engine.plan.prepare import prepare
+def _world_options(kb: KB, query: Query) -> list[tuple[str, str, Query]]:
+    """Every other gripper, scene and receiver of the KB: (kind, id, the query with it)."""
     from handover.engine.spec.query import DEFAULTS
 
     robot = kb.robots.get(query.robot)
@@ -220,14 +264,20 @@ def _other_world(kb: KB, query: Query, db, mesh, arms_cache) -> list[Change]:
                 if s != (query.scene or DEFAULTS["scene"])]
     options += [("receiver", r, replace(query, receiver=r)) for r in sorted(kb.receivers)
                 if r != query.receiver]
-    out = []
-    for kind, name, changed in options:
-        try:
-            ctx = prepare(kb, changed, db, mesh=mesh, arms_cache=arms_cache)
-        except Exception:  # noqa: BLE001 - a change that cannot even be prepared is no answer
-            continue
-        attempt = _feasible(kb, ctx, changed.mode)
-        if attempt is not None:
-            out.append(Change(kind, None, False,
-                              f"--{kind} {name}: feasible in {attempt.mode}"))
-    return out
+    return options
+
+
+def _other_world(kb: KB, kind: str, name: str, changed: Query, db, mesh,
+                 arms_cache) -> Change | None:
+    """The ``changed`` query (another gripper, scene or receiver), prepared with the plan's
+    ``db``, ``mesh`` and ``arms_cache``, when it is feasible."""
+    from handover.engine.plan.prepare import prepare
+
+    try:
+        ctx = prepare(kb, changed, db, mesh=mesh, arms_cache=arms_cache)
+    except Exception:  # noqa: BLE001 - a change that cannot even be prepared is no answer
+        return None
+    attempt = _feasible(kb, ctx, changed.mode)
+    if attempt is None:
+        return None
+    return Change(kind, None, False, f"--{kind} {name}: feasible in {attempt.mode}")

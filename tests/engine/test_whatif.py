@@ -5,12 +5,14 @@ with it, independently of the code that found it."""
 from __future__ import annotations
 
 import json
+import os
 import shutil
 
 import pytest
 import yaml
 
 from handover.engine.cli.app import main
+from handover.engine.plan.whatif import WORKERS_ENV
 from handover.engine.planner import Planner
 from handover.engine.store.kb import builtin_kb_dir
 
@@ -180,3 +182,20 @@ def test_the_cli_prints_the_changes_and_puts_them_in_the_json(kb_dir, tmp_path, 
     rc = main([*args, "--json"])
     data = json.loads(capsys.readouterr().out)
     assert rc == 4 and any(c["kind"] == "gripper" for c in data["what_if"])
+
+
+def test_the_changes_are_the_same_verified_in_one_process_or_in_several(kb_dir, planner,
+                                                                         monkeypatch):
+    """The changes are verified in forked processes where there are cores: each verification
+    depends on its change alone, so the answer is the same bytes as verified one after the
+    other in this process."""
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("one core: the changes are always verified in this process")
+    answers = []
+    for workers in ("1", "2"):
+        monkeypatch.setenv(WORKERS_ENV, workers)
+        fresh = Planner(kb=kb_dir, db=planner.db.root)  # nothing memoised from the other run
+        answers.append(fresh.plan("short_knife", receiver="whole_hand", what_if=True).to_json())
+    assert answers[0] == answers[1]
+    kinds = {c["kind"] for c in json.loads(answers[0])["what_if"]}
+    assert {"relax_rule", "gripper"} <= kinds  # rules relaxed and another world, both verified
