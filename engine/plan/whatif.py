@@ -124,8 +124,8 @@ def verified(jobs: list[Callable[[], Change | None]]) -> list[Change | None]:
     than one job and more than one core (:data:`WORKERS_ENV`), the jobs run in processes
     forked from this one (they inherit the KB, the context and every cache, and send back
     only the answer); in this process, one after the other, where forking is not possible
-    (not Linux, or a daemonic process such as a service worker, which may not have
-    children)."""
+    (not Linux, or a daemonic process, which may not have children) or not wanted (a service
+    worker sets :data:`WORKERS_ENV` to 1)."""
     workers = _workers(len(jobs))
     if workers < 2:
         return [job() for job in jobs]

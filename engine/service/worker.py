@@ -128,9 +128,16 @@ _STATE: WorkerState | None = None
 
 def start_worker(kb: KB, db_root: str | None) -> None:
     """The pool's initializer: keep the served KB, open the grasp database (None: generate
-    candidates)."""
+    candidates). A worker verifies ``--what-if`` changes itself, one after the other
+    (:data:`~handover.engine.plan.whatif.WORKERS_ENV` = 1): the pool already keeps the cores
+    busy, and a worker ended at a request's deadline leaves no process of its own behind."""
     global _STATE
+    import os
+
     from handover.engine.assets.graspdb import open_db
+    from handover.engine.plan.whatif import WORKERS_ENV
+
+    os.environ[WORKERS_ENV] = "1"
 
     _STATE = WorkerState(kb, open_db(db_root, disabled=db_root is None))
 
