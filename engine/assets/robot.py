@@ -396,6 +396,21 @@ class RobotArms:
                                             float(found.rotation_error[j])))
         return IKResult(q, ok, pos_err, rot_err, attempts)
 
+    def answer_keys(self) -> set:
+        """The keys of the inverse-kinematics answers kept (:meth:`ik_from`)."""
+        return set(self._answers)
+
+    def answers_since(self, known: set) -> dict:
+        """The answers kept whose keys are not in ``known`` (an :meth:`answer_keys`): what
+        this process solved since, for another process to :meth:`remember`."""
+        return {k: self._answers.fetch(k, _absent) for k in self._answers if k not in known}
+
+    def remember(self, answers: dict) -> None:
+        """Keep ``answers`` (from :meth:`answers_since` of the same arms in another process:
+        an answer depends on its key alone, so it is the one solving here would give)."""
+        for key, answer in answers.items():
+            self._answers.put(key, answer)
+
     def _library_distances(self, side: str, targets: np.ndarray) -> np.ndarray:
         """(m, L) distances from targets (m, 4, 4), base frame, to the grasp poses of the
         arm's start library (:data:`START_LIBRARY` configurations drawn within the limits, seed

@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    from handover.engine.assets.robot import RobotArms
     from handover.engine.load.loader import KB
     from handover.engine.plan.attempt import Attempt
     from handover.engine.plan.compiler import CompiledRule
@@ -107,34 +108,47 @@ def what_if(kb: KB, query: Query, ctx: PlanContext, attempt: Attempt, tried: lis
         jobs += [partial(_other_mode, kb, ctx, mode) for mode in MODES if mode != query.mode]
     jobs += [partial(_other_world, kb, kind, name, changed, db, mesh, ctx.arms_cache)
              for kind, name, changed in _world_options(kb, query)]
-    changes = [c for c in verified(jobs) if c is not None]
+    changes = [c for c in verified(jobs, ctx.arms) if c is not None]
     changes.sort(key=lambda c: (c.safety, c.size, KIND_ORDER[c.kind], c.detail))
     return [c.as_dict() for c in changes]
 
 
 _JOBS: list[Callable[[], Change | None]] = []  # what the forked processes verify
+_ARMS: list[RobotArms] = []  # the plan's arms, whose inverse kinematics they send back
 
 
-def _run_job(i: int) -> Change | None:
-    return _JOBS[i]()
+def _run_job(i: int) -> tuple[Change | None, dict]:
+    arms = _ARMS[0] if _ARMS else None
+    known = arms.answer_keys() if arms is not None else set()
+    answer = _JOBS[i]()
+    return answer, (arms.answers_since(known) if arms is not None else {})
 
 
-def verified(jobs: list[Callable[[], Change | None]]) -> list[Change | None]:
+def verified(jobs: list[Callable[[], Change | None]],
+             arms: RobotArms | None = None) -> list[Change | None]:
     """Each job's answer (the change it verified, or None), in the jobs' order. With more
     than one job and more than one core (:data:`WORKERS_ENV`), the jobs run in processes
     forked from this one (they inherit the KB, the context and every cache, and send back
-    only the answer); in this process, one after the other, where forking is not possible
-    (not Linux, or a daemonic process, which may not have children) or not wanted (a service
-    worker sets :data:`WORKERS_ENV` to 1)."""
+    the answer and the inverse-kinematics answers they solved for ``arms``, the plan's,
+    which keeps them as if solved here: the next what-if is as warm as after one verified
+    here); in this process, one after the other, where forking is not possible (not Linux,
+    or a daemonic process, which may not have children) or not wanted (a service worker
+    sets :data:`WORKERS_ENV` to 1)."""
     workers = _workers(len(jobs))
     if workers < 2:
         return [job() for job in jobs]
     _JOBS[:] = jobs
+    _ARMS[:] = [arms] if arms is not None else []
     try:
         with multiprocessing.get_context("fork").Pool(workers) as pool:
-            return pool.map(_run_job, range(len(jobs)), chunksize=1)
+            done = pool.map(_run_job, range(len(jobs)), chunksize=1)
     finally:
         _JOBS.clear()
+        _ARMS.clear()
+    for _, solved in done:
+        if arms is not None:
+            arms.remember(solved)
+    return [answer for answer, _ in done]
 
 
 def _workers(jobs: int) -> int:

@@ -14,7 +14,7 @@ from numpy.testing import assert_allclose
 
 from handover.engine.assets.graspdb import GraspDB, MemoryDB
 from handover.engine.assets.objects import gripper_from_spec
-from handover.engine.assets.robot import RobotArms, reach_dir, robot_arms
+from handover.engine.assets.robot import IK_RESTARTS, RobotArms, reach_dir, robot_arms
 from handover.engine.load.loader import load_kb
 from handover.geometry.frames import rotation_from_euler_deg, transform_from
 from handover.geometry.kinematics import rotation_angle
@@ -330,3 +330,25 @@ def test_a_remembered_ik_answer_is_the_one_solving_gives(builtin_kb):
     base = arms._to_base(arms.arm("left"), targets[:1])
     starts = arms._nearest("left", base, 11)
     assert arms.ik_from("left", base, starts).attempts[0] == 0  # asked before: not solved
+
+
+def test_answers_solved_by_another_process_are_remembered_as_solved_here(builtin_kb):
+    """What a forked process solved (a what-if verified in parallel) and sent back is kept as
+    if solved here: asked again, it is not solved again, and it is the same bits as a fresh
+    solve."""
+    rng = np.random.default_rng(9)
+    there, here = _fresh(builtin_kb), _fresh(builtin_kb)
+    targets = there.fk("right", there.arm("right").kin.random_configurations(6, rng))
+    known = there.answer_keys()
+    solved = there.solve("right", targets)
+    sent = there.answers_since(known)
+    assert len(sent) == 6  # nothing solved before, one answer per target
+    here.remember(sent)
+    base = here._to_base(here.arm("right"), targets)
+    starts = here._nearest("right", base, IK_RESTARTS + 1)
+    again = here.ik_from("right", base, starts)
+    assert (again.attempts == 0).all()
+    fresh = _fresh(builtin_kb).solve("right", targets)
+    for got in (again.q, solved.q):
+        assert_allclose(got, fresh.q, atol=0)
+    assert_allclose(again.rotation_error, fresh.rotation_error, atol=0)
