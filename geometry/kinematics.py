@@ -1,12 +1,15 @@
 """Forward kinematics, Jacobians and inverse kinematics of a serial chain, for many
 configurations at once (numpy, one array operation per joint over all configurations).
+Longer than 500 lines: one class, whose forward kinematics, Jacobian and inverse kinematics
+share the folded joint frames and their constants (a split would pass them back and forth).
 
 :class:`Kinematics` is built once per :class:`~handover.geometry.urdf.Chain` (and, optionally,
 a tool transform ``tcp`` from the tip link to the frame the caller cares about, e.g. the
 planner's grasp frame). Every joint is rewritten as a rotation (or translation) about its own
 z axis by folding a constant rotation into the fixed transforms on either side of it, so one
-step of forward kinematics is a (3n, 3) x (3, 3) matrix product plus a planar rotation of two
-columns.
+step of forward kinematics is a product with a constant (4, 3) matrix, summed term by term
+(a pose's values do not depend on the batch it is computed in), plus a planar rotation of
+two columns.
 
 Poses are in the chain's base-link frame, metres; joint values in radians (metres for
 prismatic joints). :meth:`Kinematics.ik` is damped least squares over all targets at once,
