@@ -31,6 +31,7 @@ import math
 import multiprocessing
 import os
 import sys
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from functools import partial
@@ -132,8 +133,8 @@ def verified(jobs: list[Callable[[], Change | None]],
     the answer and the inverse-kinematics answers they solved for ``arms``, the plan's,
     which keeps them as if solved here: the next what-if is as warm as after one verified
     here); in this process, one after the other, where forking is not possible (not Linux,
-    or a daemonic process, which may not have children) or not wanted (a service worker
-    sets :data:`WORKERS_ENV` to 1)."""
+    or a daemonic process, which may not have children), not safe (this process runs other
+    threads) or not wanted (a service worker sets :data:`WORKERS_ENV` to 1)."""
     workers = _workers(len(jobs))
     if workers < 2:
         return [job() for job in jobs]
@@ -154,8 +155,8 @@ def verified(jobs: list[Callable[[], Change | None]],
 def _workers(jobs: int) -> int:
     """How many processes verify ``jobs`` changes (see :func:`verified`)."""
     if jobs < 2 or not sys.platform.startswith("linux") \
-            or multiprocessing.current_process().daemon:
-        return 1
+            or multiprocessing.current_process().daemon or threading.active_count() > 1:
+        return 1  # a lock another thread holds would stay locked in a forked child
     asked = os.environ.get(WORKERS_ENV, "").strip()
     cores = len(os.sched_getaffinity(0))
     try:

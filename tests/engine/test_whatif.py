@@ -199,3 +199,28 @@ def test_the_changes_are_the_same_verified_in_one_process_or_in_several(kb_dir, 
     assert answers[0] == answers[1]
     kinds = {c["kind"] for c in json.loads(answers[0])["what_if"]}
     assert {"relax_rule", "gripper"} <= kinds  # rules relaxed and another world, both verified
+
+
+def test_a_process_running_other_threads_verifies_the_changes_itself(monkeypatch):
+    """Forking a process that runs other threads could leave a lock they hold locked in the
+    child: a what-if asked from a threaded program is verified in its own process."""
+    import threading
+
+    from handover.engine.plan import whatif
+
+    monkeypatch.setenv(WORKERS_ENV, "2")
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("one core: the changes are always verified in this process")
+    assert whatif._workers(5) == 2
+    seen = []
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        seen.append(whatif._workers(5))
+        ran_in = whatif.verified([os.getpid, os.getpid])
+    finally:
+        stop.set()
+        other.join()
+    assert seen == [1]
+    assert ran_in == [os.getpid(), os.getpid()]  # here, not in a forked process
