@@ -33,6 +33,8 @@ import os
 import sys
 import threading
 from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
 from functools import partial
 from typing import TYPE_CHECKING
@@ -56,8 +58,9 @@ MODES = ("h1g1", "h2g2", "h2g1")
 # the world.
 KIND_ORDER = {"relax_rule": 0, "mode": 1, "gripper": 2, "scene": 3, "receiver": 4}
 WORKERS_ENV = "HANDOVER_WHAT_IF_WORKERS"
-"""Environment variable: how many processes verify the changes (default: one per core this
-process may use; 1: in this process, one after the other)."""
+"""Environment variable: how many processes verify the changes (default, and for a value
+that is no whole number: one per core this process may use; 1: in this process, one after
+the other)."""
 
 
 @dataclass(frozen=True)
@@ -141,8 +144,10 @@ def verified(jobs: list[Callable[[], Change | None]],
     _JOBS[:] = jobs
     _ARMS[:] = [arms] if arms is not None else []
     try:
-        with multiprocessing.get_context("fork").Pool(workers) as pool:
-            done = pool.map(_run_job, range(len(jobs)), chunksize=1)
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+            done = list(pool.map(_run_job, range(len(jobs))))
+    except BrokenProcessPool:  # a process died (killed, out of memory): verified here
+        return [job() for job in jobs]
     finally:
         _JOBS.clear()
         _ARMS.clear()

@@ -224,3 +224,21 @@ def test_a_process_running_other_threads_verifies_the_changes_itself(monkeypatch
         other.join()
     assert seen == [1]
     assert ran_in == [os.getpid(), os.getpid()]  # here, not in a forked process
+
+
+def test_a_verifying_process_that_dies_leaves_the_changes_verified_here(monkeypatch):
+    """A forked process killed on the way (out of memory, a signal) does not hang the
+    what-if: the changes are verified in the planner's own process instead."""
+    from handover.engine.plan import whatif
+
+    monkeypatch.setenv(WORKERS_ENV, "2")
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("one core: the changes are always verified in this process")
+    parent = os.getpid()
+
+    def dies_when_forked() -> str:
+        if os.getpid() != parent:
+            os._exit(1)
+        return "verified here"
+
+    assert whatif.verified([dies_when_forked, dies_when_forked]) == ["verified here"] * 2
