@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
+import sys
 
 import pytest
 import yaml
@@ -189,8 +190,7 @@ def test_the_changes_are_the_same_verified_in_one_process_or_in_several(kb_dir, 
     """The changes are verified in forked processes where there are cores: each verification
     depends on its change alone, so the answer is the same bytes as verified one after the
     other in this process."""
-    if len(os.sched_getaffinity(0)) < 2:
-        pytest.skip("one core: the changes are always verified in this process")
+    _skip_unless_forking()
     answers = []
     for workers in ("1", "2"):
         monkeypatch.setenv(WORKERS_ENV, workers)
@@ -209,8 +209,7 @@ def test_a_process_running_other_threads_verifies_the_changes_itself(monkeypatch
     from handover.engine.plan import whatif
 
     monkeypatch.setenv(WORKERS_ENV, "2")
-    if len(os.sched_getaffinity(0)) < 2:
-        pytest.skip("one core: the changes are always verified in this process")
+    _skip_unless_forking()
     assert whatif._workers(5) == 2
     seen = []
     stop = threading.Event()
@@ -232,8 +231,7 @@ def test_a_verifying_process_that_dies_leaves_the_changes_verified_here(monkeypa
     from handover.engine.plan import whatif
 
     monkeypatch.setenv(WORKERS_ENV, "2")
-    if len(os.sched_getaffinity(0)) < 2:
-        pytest.skip("one core: the changes are always verified in this process")
+    _skip_unless_forking()
     parent = os.getpid()
 
     def dies_when_forked() -> str:
@@ -242,3 +240,9 @@ def test_a_verifying_process_that_dies_leaves_the_changes_verified_here(monkeypa
         return "verified here"
 
     assert whatif.verified([dies_when_forked, dies_when_forked]) == ["verified here"] * 2
+
+
+def _skip_unless_forking() -> None:
+    """Skip where the changes are always verified in this process: not Linux, or one core."""
+    if not sys.platform.startswith("linux") or len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("not Linux, or one core: the changes are always verified in this process")
