@@ -230,6 +230,12 @@ OWN = {
              "    - {shape: cylinder, part: handle, radius: 0.013, height: 1.2,\n"
              "       position: [0, 0, 0], rotation_deg: [0, 90, 0]}\n"
              "parts:\n  handle: {tags: [handle]}\naxes:\n  handle: [-1, 0, 0]\n",
+    # the same broom handle lying across the table, along the robot's left and right
+    "broom_across": "id: broom_across\nname: A long-handled broom, across the table\n"
+                    "mass: 0.4\ngeometry:\n  primitives:\n"
+                    "    - {shape: cylinder, part: handle, radius: 0.013, height: 1.2,\n"
+                    "       position: [0, 0, 0], rotation_deg: [90, 0, 0]}\n"
+                    "parts:\n  handle: {tags: [handle]}\naxes:\n  handle: [0, 1, 0]\n",
     # a kettle of hot water whose short top handle leaves no room for the gripper beside
     # the receiver's hand: the robot holds it by a handle post for a handover
     "kettle": "id: kettle\nname: Kettle of hot water\nmass: 1.3\ntags: [container]\n"
@@ -337,6 +343,30 @@ def test_a_board_no_single_gripper_holds_is_handed_in_a_mode_whose_grasps_hold(c
     assert failed_one_hand and all(not g["passed"] for g in failed_one_hand)
     assert any(w.startswith("physics: no grasp of the H1G1 plan holds") and data["mode"] in w
                for w in data["warnings"])
+    t = Thresholds()
+    for slip in physics["chosen"]["slip"]:
+        assert slip["translation_mm"] <= t.max_slip_mm and slip["rotation_deg"] <= t.max_slip_deg
+
+
+def test_a_broom_handle_no_single_gripper_holds_is_handed_with_both_arms(capsys, own_kb):
+    """A 1.2 m broom handle lying across the table turns out of one gripper's fingers in the
+    check's shake wherever it is pinched (its inertia about the fingers' axis asks more
+    twist than the pads hold), as a person would not hold it in two fingers either. Its
+    best-balanced pairs lie at its ends, out of the arms' reach on the table; with the mode
+    left to the planner, ``--physics`` hands it with both arms, at a pair they reach, two
+    grasps apart along the handle whose hold the check confirms."""
+    from handover.geometry.physics import Thresholds
+
+    code, _, data = _checked(capsys, own_kb, "broom_across")
+    assert code == 0 and data["outcome"] == "handover" and data["mode"] == "H2G1"
+    physics = data["physics"]
+    assert physics["passed"]
+    one_hand = [g for g in physics["alternatives_failed"] if g["mode"] == "H1G1"]
+    assert one_hand and all(not g["passed"] for g in one_hand)
+    assert sorted(g["arm"] for g in data["robot_grasps"]) == ["left", "right"]
+    # two holds along the handle (object frame y), not one place: a couple against its turn
+    along = [np.mean(np.asarray(g["contacts"], dtype=float)[:, 1]) for g in data["robot_grasps"]]
+    assert abs(along[0] - along[1]) >= 0.1
     t = Thresholds()
     for slip in physics["chosen"]["slip"]:
         assert slip["translation_mm"] <= t.max_slip_mm and slip["rotation_deg"] <= t.max_slip_deg

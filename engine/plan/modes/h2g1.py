@@ -16,7 +16,10 @@ holds the left end, or comes from the left), the right hand's on its right, both
 same presentation. Pairs are kept when the two grippers do not collide and each
 hand's share of the weight is within its payload and its torque limit, and scored for balance:
 the mean of the two grasps' rule scores, and how close the line between the grasps passes to
-the centre of mass.
+the centre of mass. With arms, the best pairs go to the arms' exact checks; when the arms
+hold none of them, the best pairs whose lifting arm's reachability map holds its grasp at
+pick-up are tried next (a long object's best balanced pairs lie at its ends, which may be
+beyond the arms' reach on the table).
 
 The weight is shared in the presented pose: the centre of mass lies between the two grasp
 centres along the horizontal line joining them, and each gripper carries its share by the
@@ -169,6 +172,18 @@ def _with_partners(ctx: PlanContext, gi: np.ndarray, mine: np.ndarray, theirs: n
     return np.concatenate([theirs, rest[hit][:SIDE_POOL]])
 
 
+def _best_pairs(score: np.ndarray, gl: np.ndarray, gr: np.ndarray, k: int,
+                off: np.ndarray) -> list[tuple]:
+    """The :data:`ARM_PAIRS` best pairs of one presentation ``k`` (``score`` (L, R), -inf:
+    no pair), best first: (score, left grasp, right grasp, k, the centre of mass's offset)."""
+    out = []
+    for fl in np.argsort(-score, axis=None, kind="stable")[:ARM_PAIRS]:
+        a, b = divmod(int(fl), score.shape[1])
+        if np.isfinite(score[a, b]):
+            out.append((float(score[a, b]), int(gl[a]), int(gr[b]), k, float(off[a, b])))
+    return out
+
+
 @register("H2G1", hands=2)
 def plan_h2g1(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     """Plan a two-handed handover; see the module docstring. When the arms hold none of the
@@ -229,6 +244,7 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
     at_pickup = (ctx.candidates.centre @ ctx.initial[:3, :3].T) @ lateral
     best = None
     found: list[tuple] = []  # with arms: the best pairs of each presentation, for the arms
+    liftable: list[tuple] = []  # and the best whose lifting arm's map holds it at pick-up
     arms = reach_rule(cg, ctx) is not None
     checked = colliding = unpickable = overloaded = receiver_blocked = 0
     for k in np.unique(pk):  # at most 24 presentations; pairs within one are vectorised
@@ -266,12 +282,16 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
         unpickable += int((~hit & ~heavy & ~lifts).sum())
         score = np.where(hit | heavy | ~lifts, -np.inf, score)
         if arms:
-            flat_all = np.argsort(-score, axis=None, kind="stable")[:ARM_PAIRS]
-            for fl in flat_all:
-                a, b = divmod(int(fl), score.shape[1])
-                if np.isfinite(score[a, b]):
-                    found.append((float(score[a, b]), int(gl[a]), int(gr[b]), int(k),
-                                  float(off[a, b])))
+            found += _best_pairs(score, gl, gr, int(k), off)
+            # the same pairs where the lifting arm's map also holds the grasp at pick-up
+            # (on a long object the best balanced pairs lie at its ends, which may be out of
+            # reach on the table): tried when the arms hold none of the best
+            lift = phase.but(pickup=True)
+            up_l = pick_l & side_reaches(ctx, lift, "left", gl, np.full(len(gl), k))
+            up_r = pick_r & side_reaches(ctx, lift, "right", gr, np.full(len(gr), k))
+            ups = np.where(together, up_l[:, None] & up_r[None, :] & uncrossed,
+                           up_l[:, None] | up_r[None, :])
+            liftable += _best_pairs(np.where(ups, score, -np.inf), gl, gr, int(k), off)
         flat = int(np.argmax(score))
         a, b = divmod(flat, score.shape[1])
         if np.isfinite(score[a, b]) and (best is None or score[a, b] > best[0] + 1e-12):
@@ -303,6 +323,16 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
         free = dict(zip(idx.tolist(), (~collision_scene(ctx, idx)).tolist(), strict=True))
         best, lifts, failures = choose_pair_h2g1(ctx, phase, found, free, both_pick,
                                                  limit=checks)
+        if best is None:  # then the pairs an arm's map lifts, not tried yet
+            tried = set(p[1:4] for p in found)
+            again = sorted((p for p in liftable if p[1:4] not in tried), key=lambda p: -p[0])
+            if again:
+                idx = np.unique([i for p in again for i in p[1:3]])
+                free |= dict(zip(idx.tolist(), (~collision_scene(ctx, idx)).tolist(),
+                                 strict=True))
+                best, lifts, more = choose_pair_h2g1(ctx, phase, again, free, both_pick,
+                                                     limit=checks)
+                failures = [*failures, *more]
         if best is None:
             rule = reach_rule(cg, ctx).id
             said = "; ".join(failures[:3]) or "no arm's map holds the grasps of any pair"
