@@ -49,7 +49,8 @@ if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.spec.query import Query
 
-__all__ = ["Change", "what_if", "without_rules", "verified", "MAX_RULE_SETS", "WORKERS_ENV"]
+__all__ = ["Change", "what_if", "without_rules", "verified", "MAX_RULE_SETS", "MAX_WORKERS",
+           "WORKERS_ENV"]
 
 # How many blocking sets (of each of: without and with a safety rule) are tried.
 MAX_RULE_SETS = 6
@@ -59,8 +60,11 @@ MODES = ("h1g1", "h2g2", "h2g1")
 KIND_ORDER = {"relax_rule": 0, "mode": 1, "gripper": 2, "scene": 3, "receiver": 4}
 WORKERS_ENV = "HANDOVER_WHAT_IF_WORKERS"
 """Environment variable: how many processes verify the changes (default, and for a value
-that is no whole number: one per core this process may use; 1: in this process, one after
-the other)."""
+that is no whole number: one per core this process may use, at most :data:`MAX_WORKERS`;
+1: in this process, one after the other). Never more than the cores or the changes."""
+MAX_WORKERS = 4
+"""The default's bound: each forked process comes to hold its own copy of the pages it
+touches (a few hundred MB for a plan's caches), and a KB offers about ten changes."""
 
 
 @dataclass(frozen=True)
@@ -165,9 +169,9 @@ def _workers(jobs: int) -> int:
     asked = os.environ.get(WORKERS_ENV, "").strip()
     cores = len(os.sched_getaffinity(0))
     try:
-        wanted = int(asked) if asked else cores
+        wanted = int(asked) if asked else min(cores, MAX_WORKERS)
     except ValueError:
-        wanted = cores
+        wanted = min(cores, MAX_WORKERS)
     return max(1, min(wanted, cores, jobs))
 
 

@@ -246,3 +246,19 @@ def _skip_unless_forking() -> None:
     """Skip where the changes are always verified in this process: not Linux, or one core."""
     if not sys.platform.startswith("linux") or len(os.sched_getaffinity(0)) < 2:
         pytest.skip("not Linux, or one core: the changes are always verified in this process")
+
+
+def test_how_many_processes_verify_the_changes(monkeypatch):
+    """One per core by default, at most MAX_WORKERS (each forked process comes to hold its
+    own pages); the variable sets another number, never beyond the cores or the changes."""
+    from handover.engine.plan import whatif
+
+    if not sys.platform.startswith("linux"):
+        pytest.skip("not Linux: the changes are always verified in this process")
+    monkeypatch.setattr(whatif.os, "sched_getaffinity", lambda pid: set(range(16)))
+    monkeypatch.delenv(WORKERS_ENV, raising=False)
+    assert whatif._workers(12) == whatif.MAX_WORKERS == 4
+    assert whatif._workers(3) == 3 and whatif._workers(1) == 1
+    for asked, got in (("8", 8), ("64", 12), ("1", 1), ("many", 4)):
+        monkeypatch.setenv(WORKERS_ENV, asked)
+        assert whatif._workers(12) == got, asked
