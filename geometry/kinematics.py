@@ -188,7 +188,7 @@ class Kinematics:
     def _frames(self, q: np.ndarray, dtype) -> tuple[np.ndarray, np.ndarray]:
         """Folded joint frames, component-major: the rotations (dof, 3, 3, n) as ``[joint,
         column, row, sample]`` and the origins (dof, 3, n). Column-major storage makes the
-        product with a constant rotation one (3, 3) x (3, 3n) matrix product."""
+        product with a joint's constant rotation and origin one :func:`_times` over (3, 3n)."""
         n = q.shape[0]
         a_rot_t, a_t, cols = self._constants(dtype)
         qt = np.ascontiguousarray(q.T, dtype=dtype)

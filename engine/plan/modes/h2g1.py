@@ -184,6 +184,30 @@ def _best_pairs(score: np.ndarray, gl: np.ndarray, gr: np.ndarray, k: int,
     return out
 
 
+def _lifted(pick_l: np.ndarray, pick_r: np.ndarray, together: np.ndarray,
+            uncrossed: np.ndarray) -> np.ndarray:
+    """(L, R) bool: the pairs lifted off the table, by both hands (``together``: each on its
+    own side, ``uncrossed``) or by either, from the grasps each hand may lift (``pick_l``
+    (L,), ``pick_r`` (R,))."""
+    return np.where(together, pick_l[:, None] & pick_r[None, :] & uncrossed,
+                    pick_l[:, None] | pick_r[None, :])
+
+
+def _liftable_pairs(ctx: PlanContext, phase: Phase, scored: list[tuple]) -> list[tuple]:
+    """The best pairs of each presentation (as :func:`_best_pairs`) among those whose lifting
+    arm's reachability map also holds its grasp at pick-up: a long object's best balanced
+    pairs lie at its ends, which may be beyond the arms' reach on the table. ``scored``:
+    per presentation (score, gl, gr, k, off, pick_l, pick_r, together, uncrossed)."""
+    lift = phase.but(pickup=True)
+    out = []
+    for score, gl, gr, k, off, pick_l, pick_r, together, uncrossed in scored:
+        up_l = pick_l & side_reaches(ctx, lift, "left", gl, np.full(len(gl), k))
+        up_r = pick_r & side_reaches(ctx, lift, "right", gr, np.full(len(gr), k))
+        ups = _lifted(up_l, up_r, together, uncrossed)
+        out += _best_pairs(np.where(ups, score, -np.inf), gl, gr, k, off)
+    return out
+
+
 @register("H2G1", hands=2)
 def plan_h2g1(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     """Plan a two-handed handover; see the module docstring. When the arms hold none of the
@@ -244,7 +268,8 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
     at_pickup = (ctx.candidates.centre @ ctx.initial[:3, :3].T) @ lateral
     best = None
     found: list[tuple] = []  # with arms: the best pairs of each presentation, for the arms
-    liftable: list[tuple] = []  # and the best whose lifting arm's map holds it at pick-up
+    # each presentation's pairs as scored, to find those an arm's map lifts if need be
+    scored: list[tuple] = []
     arms = reach_rule(cg, ctx) is not None
     checked = colliding = unpickable = overloaded = receiver_blocked = 0
     for k in np.unique(pk):  # at most 24 presentations; pairs within one are vectorised
@@ -277,21 +302,12 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
         pick_r = ~collision_scene(ctx, gr)
         together = both_pick[gl][:, None] | both_pick[gr][None, :]
         uncrossed = at_pickup[gl][:, None] > at_pickup[gr][None, :]
-        lifts = np.where(together, pick_l[:, None] & pick_r[None, :] & uncrossed,
-                         pick_l[:, None] | pick_r[None, :])
+        lifts = _lifted(pick_l, pick_r, together, uncrossed)
         unpickable += int((~hit & ~heavy & ~lifts).sum())
         score = np.where(hit | heavy | ~lifts, -np.inf, score)
         if arms:
             found += _best_pairs(score, gl, gr, int(k), off)
-            # the same pairs where the lifting arm's map also holds the grasp at pick-up
-            # (on a long object the best balanced pairs lie at its ends, which may be out of
-            # reach on the table): tried when the arms hold none of the best
-            lift = phase.but(pickup=True)
-            up_l = pick_l & side_reaches(ctx, lift, "left", gl, np.full(len(gl), k))
-            up_r = pick_r & side_reaches(ctx, lift, "right", gr, np.full(len(gr), k))
-            ups = np.where(together, up_l[:, None] & up_r[None, :] & uncrossed,
-                           up_l[:, None] | up_r[None, :])
-            liftable += _best_pairs(np.where(ups, score, -np.inf), gl, gr, int(k), off)
+            scored.append((score, gl, gr, int(k), off, pick_l, pick_r, together, uncrossed))
         flat = int(np.argmax(score))
         a, b = divmod(flat, score.shape[1])
         if np.isfinite(score[a, b]) and (best is None or score[a, b] > best[0] + 1e-12):
@@ -325,7 +341,8 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
                                                  limit=checks)
         if best is None:  # then the pairs an arm's map lifts, not tried yet
             tried = set(p[1:4] for p in found)
-            again = sorted((p for p in liftable if p[1:4] not in tried), key=lambda p: -p[0])
+            again = sorted((p for p in _liftable_pairs(ctx, phase, scored)
+                            if p[1:4] not in tried), key=lambda p: -p[0])
             if again:
                 idx = np.unique([i for p in again for i in p[1:3]])
                 free |= dict(zip(idx.tolist(), (~collision_scene(ctx, idx)).tolist(),
