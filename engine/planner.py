@@ -249,11 +249,17 @@ def decide(kb: KB, ctx: PlanContext, asked: str) -> Decided:
     - ``handover``: a mode is feasible (:func:`engine.plan.modes.choose`).
     - ``place``: no mode is feasible, a hard rule naming ``fallback: place`` blocked it
       (:func:`fallback_rules`) and a placement is found (:mod:`engine.plan.place`).
-    - ``infeasible``: otherwise; the reason says what was tried.
+    - ``infeasible``: otherwise; the reason says what was tried. Also when the object cannot
+      lie where the scene puts it (it passes through an obstacle, the receiver or the robot
+      at pick-up, :func:`~handover.engine.plan.pickup.lying_hits`): no mode is tried.
     """
     from handover.engine.plan.modes import PLANNERS, choose
+    from handover.engine.plan.pickup import not_lying
     from handover.engine.plan.place import plan_placement
 
+    cannot_lie = not_lying(kb, ctx, asked)
+    if cannot_lie is not None:  # the scene cannot be as given: nothing is tried
+        return Decided("infeasible", *cannot_lie)
     cg, refusing = refusing_rules(kb, ctx)
     if refusing:
         first = refusing[0]

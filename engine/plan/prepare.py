@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 from handover.engine.assets.lru import LRU
 from handover.engine.plan.context import PlanContext, build_context, initial_pose
+from handover.engine.plan.pickup import clear_of_robot
 from handover.engine.plan.situation import resolve_situation
 from handover.engine.spec.query import Query
 
@@ -98,6 +99,11 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
     ctx.collider = collider
     ctx.kb_root = kb.root
     ctx.arms_cache = arms_cache
+    if situation.robot.urdf:  # a broken URDF: its KB error (file:line) before its body is read
+        _ = ctx.arms
+    ctx.initial, pushed = clear_of_robot(ctx)
+    if pushed:
+        ctx.warnings.append(pushed)
     ctx.declared_part_tags = dict(zip(situation.obj.parts,
                                       tags_of_parts(situation.obj, situation.obj.parts, families),
                                       strict=True))

@@ -93,10 +93,12 @@ def test_passed_over_grasps_are_never_chosen_in_a_midair_regrasp(weak_kb):
 
 
 def test_when_nothing_found_holds_the_plan_keeps_its_grasps_and_says_so(weak_kb):
-    # The same plan without the physics check, motion and all (the motion planner may
-    # already have passed over grasps whose arm cannot move).
-    without = plan(weak_kb, Query("board"), motion=True).result.to_dict()
-    r = plan_request(weak_kb, PlanRequest("board", physics=True)).result.to_dict()
+    # One gripper (forced) at 35 N: no grasp of the board holds (with the mode left to the
+    # planner, both arms carry it, and that holds). The same plan without the physics
+    # check, motion and all (the motion planner may already have passed over grasps whose
+    # arm cannot move).
+    without = plan(weak_kb, Query("board", mode="h1g1"), motion=True).result.to_dict()
+    r = plan_request(weak_kb, PlanRequest("board", physics=True, mode="h1g1")).result.to_dict()
     physics = r["physics"]
     assert physics["passed"] is False
     assert r["robot_grasps"][0]["id"] == without["robot_grasps"][0]["id"]

@@ -190,16 +190,16 @@ object: {position: [0.33, 0.0]}
 
 BROOM = """\
 id: broom
-name: A long-handled broom
+name: A long-handled broom, lying across the table (along it, it would pass through the robot)
 mass: 0.4
 geometry:
   primitives:
     - {shape: cylinder, part: handle, radius: 0.013, height: 1.2,
-       position: [0, 0, 0], rotation_deg: [0, 90, 0]}
+       position: [0, 0, 0], rotation_deg: [90, 0, 0]}
 parts:
   handle: {tags: [handle]}
 axes:
-  handle: [-1, 0, 0]
+  handle: [0, 1, 0]
 """
 
 
