@@ -3,8 +3,9 @@ and its joints per stage), the receiver's grasps, and the supporting gripper.
 
 Each record is built once, typed (poses as numpy arrays, metres and radians), and turned into
 its block of the JSON result by ``to_dict()``, which gives JSON-able data in the result's key
-order, floats rounded to :data:`DECIMALS` (:func:`to_jsonable`). The Python facade
-(:class:`handover.Plan`) hands out these same records.
+order, floats rounded to :data:`DECIMALS`
+(:func:`~handover.engine.plan.jsonable.to_jsonable`). The Python facade (:class:`handover.Plan`)
+hands out these same records.
 
 >>> import numpy as np
 >>> held = ArmJoints("right", {"pickup": {"j1": 0.1234567}, "handover": {"j1": 1.0}})
@@ -16,69 +17,23 @@ order, floats rounded to :data:`DECIMALS` (:func:`to_jsonable`). The Python faca
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from handover.engine.plan.jsonable import (
+    DECIMALS,
+    dumps,
+    read_back,
+    stored_json,
+    to_jsonable,
+)
+
 __all__ = ["DECIMALS", "to_jsonable", "dumps", "read_back", "stored_json", "robot_grasp_of",
            "human_grasp_of", "ArmJoints", "GraspSupport", "RobotGrasp",
            "Corridor", "HandBox", "TakenGrasp", "ReachingArm", "HumanGrasp",
            "PlacementSite", "RobotArm", "Robot", "robot_of"]
-
-DECIMALS = 6
-"""Decimals floats keep in the JSON result: micrometres and microradians."""
-
-
-def to_jsonable(value: Any) -> Any:
-    """Numpy arrays and scalars to lists and floats, rounded to ``DECIMALS``; NaN/inf to None;
-    dict keys to strings. Idempotent (JSON-able data comes back equal)."""
-    kind = type(value)
-    if kind is float:  # the commonest leaf first (a result holds some 10^4 of them)
-        if not math.isfinite(value):
-            return None
-        r = round(value, DECIMALS)
-        return 0.0 if r == 0 else r  # no "-0.0"
-    if kind is str or kind is int or kind is bool or value is None:
-        return value
-    if isinstance(value, dict):
-        return {str(k): to_jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [to_jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return to_jsonable(value.tolist())
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        f = float(value)
-        if not math.isfinite(f):
-            return None
-        r = round(f, DECIMALS)
-        return 0.0 if r == 0 else r  # no "-0.0"
-    return value
-
-
-def read_back(record: Any, data: dict) -> Any:
-    """``record`` (a record built from its own JSON ``data``, e.g. a plan the service sent)
-    whose ``to_dict()`` gives ``data`` back exactly (the JSON's rounded numbers, not those
-    recomputed from them)."""
-    object.__setattr__(record, "_json", to_jsonable(data))
-    return record
-
-
-def stored_json(record: Any) -> dict | None:
-    """The JSON a record was read back from (:func:`read_back`), None for one built here."""
-    return record.__dict__.get("_json")
-
-
-def dumps(data: Any) -> str:
-    """Deterministic JSON text (indent 2, key order as built, trailing newline)."""
-    return json.dumps(to_jsonable(data), indent=2, ensure_ascii=False) + "\n"
-
 
 @dataclass(frozen=True)
 class ArmJoints:

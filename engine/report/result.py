@@ -188,10 +188,11 @@ class PlanResult:
             out["physics"] = self.physics
         if self.motion is not None:
             out["motion"] = self.motion
-        return to_jsonable(out)
+        made = ("robot_grasps", "human_grasps")  # their records' to_dict() is JSON-able
+        return {k: v if k in made else to_jsonable(v) for k, v in out.items()}
 
     def to_json(self) -> str:
-        return dumps(self.to_dict())
+        return dumps(self.to_dict(), jsonable=True)
 
     @classmethod
     def from_dict(cls, data: dict) -> PlanResult:

@@ -174,3 +174,23 @@ def test_h2g2_s_midair_pose_is_the_handover_pose_nearer_the_robot(planner):
     np.testing.assert_allclose(first.pose_world, plan.context.initial @ first.pose)
     assert plan.attempt.notes.first.feasible > 0
     assert plan.to_dict()["candidates"]["first_feasible"] == plan.attempt.notes.first.feasible
+
+
+def test_an_array_rounds_as_each_of_its_numbers_does():
+    """The JSON's numbers are Python's ``round(x, 6)`` of each value (no -0.0, NaN and
+    infinities null), whether a record holds an array or a list: ties, values a hair either
+    side of a tie, negatives, tiny and huge values, in any shape."""
+    from handover.engine.plan.jsonable import to_jsonable
+
+    rng = np.random.default_rng(7)
+    ties = (np.arange(-20000, 20000) + 0.5) / 1e6
+    arrays = [ties, np.nextafter(ties, 1.0), np.nextafter(ties, -1.0), ties * 1e3,
+              rng.normal(size=(50, 7)) * 1e-7, rng.normal(size=(3, 4, 5)),
+              rng.normal(size=200) * 1e9,
+              np.array([0.0078125, -0.0078125, -0.0, -1e-9, 2.675, np.nan, np.inf, -np.inf])]
+    for a in arrays:
+        each = [None if not np.isfinite(x) else (round(x, 6) or 0.0) for x in a.ravel().tolist()]
+        got = to_jsonable(a)
+        flat = np.asarray(got, dtype=object).ravel().tolist()
+        assert np.shape(got) == a.shape
+        assert [repr(v) for v in flat] == [repr(v) for v in each]
