@@ -4,8 +4,9 @@ A scene puts the object at a point on its support (:func:`~handover.engine.plan.
 .initial_pose`); the scene is written once for objects of every size. A long object put near
 the robot can then pass through the robot's own body (a 0.5 m tray centred 0.33 m in front
 of the robot reaches 8 cm from its axis, inside a 24 cm torso). An object cannot lie inside
-the robot: it lies pushed straight away from the robot until clear of its body, by a few
-centimetres at most (:func:`clear_of_robot`), and the plan warns where it lies.
+the robot: it lies pushed straight away from the robot until clear of its body, as far as
+its centre of mass stays over the support (:func:`clear_of_robot`), and the plan warns where
+it lies.
 
 What is left in the way is not moved: an object at pick-up passing through a scene
 obstacle (a wall, a shelf), the receiver, or a robot it could not be pushed clear of, cannot
@@ -27,22 +28,23 @@ if TYPE_CHECKING:
     from handover.engine.plan.attempt import Attempt
     from handover.engine.plan.context import PlanContext
 
-__all__ = ["SLIDE_STEP", "SLIDE_MAX", "clear_of_robot", "lying_hits", "lying_reason",
+__all__ = ["SLIDE_STEP", "RECEIVER_CLEARANCE", "clear_of_robot", "lying_hits", "lying_reason",
            "not_lying"]
 
 SLIDE_STEP = 0.005
 """m: the steps in which an object in the robot's body is pushed away from it."""
 
-SLIDE_MAX = 0.10
-"""m: the farthest an object is pushed away from the robot's body: a nudge, for a scene whose
-place, written for small objects, puts a larger one's edge into the robot (the built-in
-tray's by 4.5 cm). An object that needs more (a 1.2 m stick pointing at the robot: 0.4 m)
-would lie far from where the scene says, across the table toward the receiver; it is left
-where the scene puts it, and :func:`lying_hits` names the robot."""
+RECEIVER_CLEARANCE = 0.02
+"""m: an object lying on the table stays this far off the receiver's body (its capsules leave
+gaps a body does not: 5 cm between an adult's thighs, which a stick could lie through)."""
 
 SUPPORT = "scene:table"
 """The world's name of the support the object rests on (:func:`~handover.engine.plan.context
 .scene_boxes`), which the object touches at pick-up by construction."""
+
+
+def _robot_part(name: str) -> bool:
+    return name.startswith("body:robot:")
 
 
 def _hits(ctx: PlanContext, names_kept, poses: np.ndarray) -> tuple[list[str], np.ndarray]:
@@ -57,12 +59,12 @@ def _hits(ctx: PlanContext, names_kept, poses: np.ndarray) -> tuple[list[str], n
 def clear_of_robot(ctx: PlanContext) -> tuple[np.ndarray, str | None]:
     """The object's pick-up pose with the object clear of the robot's body: ``ctx.initial``
     when it is, else the pose pushed horizontally straight away from the robot's axis (by
-    :data:`SLIDE_STEP`, at most :data:`SLIDE_MAX`) to the first where no robot body part is
-    hit, with the warning that says so; ``(ctx.initial, None)`` when clear or when no push
-    clears it."""
+    :data:`SLIDE_STEP`) to the first where no robot body part is hit, with the warning that
+    says so. ``(ctx.initial, None)`` when it is clear, or when no push clears it while its
+    centre of mass stays over the support (a scene without one: within 1 m)."""
     from handover.engine.plan.world import robot_axis
 
-    names, hit = _hits(ctx, lambda n: n.startswith("body:robot:"), ctx.initial[None])
+    names, hit = _hits(ctx, _robot_part, ctx.initial[None])
     if not hit.any():
         return ctx.initial, None
     start = ctx.initial[:3, 3]
@@ -70,10 +72,17 @@ def clear_of_robot(ctx: PlanContext) -> tuple[np.ndarray, str | None]:
     if np.linalg.norm(away) < 1e-9:
         away = np.asarray(ctx.situation.toward[:2], dtype=float)
     away = away / np.linalg.norm(away)
-    steps = np.arange(1, int(round(SLIDE_MAX / SLIDE_STEP)) + 1) * SLIDE_STEP
+    steps = np.arange(1, int(round(1.0 / SLIDE_STEP)) + 1) * SLIDE_STEP
     poses = np.repeat(ctx.initial[None], len(steps), axis=0)
     poses[:, :2, 3] += steps[:, None] * away
-    clear = ~_hits(ctx, lambda n: n.startswith("body:robot:"), poses)[1].any(axis=1)
+    support = ctx.situation.scene.support
+    if support is not None:  # its centre of mass over the table top: it does not tip off
+        com = poses[:, :3, :3] @ np.asarray(ctx.part_mesh.mass_centre, dtype=float) \
+            + poses[:, :3, 3]
+        half = np.asarray(support.size, dtype=float) / 2
+        over = np.all(np.abs(com[:, :2] - np.asarray(support.position[:2])) <= half, axis=1)
+        poses = poses[np.cumprod(over).astype(bool)]
+    clear = ~_hits(ctx, _robot_part, poses)[1].any(axis=1) if len(poses) else np.zeros(0, bool)
     if not clear.any():
         return ctx.initial, None
     pose = poses[int(np.argmax(clear))]
@@ -88,18 +97,27 @@ def clear_of_robot(ctx: PlanContext) -> tuple[np.ndarray, str | None]:
 
 def lying_hits(ctx: PlanContext) -> list[str]:
     """The world's bodies (``scene:<obstacle>``, ``body:receiver:<part>``,
-    ``body:robot:<part>``) the object passes through at its pick-up pose ``ctx.initial``;
-    the support it rests on left out. Empty when it can lie there."""
+    ``body:robot:<part>``) the object passes through at its pick-up pose ``ctx.initial``
+    (the receiver's within :data:`RECEIVER_CLEARANCE`); the support it rests on left out.
+    Empty when it can lie there."""
+    from handover.geometry.body_mesh import mesh_hits
+
     names, hit = _hits(ctx, lambda n: n != SUPPORT, ctx.initial[None])
-    return [n for n, h in zip(names, hit[0], strict=True) if h]
+    found = {n for n, h in zip(names, hit[0], strict=True) if h}
+    receiver = ctx.world.receiver_body
+    near = mesh_hits(receiver, ctx.collider, ctx.initial[None], margin=RECEIVER_CLEARANCE)[0]
+    found |= {f"body:receiver:{n}" for n, h in zip(receiver.names, near, strict=True) if h}
+    return [n for n in names if n in found]
 
 
 def lying_reason(ctx: PlanContext, hits: list[str]) -> str:
     """The sentence that says the object cannot lie where the scene puts it."""
     s = ctx.situation
     at = ctx.initial[:3, 3]
+    near = f" (within {RECEIVER_CLEARANCE * 100:g} cm)"
+    named = [n + (near if n.startswith("body:receiver:") else "") for n in hits]
     return (f"{s.obj.id} cannot lie where scene {s.scene.id} puts it: at pick-up, at "
-            f"({at[0]:.2f}, {at[1]:.2f}), it passes through {', '.join(hits)}; nothing is "
+            f"({at[0]:.2f}, {at[1]:.2f}), it passes through {', '.join(named)}; nothing is "
             "planned (place it elsewhere in the scene, or choose another scene)")
 
 

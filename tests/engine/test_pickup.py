@@ -23,6 +23,13 @@ BROOM = ("id: broom\nname: A long-handled broom\nmass: 0.4\ngeometry:\n  primiti
          "parts:\n  handle: {tags: [handle]}\naxes:\n  handle: [-1, 0, 0]\n")
 
 
+# A 0.7 m wooden rod (30 mm), its frame at its middle.
+ROD = ("id: rod\nname: A 0.7 m wooden rod\nmass: 0.3\ngeometry:\n  primitives:\n"
+       "    - {shape: cylinder, part: rod, radius: 0.015, height: 0.7,\n"
+       "       position: [0, 0, 0], rotation_deg: [0, 90, 0]}\n"
+       "parts:\n  rod: {tags: [handle]}\n")
+
+
 @pytest.fixture(scope="module")
 def own_kb(tmp_path_factory) -> Path:
     from handover.engine.store.kb import builtin_kb_dir
@@ -30,6 +37,7 @@ def own_kb(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("pickup") / "kb"
     shutil.copytree(builtin_kb_dir(), root)
     (root / "objects" / "broom.yaml").write_text(BROOM, encoding="utf-8")
+    (root / "objects" / "rod.yaml").write_text(ROD, encoding="utf-8")
     return root
 
 
@@ -95,22 +103,44 @@ def test_an_object_clear_of_the_robot_lies_where_the_scene_puts_it(capsys):
 def test_a_broom_pointing_at_the_robot_cannot_lie_there_and_nothing_is_planned(capsys,
                                                                                own_kb):
     """A 1.2 m handle lying along the table from the scene's place would run 0.27 m behind
-    the robot's axis, through its torso; pushed clear it would lie 0.4 m further, across
-    the table to the receiver. A careful person says the scene cannot be: nothing is
-    planned (exit 4), every mode is reported not tried, and the reason names the torso."""
+    the robot's axis, through its torso; pushed clear of it, it reaches the receiver
+    standing 1 m from the robot. A careful person says the scene cannot be: nothing is
+    planned (exit 4), every mode is reported not tried, the reason names the receiver and
+    a warning where it was pushed to."""
     code, data = _plan(capsys, "--kb", str(own_kb), "broom")
     assert code == 4 and data["outcome"] == "infeasible"
     assert data["robot_grasps"] == [] and data["human_grasps"] == []
     assert "cannot lie where scene table puts it" in data["reason"]
-    assert "body:robot:torso" in data["reason"]
+    assert "body:receiver:" in data["reason"]
+    assert any("would pass through the robot's body (robot:torso)" in w
+               for w in data["warnings"])
     assert [t["mode"] for t in data["modes_tried"]] == ["H1G1", "H2G2", "H2G1"]
     assert all("not tried" in t["reason"] for t in data["modes_tried"])
-    # independently: the handle's near end is behind the torso's front face
+    # independently: pushed just clear of the torso, its far end is at the receiver's legs
     pose = np.asarray(data["initial_pose"], dtype=float)
     near_end = (pose @ np.array([-0.6, 0.0, 0.0, 1.0]))[:3]
+    far_end = (pose @ np.array([0.6, 0.0, 0.0, 1.0]))[:3]
     lo, hi = _robot_box(data, "torso")
-    assert near_end[0] < hi[0] and lo[2] < near_end[2] < hi[2]
-    assert pose[:2, 3].tolist() == [0.33, 0.0]  # not moved: too far to push
+    assert hi[0] - 1e-6 <= near_end[0] <= hi[0] + 0.005 + 1e-6  # just clear of the torso
+    legs = [b for b in data["bodies"]["receiver"] if b["name"].endswith("thigh")]
+    assert far_end[0] > min(b["p0"][0] - b["radius"] for b in legs)
+
+
+def test_a_rod_pointing_at_the_robot_lies_pushed_clear_and_is_handed_over(capsys, own_kb):
+    """A 0.7 m rod lying along the table from the scene's place would reach 2 cm behind the
+    robot's axis; pushed 15 cm away from the robot it is clear of it, its centre still over
+    the table, its far end short of the receiver: it is planned, and the plan says where
+    it lies."""
+    code, data = _plan(capsys, "--kb", str(own_kb), "rod")
+    assert code == 0 and data["outcome"] == "handover"
+    pose = np.asarray(data["initial_pose"], dtype=float)
+    near_end = (pose @ np.array([-0.35, 0.0, 0.0, 1.0]))[:3]
+    lo, hi = _robot_box(data, "torso")
+    assert hi[0] - 1e-6 <= near_end[0] <= hi[0] + 0.005 + 1e-6  # just clear of the torso
+    table = next(b for b in data["scene"]["boxes"] if b["id"] == "table")
+    centre, half = np.asarray(table["pose"])[:2, 3], np.asarray(table["extents"][:2]) / 2
+    assert np.all(np.abs(pose[:2, 3] - centre) <= half)
+    assert any("would pass through the robot's body" in w for w in data["warnings"])
 
 
 def test_a_knife_the_scene_puts_through_a_wall_is_not_planned_and_what_if_names_a_scene(
