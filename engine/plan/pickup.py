@@ -9,7 +9,8 @@ its centre of mass stays over the support (:func:`clear_of_robot`), and the plan
 it lies.
 
 What is left in the way is not moved: an object at pick-up passing through a scene
-obstacle (a wall, a shelf), the receiver, or a robot it could not be pushed clear of, cannot
+obstacle (a wall, a shelf), the receiver (or within :data:`RECEIVER_CLEARANCE` of them), or
+a robot it could not be pushed clear of, cannot
 lie where the scene puts it, and nothing is planned for it (:func:`lying_hits`; the planner
 reports it infeasible, naming what it passes through). The support it rests on is no
 obstacle.
@@ -48,6 +49,8 @@ def _robot_part(name: str) -> bool:
 
 
 def _hits(ctx: PlanContext, names_kept, poses: np.ndarray) -> tuple[list[str], np.ndarray]:
+    """The names of the world's bodies ``names_kept(name)`` keeps, and (K, P) bool which of
+    them the object touches at each of its poses (K, 4, 4)."""
     from handover.geometry.body_mesh import mesh_hits
 
     targets = ctx.world.targets
