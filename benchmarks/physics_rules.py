@@ -4,19 +4,19 @@ gripper's grip force and friction) against the physics check, grasp by grasp.
 Run: ``.venv/bin/python benchmarks/physics_rules.py [--objects hammer,tray] [--top 6]``
 
 For every built-in object and a few written here (a 45 cm steel bar, a 1.2 m broomstick, a
-dinner plate, a heavy box, a long wooden board), the default plan (adult receiver) gives a
-motion (pick-up to the handover pose) and a presentation. Its candidates within the
-gripper's opening are judged by the KB's hard ``torque`` rules at that presentation (exactly
-as the planner judges them) and split into those the rules keep and those they reject; the
-``--top`` best of each (by grasp quality, then nearest the centre of mass for those kept and
-farthest for those rejected, so both sides of the limit are seen) are simulated alone (H1G1,
-the nominal run, no ensemble). The table prints each grasp's use of what the pads hold per
-rule, the rules' verdict, the physics verdict (holds / slips / drops, the slip in mm and
-deg) and whether they agree; then the counts. Candidates whose fingers would start inside
-the object (the check refuses them) are counted apart. The broomstick is the known
-disagreement: held at its middle it turns in the shake (+-15 deg at 2 Hz about the closing
-axis: its inertia about that line, 0.048 kg m^2, asks 2 N m of twist against the pads' 0.9),
-which the rules, judging the weight alone, keep.
+dinner plate, a heavy box, a closed laptop, a long wooden board), the default plan (adult
+receiver) gives a motion (pick-up to the handover pose) and a presentation. Its candidates
+within the gripper's opening are judged by the KB's hard ``torque`` rules at that
+presentation (exactly as the planner judges them) and split into those the rules keep and
+those they reject; the ``--top`` best of each (by grasp quality, then nearest the centre of
+mass for those kept and farthest for those rejected, so both sides of the limit are seen)
+are simulated alone (H1G1, the nominal run, no ensemble). The table prints each grasp's use
+of what the pads hold per rule, the rules' verdict, the physics verdict (holds / slips /
+drops, the slip in mm and deg) and whether they agree; then the counts. Candidates whose
+fingers would start inside the object (the check refuses them) are counted apart. The
+broomstick is the known disagreement: held at its middle it turns in the shake (+-15 deg at
+2 Hz about the closing axis: its inertia about that line, 0.048 kg m^2, asks 2 N m of twist
+against the pads' 0.9), which the rules, judging the weight alone, keep.
 
 Then the squeeze (two arms pressing closed jaws on opposite faces, H2G1): crates written
 here too wide for the gripper, each planned with the shipped robot; the chosen pair judged
@@ -62,13 +62,13 @@ parts:
   bar: {tags: [handle]}
 """,
     "broomstick": """id: broomstick
-name: Broomstick (1.2 m, 25 mm, wood)
+name: Broomstick (1.2 m, 25 mm, wood), across the table (along it, it cannot lie there)
 mass: 0.4
 tags: [tool]
 geometry:
   primitives:
     - {shape: cylinder, part: stick, radius: 0.0125, height: 1.2, position: [0, 0, 0.0125],
-       rotation_deg: [0, 90, 0]}
+       rotation_deg: [90, 0, 0]}
 parts:
   stick: {tags: [handle]}
 """,
@@ -111,6 +111,16 @@ tags: [box, flat]
 geometry:
   primitives:
     - {shape: box, part: body, extents: [0.3, 0.4, 0.2], position: [0, 0, 0.1]}
+parts:
+  body: {tags: [body]}
+""",
+    "laptop": """id: laptop
+name: Closed laptop (23 x 33 x 1.8 cm)
+mass: 1.3
+tags: [flat]
+geometry:
+  primitives:
+    - {shape: box, part: body, extents: [0.23, 0.33, 0.018], position: [0, 0, 0.009]}
 parts:
   body: {tags: [body]}
 """,

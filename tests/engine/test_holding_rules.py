@@ -133,3 +133,32 @@ def test_the_built_in_tray_held_by_two_grippers_at_its_rims_passes_them_all():
     for e in entries:
         assert 0.0 <= e["measured"] <= 1.0
         assert e["holds"]["weight_n"] == pytest.approx(70.0)  # 2 x 0.5 x 70 N
+
+
+def test_a_grasp_is_judged_through_the_carry_s_turn_not_only_at_its_ends(bar_kb):
+    """Turned over end for end about its length between pick-up and the handover, the bar
+    lies flat at both ends of the carry, where jaws closing on its top and bottom feel its
+    weight as a tip; halfway it is on its side, and the same weight twists those jaws about
+    their closing axis (1 x 9.81 x 1.4 x 0.13 = 1.8 N m 13 cm out, beyond what the pads
+    hold). The physics check carries it along that turn (the geodesic); so do the rules."""
+    from scipy.spatial.transform import Rotation
+
+    def twist(turn_deg: float):
+        ctx = prepare(bar_kb, Query(object="bar", robot="bot", scene="table"))
+        turn = Rotation.from_euler("x", turn_deg, degrees=True).as_matrix()
+        ctx.rotations = (turn @ ctx.initial[:3, :3])[None]  # one presentation: the turn
+        gi, out = judged(ctx, rule("twist"))
+        x = off_centre(ctx)[gi]
+        flat_jaws = np.abs(ctx.candidates.o[gi, 2]) > 0.9  # closing on its top and bottom
+        return x, flat_jaws, out
+
+    x, flat_jaws, still = twist(0.0)
+    far = (x > 0.13) & flat_jaws
+    assert far.any() and still.passed[far].all()  # no turn: their twist is nil
+    x2, flat2, over = twist(180.0)
+    assert (x2 == x).all() and (flat2 == flat_jaws).all()  # the same candidates
+    assert not over.passed[far].any()  # on its side halfway, they twist out
+    # and the nearer the centre of mass, the less they use: 1.4 m g d over the same pads
+    near = (x < 0.02) & flat_jaws
+    assert over.passed[near].all()
+    assert over.measured[far].min() > over.measured[near].max()

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from handover.geometry.holding import PadGrip
 
 __all__ = ["evaluate", "detail", "pad_grip", "pad_patches", "capacity", "pair_capacity",
-           "squeeze_force", "grasp_loads", "uses", "pair_uses"]
+           "squeeze_force", "grasp_loads", "uses", "pair_uses", "carry_downs", "CARRY_SAMPLES"]
 
 _DOWN = np.array([0.0, 0.0, -1.0])
 
@@ -161,15 +161,46 @@ def _use(rule: TorqueRule, loads: np.ndarray, cap: np.ndarray) -> np.ndarray:
     return utilisation(np.where(mask, loads, 0.0), cap)
 
 
-def uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
-         share: np.ndarray) -> np.ndarray:
-    """(R,) the share of what the pads hold at ``gi`` that ``share`` of the object's weight
-    (times the rule's ``load_factor``) hanging from the centre of mass uses, the worse of the
-    pick-up and the handover orientation (presentation ``pk``)."""
+CARRY_SAMPLES = (0.25, 0.5, 0.75)
+"""Where along the carry's turn (0: pick-up, 1: the handover) the load is judged besides its
+ends: the turn from one to the other (the geodesic, as the physics check carries it) can
+pass through an orientation whose load is worse than both (a flat object flipped over is on
+its edge halfway, its weight then twisting the pads about ``o``)."""
+
+
+def carry_downs(ctx: PlanContext, pk: np.ndarray) -> np.ndarray:
+    """(S, R, 3) gravity's direction in the object frame at the :data:`CARRY_SAMPLES` of the
+    turn from the pick-up orientation to presentation ``pk``'s (the geodesic
+    ``R(t) = R0 (R0^T R1)^t``)."""
+    from scipy.spatial.transform import Rotation
+
+    r0 = ctx.initial[:3, :3]
+    picked = r0.T @ _DOWN  # (3,)
+    once, back = np.unique(pk, return_inverse=True)  # a few presentations, many rows
+    turn = Rotation.from_matrix(np.einsum("ji,rjk->rik", r0, ctx.rotations[once])).as_rotvec()
+    out = np.empty((len(CARRY_SAMPLES), len(once), 3))
+    for k, t in enumerate(CARRY_SAMPLES):
+        step = Rotation.from_rotvec(t * turn).as_matrix()  # (P, 3, 3)
+        out[k] = np.einsum("rji,j->ri", step, picked)
+    return out[:, back.reshape(-1)]
+
+
+def _loads(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
+           share: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The loads (:func:`~handover.geometry.holding.load_torques`) :func:`uses` judges: the
+    grasps ``once`` (U,) judged at pick-up, ``back`` (R,) each row's among them, the loads at
+    pick-up (U, 4), at the handover (R, 4) and along the carry's turn (S, R, 4). The
+    rows last asked are remembered (the torque rules judge the same rows one after the
+    other)."""
     from handover.geometry.holding import load_torques
 
-    com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
     load = np.asarray(share, dtype=float) * ctx.facts.mass * GRAVITY * rule.load_factor
+    key = (rule.load_factor, len(gi),
+           hash(np.asarray(gi).tobytes()), hash(np.asarray(pk).tobytes()), hash(load.tobytes()))
+    kept = ctx.memo.torque_loads.get(key)
+    if kept is not None:
+        return kept
+    com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
     # The pick-up orientation is the same for every presentation: where every row carries
     # the same load, judged once per grasp (row by row the same numbers).
     if len(load) and (load == load[0]).all():
@@ -177,14 +208,35 @@ def uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
         once_load = np.full(len(once), load[0])
     else:
         once, back, once_load = gi, np.arange(len(gi)), load
-    cap = capacity(rule, ctx, once)
     down = np.einsum("rji,j->ri", np.broadcast_to(ctx.initial[:3, :3], (len(once), 3, 3)),
                      _DOWN)  # gravity in the object frame
-    picked = _use(rule, load_torques(ctx.gripper_poses()[once], com, down, once_load), cap)
+    picked = load_torques(ctx.gripper_poses()[once], com, down, once_load)
     down = np.einsum("rji,j->ri", ctx.rotations[pk], _DOWN)
-    offered = _use(rule, load_torques(ctx.gripper_poses()[gi], com, down, load),
-                   cap[back.reshape(-1)])
-    return np.maximum(np.maximum(0.0, picked[back.reshape(-1)]), offered)
+    poses = ctx.gripper_poses()[gi]
+    held = load_torques(poses, com, down, load)
+    s = len(CARRY_SAMPLES)
+    carried = load_torques(np.tile(poses, (s, 1, 1)), com, carry_downs(ctx, pk).reshape(-1, 3),
+                           np.tile(load, s)).reshape(s, len(gi), 4)
+    ctx.memo.torque_loads.clear()
+    ctx.memo.torque_loads[key] = kept = (once, back.reshape(-1), picked, held, carried)
+    return kept
+
+
+def uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
+         share: np.ndarray) -> np.ndarray:
+    """(R,) the share of what the pads hold at ``gi`` that ``share`` of the object's weight
+    (times the rule's ``load_factor``) hanging from the centre of mass uses, the worst of the
+    pick-up orientation, the handover orientation (presentation ``pk``) and the turn between
+    them (:data:`CARRY_SAMPLES`)."""
+    if not len(gi):
+        return np.zeros(0)
+    once, back, picked, held, carried = _loads(rule, ctx, gi, pk, share)
+    cap = capacity(rule, ctx, once)
+    caps = cap[back]
+    worst = np.maximum(np.maximum(0.0, _use(rule, picked, cap)[back]), _use(rule, held, caps))
+    s = len(CARRY_SAMPLES)
+    along = _use(rule, carried.reshape(-1, 4), np.tile(caps, (s, 1))).reshape(s, -1)
+    return np.maximum(worst, along.max(axis=0))
 
 
 def pair_uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, other: np.ndarray,
