@@ -168,20 +168,34 @@ pass through an orientation whose load is worse than both (a flat object flipped
 its edge halfway, its weight then twisting the pads about ``o``)."""
 
 
+HALF_TURN_TOL = 1e-6
+"""rad: a turn this near half a turn has two geodesics, one each way round its axis (which
+of them rounding picks depends on the frame the object is written in): both are judged."""
+
+
 def carry_downs(ctx: PlanContext, pk: np.ndarray) -> np.ndarray:
     """(S, R, 3) gravity's direction in the object frame at the :data:`CARRY_SAMPLES` of the
     turn from the pick-up orientation to presentation ``pk``'s (the geodesic
-    ``R(t) = R0 (R0^T R1)^t``)."""
+    ``R(t) = R0 (R0^T R1)^t``); where some turn is half a turn (:data:`HALF_TURN_TOL`), the
+    samples of the other way round follow (S doubles; the others' repeated)."""
     from scipy.spatial.transform import Rotation
 
     r0 = ctx.initial[:3, :3]
     picked = r0.T @ _DOWN  # (3,)
     once, back = np.unique(pk, return_inverse=True)  # a few presentations, many rows
     turn = Rotation.from_matrix(np.einsum("ji,rjk->rik", r0, ctx.rotations[once])).as_rotvec()
-    out = np.empty((len(CARRY_SAMPLES), len(once), 3))
-    for k, t in enumerate(CARRY_SAMPLES):
-        step = Rotation.from_rotvec(t * turn).as_matrix()  # (P, 3, 3)
-        out[k] = np.einsum("rji,j->ri", step, picked)
+    turns = [turn]
+    angle = np.linalg.norm(turn, axis=1)
+    half = np.abs(angle - np.pi) < HALF_TURN_TOL
+    if half.any():
+        other = turn.copy()
+        other[half] = -turn[half]
+        turns.append(other)
+    out = np.empty((len(turns) * len(CARRY_SAMPLES), len(once), 3))
+    for w, way in enumerate(turns):
+        for k, t in enumerate(CARRY_SAMPLES):
+            step = Rotation.from_rotvec(t * way).as_matrix()  # (P, 3, 3)
+            out[w * len(CARRY_SAMPLES) + k] = np.einsum("rji,j->ri", step, picked)
     return out[:, back.reshape(-1)]
 
 
@@ -214,8 +228,9 @@ def _loads(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
     down = np.einsum("rji,j->ri", ctx.rotations[pk], _DOWN)
     poses = ctx.gripper_poses()[gi]
     held = load_torques(poses, com, down, load)
-    s = len(CARRY_SAMPLES)
-    carried = load_torques(np.tile(poses, (s, 1, 1)), com, carry_downs(ctx, pk).reshape(-1, 3),
+    downs = carry_downs(ctx, pk)
+    s = len(downs)
+    carried = load_torques(np.tile(poses, (s, 1, 1)), com, downs.reshape(-1, 3),
                            np.tile(load, s)).reshape(s, len(gi), 4)
     ctx.memo.torque_loads.clear()
     ctx.memo.torque_loads[key] = kept = (once, back.reshape(-1), picked, held, carried)
@@ -234,7 +249,7 @@ def uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
     cap = capacity(rule, ctx, once)
     caps = cap[back]
     worst = np.maximum(np.maximum(0.0, _use(rule, picked, cap)[back]), _use(rule, held, caps))
-    s = len(CARRY_SAMPLES)
+    s = len(carried)
     along = _use(rule, carried.reshape(-1, 4), np.tile(caps, (s, 1))).reshape(s, -1)
     return np.maximum(worst, along.max(axis=0))
 
