@@ -119,8 +119,6 @@ class Memo:
     held_hand_boxes: dict[tuple, list] = field(default_factory=dict)
     arm_wrists: dict[tuple, Any] = field(default_factory=dict)
     arm_pairs: dict[tuple, tuple] = field(default_factory=dict)
-    # plan.judge.torque: the loads of the rows last judged (the torque rules share them)
-    torque_loads: dict[tuple, tuple] = field(default_factory=dict)
 
     GRASP_ONLY: ClassVar[tuple[str, ...]] = (
         "poses", "object_key", "grasps_key", "pad_patches", "gripper_boxes", "gripper_spheres",

@@ -173,47 +173,41 @@ HALF_TURN_TOL = 1e-6
 of them rounding picks depends on the frame the object is written in): both are judged."""
 
 
-def carry_downs(ctx: PlanContext, pk: np.ndarray) -> np.ndarray:
-    """(S, R, 3) gravity's direction in the object frame at the :data:`CARRY_SAMPLES` of the
-    turn from the pick-up orientation to presentation ``pk``'s (the geodesic
-    ``R(t) = R0 (R0^T R1)^t``); where some turn is half a turn (:data:`HALF_TURN_TOL`), the
-    samples of the other way round follow (S doubles; the others' repeated)."""
+def carry_downs(ctx: PlanContext, pk: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Gravity's direction in the object frame along the turn from the pick-up orientation to
+    presentation ``pk``'s (the geodesic ``R(t) = R0 (R0^T R1)^t``): (S, R, 3) at the
+    :data:`CARRY_SAMPLES`; and for the rows whose turn is half a turn
+    (:data:`HALF_TURN_TOL`), their indices (H,) and (S, H, 3) the samples of the other way
+    round."""
     from scipy.spatial.transform import Rotation
 
     r0 = ctx.initial[:3, :3]
     picked = r0.T @ _DOWN  # (3,)
     once, back = np.unique(pk, return_inverse=True)  # a few presentations, many rows
+    back = back.reshape(-1)
     turn = Rotation.from_matrix(np.einsum("ji,rjk->rik", r0, ctx.rotations[once])).as_rotvec()
-    turns = [turn]
-    angle = np.linalg.norm(turn, axis=1)
-    half = np.abs(angle - np.pi) < HALF_TURN_TOL
-    if half.any():
-        other = turn.copy()
-        other[half] = -turn[half]
-        turns.append(other)
-    out = np.empty((len(turns) * len(CARRY_SAMPLES), len(once), 3))
-    for w, way in enumerate(turns):
+    half = np.abs(np.linalg.norm(turn, axis=1) - np.pi) < HALF_TURN_TOL
+
+    def along(way: np.ndarray) -> np.ndarray:
+        out = np.empty((len(CARRY_SAMPLES), len(way), 3))
         for k, t in enumerate(CARRY_SAMPLES):
             step = Rotation.from_rotvec(t * way).as_matrix()  # (P, 3, 3)
-            out[w * len(CARRY_SAMPLES) + k] = np.einsum("rji,j->ri", step, picked)
-    return out[:, back.reshape(-1)]
+            out[k] = np.einsum("rji,j->ri", step, picked)
+        return out
+
+    rows = np.flatnonzero(half[back])
+    return along(turn)[:, back], rows, along(-turn)[:, back[rows]]
 
 
 def _loads(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
            share: np.ndarray) -> tuple[np.ndarray, ...]:
     """The loads (:func:`~handover.geometry.holding.load_torques`) :func:`uses` judges: the
     grasps ``once`` (U,) judged at pick-up, ``back`` (R,) each row's among them, the loads at
-    pick-up (U, 4), at the handover (R, 4) and along the carry's turn (S, R, 4). The
-    rows last asked are remembered (the torque rules judge the same rows one after the
-    other)."""
+    pick-up (U, 4), at the handover (R, 4) and along the carry's turn (S, R, 4), and the rows
+    turned half a turn (H,) with their loads the other way round (S, H, 4)."""
     from handover.geometry.holding import load_torques
 
     load = np.asarray(share, dtype=float) * ctx.facts.mass * GRAVITY * rule.load_factor
-    key = (rule.load_factor, len(gi),
-           hash(np.asarray(gi).tobytes()), hash(np.asarray(pk).tobytes()), hash(load.tobytes()))
-    kept = ctx.memo.torque_loads.get(key)
-    if kept is not None:
-        return kept
     com = np.asarray(ctx.part_mesh.mass_centre, dtype=float)
     # The pick-up orientation is the same for every presentation: where every row carries
     # the same load, judged once per grasp (row by row the same numbers).
@@ -228,13 +222,14 @@ def _loads(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
     down = np.einsum("rji,j->ri", ctx.rotations[pk], _DOWN)
     poses = ctx.gripper_poses()[gi]
     held = load_torques(poses, com, down, load)
-    downs = carry_downs(ctx, pk)
-    s = len(downs)
+    downs, rows, other = carry_downs(ctx, pk)
+    s = len(CARRY_SAMPLES)
     carried = load_torques(np.tile(poses, (s, 1, 1)), com, downs.reshape(-1, 3),
                            np.tile(load, s)).reshape(s, len(gi), 4)
-    ctx.memo.torque_loads.clear()
-    ctx.memo.torque_loads[key] = kept = (once, back.reshape(-1), picked, held, carried)
-    return kept
+    # half turns: the other way round too (judged as the worse of the two)
+    back_way = load_torques(np.tile(poses[rows], (s, 1, 1)), com, other.reshape(-1, 3),
+                            np.tile(load[rows], s)).reshape(s, len(rows), 4)
+    return once, back.reshape(-1), picked, held, carried, rows, back_way
 
 
 def uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
@@ -245,13 +240,17 @@ def uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, pk: np.ndarray,
     them (:data:`CARRY_SAMPLES`)."""
     if not len(gi):
         return np.zeros(0)
-    once, back, picked, held, carried = _loads(rule, ctx, gi, pk, share)
+    once, back, picked, held, carried, rows, back_way = _loads(rule, ctx, gi, pk, share)
     cap = capacity(rule, ctx, once)
     caps = cap[back]
     worst = np.maximum(np.maximum(0.0, _use(rule, picked, cap)[back]), _use(rule, held, caps))
-    s = len(carried)
+    s = len(CARRY_SAMPLES)
     along = _use(rule, carried.reshape(-1, 4), np.tile(caps, (s, 1))).reshape(s, -1)
-    return np.maximum(worst, along.max(axis=0))
+    worst = np.maximum(worst, along.max(axis=0))
+    if len(rows):
+        other = _use(rule, back_way.reshape(-1, 4), np.tile(caps[rows], (s, 1)))
+        worst[rows] = np.maximum(worst[rows], other.reshape(s, -1).max(axis=0))
+    return worst
 
 
 def pair_uses(rule: TorqueRule, ctx: PlanContext, gi: np.ndarray, other: np.ndarray,
