@@ -161,11 +161,12 @@ def _use(rule: TorqueRule, loads: np.ndarray, cap: np.ndarray) -> np.ndarray:
     return utilisation(np.where(mask, loads, 0.0), cap)
 
 
-CARRY_SAMPLES = (0.25, 0.5, 0.75)
+CARRY_SAMPLES = (0.5,)
 """Where along the carry's turn (0: pick-up, 1: the handover) the load is judged besides its
 ends: the turn from one to the other (the geodesic, as the physics check carries it) can
 pass through an orientation whose load is worse than both (a flat object flipped over is on
-its edge halfway, its weight then twisting the pads about ``o``)."""
+its edge halfway, its weight then twisting the pads about ``o``). Halfway only: a quarter
+and three quarters too cost a warm plan 15 % more and changed no built-in plan's choice."""
 
 
 HALF_TURN_TOL = 1e-6
