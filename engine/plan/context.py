@@ -260,7 +260,11 @@ class PlanContext:
     def world(self) -> World:
         """The bodies at the handover: scene boxes, the receiver's and the robot's bodies."""
         if self.memo.world is None:
-            self.memo.world = build_world(self.situation, self.scene_box_list, self.kb_root)
+            # a robot with arms: the body they were loaded with (its URDF read once, and a
+            # broken one a KB error at its file:line)
+            arms = self.arms if self.situation.robot.urdf else None
+            self.memo.world = build_world(self.situation, self.scene_box_list, self.kb_root,
+                                          robot=None if arms is None else arms.body)
         return self.memo.world
 
     @property

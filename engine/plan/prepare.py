@@ -99,8 +99,6 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
     ctx.collider = collider
     ctx.kb_root = kb.root
     ctx.arms_cache = arms_cache
-    if situation.robot.urdf:  # a broken URDF: its KB error (file:line) before its body is read
-        _ = ctx.arms
     ctx.initial, pushed = clear_of_robot(ctx)
     if pushed:
         ctx.warnings.append(pushed)

@@ -87,16 +87,19 @@ class World:
                 float(radius[names.index(f"{hand}_forearm")]))
 
 
-def build_world(situation: Situation, scene_boxes: list, kb_root=None) -> World:
+def build_world(situation: Situation, scene_boxes: list, kb_root=None,
+                robot: Body | None = None) -> World:
     """The bodies of ``situation``: the receiver standing or seated where the scene puts them,
-    sized from their stature; the robot's body from its KB entry; the scene's boxes."""
+    sized from their stature; the robot's body from its KB entry (``robot``: the one its arms
+    were loaded with, :class:`~handover.engine.assets.robot.RobotArms`); the scene's
+    boxes."""
     from handover.geometry.bodies import Body, concatenate
     from handover.geometry.human import human_body
 
     r = situation.receiver
     receiver_body, landmarks = human_body(
         r.height, r.posture, situation.receiver_position, situation.receiver_facing)
-    robot_body = _robot_body(situation, kb_root)
+    robot_body = robot if robot is not None else _robot_body(situation, kb_root)
     scene = Body.from_primitives(boxes=[_solid_down(situation, name, ext, pose)
                                         for name, ext, pose in scene_boxes])
     targets = concatenate([scene, receiver_body, robot_body],
