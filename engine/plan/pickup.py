@@ -105,12 +105,13 @@ def lying_hits(ctx: PlanContext) -> list[str]:
     Empty when it can lie there."""
     from handover.geometry.body_mesh import mesh_hits
 
-    names, hit = _hits(ctx, lambda n: n != SUPPORT, ctx.initial[None])
+    names, hit = _hits(ctx, lambda n: n != SUPPORT and not n.startswith("body:receiver:"),
+                       ctx.initial[None])
     found = {n for n, h in zip(names, hit[0], strict=True) if h}
     receiver = ctx.world.receiver_body
     near = mesh_hits(receiver, ctx.collider, ctx.initial[None], margin=RECEIVER_CLEARANCE)[0]
     found |= {f"body:receiver:{n}" for n, h in zip(receiver.names, near, strict=True) if h}
-    return [n for n in names if n in found]
+    return [n for n in ctx.world.targets.names if n in found]  # in the world's order
 
 
 def lying_reason(ctx: PlanContext, hits: list[str]) -> str:
