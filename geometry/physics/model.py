@@ -30,7 +30,7 @@ from scipy.spatial.transform import Rotation
 
 from handover.geometry.physics.hands import Hand, squeeze_target
 from handover.geometry.physics.params import Solver
-from handover.geometry.physics.shapes import ConvexPart, ObjectModel
+from handover.geometry.physics.shapes import ConvexPart, ObjectModel, flush_boxes
 
 __all__ = ["HandIn", "Built", "build"]
 
@@ -92,9 +92,14 @@ def _add_shapes(body: mujoco.MjsBody, spec: mujoco.MjSpec, obj: ObjectModel) -> 
     kinds = {"box": mujoco.mjtGeom.mjGEOM_BOX, "sphere": mujoco.mjtGeom.mjGEOM_SPHERE,
              "cylinder": mujoco.mjtGeom.mjGEOM_CYLINDER,
              "capsule": mujoco.mjtGeom.mjGEOM_CAPSULE}  # fmt: skip
-    for k, (shape, mass) in enumerate(zip(obj.shapes, obj.shape_masses(), strict=True)):
-        common = dict(contype=_OBJECT_BITS[0], conaffinity=_OBJECT_BITS[1], mass=float(mass),
-                      condim=3, priority=0)  # fmt: skip
+    unions = flush_boxes(obj.shapes)
+    in_union = {k for members, _ in unions for k in members}
+    shapes = [*obj.shapes, *(box for _, box in unions)]
+    masses = [*obj.shape_masses(), *([0.0] * len(unions))]
+    for k, (shape, mass) in enumerate(zip(shapes, masses, strict=True)):
+        bits = _NONE_BITS if k in in_union else _OBJECT_BITS  # weighs; its union collides
+        common = dict(contype=bits[0], conaffinity=bits[1], mass=float(mass), condim=3,
+                      priority=0)  # fmt: skip
         if isinstance(shape, ConvexPart):
             name = f"object_part{k}"
             spec.add_mesh(name=name, uservert=shape.vertices.ravel().tolist(),

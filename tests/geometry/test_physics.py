@@ -464,3 +464,45 @@ def test_a_recorded_check_gives_the_motion_where_the_schedule_puts_it():
     assert traj.travel[0, -1] == pytest.approx(HAND.clearance, abs=5e-4)
     assert [name for name, _ in traj.phases] == ["close", "lift", "carry", "hold", "shake"]
     assert check(box(), [BOX_TOP], MOTION).trajectory is None
+
+
+def paperback(parts: int) -> ObjectModel:
+    """A 0.45 kg paperback 15 x 23 x 3 cm lying flat: one block, or (parts=2) its pages
+    (14.4 cm) and its 6 mm spine as two boxes of the same paper, as the KB writes it."""
+    if parts == 1:
+        return ObjectModel((Primitive("box", (0.15, 0.23, 0.03)),), mass=0.45)
+    pages = Primitive("box", (0.144, 0.23, 0.03), transform_from(None, [0.003, 0, 0]))
+    spine = Primitive("box", (0.006, 0.23, 0.03), transform_from(None, [-0.072, 0, 0]))
+    return ObjectModel((pages, spine), mass=0.45)
+
+
+def test_a_book_written_as_pages_and_spine_is_held_as_the_one_block_it_is():
+    # Pinched from above across its thickness, over the seam between pages and spine: the
+    # pads press one flat face each, whatever parts the KB names on it.
+    seam = Grasp(HAND, frame([0, 1, 0], [0, 0, 1], [1, 0, 0], [-0.07, 0.0, 0.0]), width=0.03)
+    one, two = (check(paperback(k), [seam], MOTION) for k in (1, 2))
+    assert one.passed and two.passed
+    assert two.max_translation_mm == pytest.approx(one.max_translation_mm, abs=1e-6)
+    assert two.max_rotation_deg == pytest.approx(one.max_rotation_deg, abs=1e-6)
+
+
+def test_only_boxes_that_together_are_a_box_collide_as_one():
+    from handover.geometry.physics.shapes import flush_boxes
+
+    [(members, union)] = flush_boxes(paperback(2).shapes)
+    assert members == (0, 1)
+    np.testing.assert_allclose(union.size, (0.15, 0.23, 0.03), atol=1e-12)
+    np.testing.assert_allclose(union.pose, np.eye(4), atol=1e-12)
+    # Turned a quarter about z, its extents written the other way round: still flush.
+    turned = Primitive("box", (0.23, 0.006, 0.03),
+                       transform_from(rotation_about_axis([0, 0, 1], np.pi / 2), [-0.072, 0, 0]))
+    [(_, union)] = flush_boxes((paperback(2).shapes[0], turned))
+    np.testing.assert_allclose(union.size, (0.15, 0.23, 0.03), atol=1e-12)
+    pages = paperback(2).shapes[0]
+    apart = Primitive("box", (0.006, 0.23, 0.03), transform_from(None, [-0.08, 0, 0]))
+    thicker = Primitive("box", (0.006, 0.23, 0.04), transform_from(None, [-0.072, 0, 0]))
+    askew = Primitive("box", (0.006, 0.23, 0.03),
+                      transform_from(rotation_about_axis([0, 0, 1], 0.1), [-0.072, 0, 0]))
+    rod = Primitive("cylinder", (0.003, 0.23), transform_from(None, [-0.072, 0, 0]))
+    for other in (apart, thicker, askew, rod):
+        assert flush_boxes((pages, other)) == []
