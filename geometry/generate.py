@@ -69,8 +69,10 @@ __all__ = [
 # Contacts this far (m) from the fingertips at the pulled-back depth (contact_offsets).
 TIP_MARGIN = 0.006
 FLUSH_GAP = 0.0002
-FLUSH_TILT_DEG = 5.0
-"""deg: how far from level a site's closing direction may be for a flush grasp."""
+FLUSH_TILT_DEG = 12.0
+"""deg: how far from level a site's closing direction may be for a flush grasp (a cylinder
+lying on its side, meshed with 16 sides: its facets' normals are 22.5 deg apart, the most
+level 11.25 deg off, and its antipodal contacts lie on them)."""
 """m: at a flush depth (:func:`flush_rows`) the fingertips stop this short of the object's
 far side along the approach (the side it rests on when picked from above)."""
 
@@ -179,13 +181,18 @@ def flush_rows(candidates: CandidateSet, hull: np.ndarray, gripper: Gripper
     candidates : every row of :func:`expand_rolls`. hull : (H, 3) m, object frame, the
     object's convex hull vertices. Across the hull's thinnest direction ``t``
     (:func:`thinnest_directions`: each of them where several tie), for each site whose
-    closing direction ``o`` lies within
-    :data:`FLUSH_TILT_DEG` of the plane normal to ``t``, the gripper approaches along ``t``
-    and along ``-t`` (made normal to ``o``) where the object reaches only ``e`` beyond the
-    contacts along that approach, ``FLUSH_GAP < e < TIP_MARGIN``: the fingertips at the
-    usual fingertip depth would pass its far side (into the table it lies on). The row's
-    offset puts the fingertips ``FLUSH_GAP`` short of that side, ``finger_depth - e +
-    FLUSH_GAP``; the pads press on the object's side from its near face to the fingertips.
+    closing direction ``o`` lies within :data:`FLUSH_TILT_DEG` of the plane normal to ``t``,
+    the gripper approaches along ``t`` and along ``-t`` (made normal to ``o``) where the
+    fingers at the usual fingertip depth would reach the object's far side along that
+    direction (the table it lies on): the fingertips ``TIP_MARGIN`` past the contacts, and
+    with ``o`` tilted by ``theta`` the lower finger's outer edge ``sin(theta)`` times the
+    fingers' half spread (half the opening plus a finger's thickness) further. The row's
+    offset puts that lowest edge ``FLUSH_GAP`` short of the far side (``e`` beyond the
+    contacts along ``t``): the fingertips ``(e - FLUSH_GAP - dip) / cos(theta)`` past the
+    contacts, kept only when positive; the pads press on the object's side from its near face
+    to the fingertips. A razor's 10 mm handle, its sampled contacts 5.6 deg off level on the
+    mesh's facets, is pinched off the table so; at the usual depth one finger's edge went
+    2 mm into it.
     Returns the new rows (each a copy of its site's first row with the new ``n``, ``a``,
     ``roll`` and ``offset``), site-major, ``-t`` before ``+t``; empty when the object is not
     thin."""
@@ -196,22 +203,31 @@ def flush_rows(candidates: CandidateSet, hull: np.ndarray, gripper: Gripper
     base = candidates.take(np.sort(first))
     o = base.o
     reach = gripper.finger_depth - contact_offsets(gripper)[-1]
+    # the fingers' outer faces along o: a tilted o lowers one finger's outer tip edge by
+    # |o . T| times this below the fingertips' centre
+    outer = gripper.opening(base.width) / 2.0 + gripper.finger_thickness
     out = []
     directions, _ = thinnest_directions(hull)
     for t, sign in ((t, sign) for t in directions for sign in (-1.0, 1.0)):
         # -t first: from above, for a rest on the face whose normal is t
-        level = np.abs(o @ t) <= np.sin(np.radians(FLUSH_TILT_DEG))
-        a = sign * t - (o @ (sign * t))[:, None] * o
+        toward = sign * t  # from the object to what it rests on
+        tilt = o @ toward
+        level = np.abs(tilt) <= np.sin(np.radians(FLUSH_TILT_DEG))
+        a = toward - tilt[:, None] * o
         a /= np.maximum(np.linalg.norm(a, axis=1, keepdims=True), 1e-12)
-        e = (pts @ a.T).max(axis=0) - np.einsum("nk,nk->n", base.centre, a)
-        ok = level & (e > FLUSH_GAP + 1e-9) & (e < reach - 1e-9)
+        along = np.einsum("nk,k->n", a, toward)  # cos of the tilt
+        far = (pts @ toward).max() - base.centre @ toward  # the far side beyond the contacts
+        dip = np.abs(tilt) * outer
+        depth = (far - FLUSH_GAP - dip) / np.maximum(along, 1e-12)  # tips past the contacts
+        ok = level & (depth > 1e-9) & (reach * along + dip >= far - 1e-9)
         rows = base.take(ok)
         turn = np.arctan2(np.einsum("nk,nk->n", np.cross(rows.a, a[ok]), rows.o),
                           np.einsum("nk,nk->n", rows.a, a[ok]))  # about o, from the first roll
-        rows.roll = np.mod(rows.roll + turn, 2.0 * np.pi)
+        roll = np.mod(rows.roll + turn, 2.0 * np.pi)
+        rows.roll = np.where(roll > 2.0 * np.pi - 1e-9, 0.0, roll)  # a hair below a turn: 0
         rows.a = a[ok]
         rows.n = np.cross(rows.o, rows.a)
-        rows.offset = gripper.finger_depth - e[ok] + FLUSH_GAP
+        rows.offset = gripper.finger_depth - depth[ok]
         out.append((np.flatnonzero(ok), rows))
     order = np.argsort(np.concatenate([idx for idx, _ in out]), kind="stable")
     return _stacked([r for _, r in out]).take(order)
