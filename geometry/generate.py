@@ -20,7 +20,9 @@
    box or primitive surface it lies in), not the part of the face it lies on.
 4. With a collider, candidates whose gripper (open at ``width + 2 * clearance``) touches
    or penetrates the object are dropped (the paper: "storing the angles without
-   collisions"). This step is separate: ``collider=None`` skips it.
+   collisions"), and those whose pads, closing the clearance, would meet another part of
+   the object before their contacts (:func:`geometry.closing.pads_meet_other_parts`: a
+   razor's head beside its handle). This step is separate: ``collider=None`` skips it.
 
 Row order (deterministic): facet sites first, by facet pair then grid order; then antipodal
 sites in sample order; then the enclosing ones in sample order; within a site, rolls
@@ -39,6 +41,7 @@ import numpy as np
 
 from handover.geometry.antipodal import antipodal_sites, enclosing_sites
 from handover.geometry.candidates import CandidateSet
+from handover.geometry.closing import pads_meet_other_parts
 from handover.geometry.facets import facet_sites
 from handover.geometry.quality import ContactPairs, antipodal_quality, com_distance
 
@@ -90,6 +93,8 @@ class GenerationStats:
     antipodal_spacing : m, sampling spacing used. sites : facet + antipodal sites.
     rolls_per_site : roll angles per site. depths_per_roll : gripper depths per roll
     (:func:`contact_offsets`). before_collision, after_collision : candidates.
+    closing_blocked : of the open gripper's collision-free ones, those whose pads, closing,
+    meet another part of the object before the contacts (:mod:`geometry.closing`).
     collision_checked : whether a collider was given. seconds : wall time per stage
     (``facets``, ``antipodal``, ``frames``, ``collision``, ``total``).
     """
@@ -109,6 +114,7 @@ class GenerationStats:
     rolls_per_site: int = 0
     depths_per_roll: int = 0
     before_collision: int = 0
+    closing_blocked: int = 0
     after_collision: int = 0
     collision_checked: bool = False
     seconds: dict[str, float] = field(default_factory=dict)
@@ -156,6 +162,10 @@ def default_spacing(mesh: trimesh.Trimesh, gripper: Gripper) -> float:
     return min(gripper.finger_width / 2.0, longest / SMALL_SAMPLES)
 
 
+_PROJECTION_BLOCK = 2_000_000
+"""Vertex x normal products computed at once by :func:`thinnest_directions` (16 MB)."""
+
+
 def thinnest_directions(hull: np.ndarray) -> tuple[np.ndarray, float]:
     """Every direction (D, 3) unit, object frame, across which the convex hull of ``hull``
     (H, 3) m is thinnest (its faces' normals whose widths equal the least within 1e-9 m, one
@@ -165,7 +175,12 @@ def thinnest_directions(hull: np.ndarray) -> tuple[np.ndarray, float]:
 
     solid = trimesh.convex.convex_hull(np.asarray(hull, dtype=float))
     normals = np.asarray(solid.face_normals, dtype=float)
-    span = np.ptp(np.asarray(solid.vertices) @ normals.T, axis=0)  # (F,)
+    vertices = np.asarray(solid.vertices, dtype=float)
+    span = np.empty(len(normals))  # (F,), in blocks: a fine sphere's hull is 41k x 82k
+    block = max(1, _PROJECTION_BLOCK // max(1, len(vertices)))
+    for start in range(0, len(normals), block):
+        proj = vertices @ normals[start:start + block].T
+        span[start:start + block] = proj.max(axis=0) - proj.min(axis=0)
     least = float(span.min())
     kept: list[np.ndarray] = []
     for k in np.flatnonzero(span <= least + 1e-9):
@@ -384,6 +399,9 @@ def generate_with_stats(
         t = time.perf_counter()
         hits = collider.gripper_collides(gripper, candidates.poses(), candidates.width)
         candidates = candidates.take(~np.asarray(hits, dtype=bool))
+        blocked = pads_meet_other_parts(part_mesh, candidates, gripper)
+        stats.closing_blocked = int(blocked.sum())
+        candidates = candidates.take(~blocked)
         _, candidates.site = np.unique(candidates.site, return_inverse=True)
         stats.seconds["collision"] = time.perf_counter() - t
         stats.collision_checked = True

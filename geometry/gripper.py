@@ -49,7 +49,7 @@ import numpy as np
 if TYPE_CHECKING:
     import trimesh
 
-__all__ = ["Gripper", "PosedBoxes", "Box", "PART_NAMES", "check_poses"]
+__all__ = ["Gripper", "PosedBoxes", "Box", "PART_NAMES", "check_poses", "pad_grid"]
 
 Box = tuple[str, np.ndarray, np.ndarray]  # (name, extents (3,), transform (4, 4))
 
@@ -332,3 +332,14 @@ def _check_part_mesh(mesh, name: str) -> tuple[np.ndarray, np.ndarray]:
     if np.ptp(vertices, axis=0).min() <= 0:
         raise ValueError(f"Gripper.{name}: the mesh is flat (no volume to collide with)")
     return vertices, faces.astype(np.int64)
+
+
+def pad_grid(width: float, length: float, spacing: float) -> np.ndarray:
+    """(G, 2) m: points on a pad ``width`` along ``n`` by ``length`` along ``a``, centred on
+    the pad's centre, at most ``spacing`` apart, its corners included: (along n, along a)."""
+    gn = max(2, int(np.ceil(width / spacing)) + 1)
+    ga = max(2, int(np.ceil(length / spacing)) + 1)
+    u = np.linspace(-width / 2, width / 2, gn)
+    v = np.linspace(-length / 2, length / 2, ga)
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    return np.stack([uu.ravel(), vv.ravel()], axis=1)

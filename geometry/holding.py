@@ -88,12 +88,9 @@ class Patches:
 
 def _pad_grid(grip: PadGrip, spacing: float) -> np.ndarray:
     """(G, 2) (u along n, v along a) m: points on a pad, corners included."""
-    gn = max(2, int(np.ceil(grip.finger_width / spacing)) + 1)
-    ga = max(2, int(np.ceil(grip.finger_length / spacing)) + 1)
-    u = np.linspace(-grip.finger_width / 2, grip.finger_width / 2, gn)
-    v = np.linspace(-grip.finger_length / 2, grip.finger_length / 2, ga)
-    uu, vv = np.meshgrid(u, v, indexing="ij")
-    return np.stack([uu.ravel(), vv.ravel()], axis=1)
+    from handover.geometry.gripper import pad_grid
+
+    return pad_grid(grip.finger_width, grip.finger_length, spacing)
 
 
 def contact_patches(mesh: trimesh.Trimesh, poses: np.ndarray, widths: np.ndarray,
