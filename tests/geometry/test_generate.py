@@ -10,6 +10,7 @@ from numpy.testing import assert_allclose
 
 from handover.geometry import mesh as gm
 from handover.geometry.candidates import SOURCE_ANTIPODAL, SOURCE_FACET, CandidateSet
+from handover.geometry.closing import pads_meet_other_parts
 from handover.geometry.collision import ObjectCollider
 from handover.geometry.frames import (
     rotation_about_axis,
@@ -149,9 +150,14 @@ def test_collision_filter_drops_exactly_the_colliding_rows():
     everything, s_all = generate_with_stats(pm, GRIPPER)
     kept, s_kept = generate_with_stats(pm, GRIPPER, collider=collider)
     hits = collider.gripper_collides(GRIPPER, everything.poses(), everything.width)
-    assert 0 < s_kept.after_collision == int((~hits).sum()) < s_all.before_collision
+    # and of the open gripper's collision-free rows, those whose closing pads meet another
+    # part first (the hammer's handle pinched beside its head: geometry.closing)
+    blocked = pads_meet_other_parts(pm, everything.take(~hits), GRIPPER)
+    assert s_kept.closing_blocked == int(blocked.sum()) > 0
+    assert 0 < s_kept.after_collision == int((~hits).sum() - blocked.sum())
+    assert s_kept.after_collision < s_all.before_collision
     assert s_kept.collision_checked and not s_all.collision_checked
-    assert_allclose(kept.poses(), everything.poses()[~hits])
+    assert_allclose(kept.poses(), everything.poses()[~hits][~blocked])
     assert not collider.gripper_collides(GRIPPER, kept.poses(), kept.width).any()
     # sites renumbered densely in order (the flush rows of a thin reach follow the others)
     assert_allclose(np.unique(kept.site), np.arange(kept.site.max() + 1))
