@@ -134,6 +134,36 @@ def test_every_built_in_default_plan_holds_in_physics(capsys, obj):
     for slip in chosen["slip"]:
         assert slip["translation_mm"] <= t.max_slip_mm, slip
         assert slip["rotation_deg"] <= t.max_slip_deg, slip
+    # robust in the ensemble, or the answer says it is not
+    passing = sum(run["passed"] for run in chosen["ensemble"]) / len(chosen["ensemble"])
+    assert chosen["robust"] == (passing >= t.ensemble_fraction)
+    if not chosen["robust"]:
+        assert any("not in the ensemble" in w for w in data["warnings"]), data["warnings"]
+
+
+def test_a_grasp_that_holds_only_at_nominal_friction_is_passed_over_for_a_robust_one(
+        capsys, tmp_path: Path, kb, hammer_plan):
+    """The hammer's default grasp, on its head, holds at the gripper's own friction and
+    force, but drops in the lift at 30 % less of either (half the ensemble fails). With
+    ``--physics`` the plan takes a grasp that holds in the ensemble, and says which it
+    passed over and why; ``handover verify`` finds that plan robust on its own."""
+    from handover.geometry.physics import Thresholds
+
+    default = check_plan(kb, hammer_plan)
+    assert default.passed and not default.checked.result.robust
+    code, out, _ = _run(capsys, "plan", "hammer", "--physics", "--json", "--no-motion")
+    data = json.loads(out)
+    assert code == 0 and data["physics"]["chosen"]["robust"]
+    chosen = {g["id"] for g in data["robot_grasps"]}
+    first = {g["id"] for g in hammer_plan["robot_grasps"]}
+    assert not chosen & first
+    said = next(w for w in data["warnings"] if "not in the ensemble" in w)
+    assert all(f"grasp {i} passed over" in said for i in first)
+    path = tmp_path / "robust.json"
+    path.write_text(out)
+    code, out, _ = _run(capsys, "verify", str(path), "--json")
+    verified = json.loads(out)
+    assert code == 0 and verified["chosen"]["margin"] >= Thresholds().ensemble_fraction
 
 
 def test_plan_without_physics_has_no_block(capsys):
