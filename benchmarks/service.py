@@ -17,7 +17,8 @@ that round is reported apart), then plans the 10 built-in objects for the 4 rece
 - throughput: ``--clients`` clients at once sending the 40 queries, answers per second, with
   and without the memo.
 
-Prints p50/p95/max in ms (latency measured at the client: HTTP, JSON and all). Targets
+Prints p50/p95/max in ms (latency measured at the client: HTTP, JSON and all; the client's
+connection sends without Nagle's delay, as ``handover.Client`` and curl do). Targets
 (issue 30): warm p50 <= 60 ms, p95 <= 200 ms without physics.
 """
 
@@ -35,6 +36,8 @@ import tempfile
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
+
+from handover.engine.service.client import NoDelayConnection
 
 OBJECTS = ("ball", "book", "bottle", "hammer", "knife", "mug", "pen", "scissors",
            "screwdriver", "tray")
@@ -86,7 +89,7 @@ def throughput(host: str, port: int, queries: list[dict], clients: int, rounds: 
     lock = threading.Lock()
 
     def client(_: int) -> None:
-        conn = http.client.HTTPConnection(host, port, timeout=600)
+        conn = NoDelayConnection(host, port, timeout=600)
         while True:
             with lock:
                 if not work:
@@ -116,7 +119,7 @@ def main() -> None:
         proc, host, port = start(args.workers, 64, env)
         print(f"start-up (KB loaded, a worker ready): {time.perf_counter() - t:.2f} s")
         try:
-            conn = http.client.HTTPConnection(host, port, timeout=600)
+            conn = NoDelayConnection(host, port, timeout=600)
             cold = [ask(conn, q) for q in queries]
             stats("first round (db and maps built)", cold)
             first = [ask(conn, q) for q in queries]
@@ -130,7 +133,7 @@ def main() -> None:
             stop(proc)
         proc, host, port = start(args.workers, 0, env)
         try:
-            conn = http.client.HTTPConnection(host, port, timeout=600)
+            conn = NoDelayConnection(host, port, timeout=600)
             for q in queries:  # each worker's caches (maps, arms) warm
                 ask(conn, q)
             planned = [ask(conn, q) for _ in range(max(1, args.rounds // 2)) for q in queries]

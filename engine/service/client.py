@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import http.client
 import json
+import socket
 import threading
 import urllib.parse
 from pathlib import Path
@@ -32,7 +33,7 @@ from handover.engine.errors import HandoverError
 if TYPE_CHECKING:
     from handover.engine.planner import Plan
 
-__all__ = ["Client", "ServiceError", "DEFAULT_URL"]
+__all__ = ["Client", "ServiceError", "DEFAULT_URL", "NoDelayConnection"]
 
 DEFAULT_URL = "http://127.0.0.1:8750"
 
@@ -45,6 +46,17 @@ class ServiceError(HandoverError):
     def __init__(self, status: int, code: str, message: str):
         super().__init__(f"{code} ({status}): {message}" if status else message)
         self.status, self.code = status, code
+
+
+class NoDelayConnection(http.client.HTTPConnection):
+    """An HTTP connection that sends without waiting (``TCP_NODELAY``, as curl sets it).
+    ``http.client`` writes a request's headers and its body in two sends; with Nagle's
+    algorithm on, the body may wait for the server's acknowledgement of the headers, which
+    a server may delay by up to 40 ms."""
+
+    def connect(self) -> None:
+        super().connect()
+        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
 
 class Client:
@@ -70,7 +82,7 @@ class Client:
     def _connection(self) -> http.client.HTTPConnection:
         conn = getattr(self._local, "conn", None)
         if conn is None:
-            conn = http.client.HTTPConnection(self._host, self._port, timeout=self.timeout)
+            conn = NoDelayConnection(self._host, self._port, timeout=self.timeout)
             self._local.conn = conn
         return conn
 

@@ -406,6 +406,51 @@ def test_the_client_is_the_planner(service, kb_dir) -> None:
     assert client.health()["kb"]["counts"]["objects"] >= 10
 
 
+def test_the_service_answers_without_waiting_for_acknowledgements() -> None:
+    # An answer under one TCP segment (a refusal, an error, the health) was held by Nagle's
+    # algorithm until the client acknowledged the headers, which it delays: 40 ms each.
+    # asyncio turns the algorithm off on the connections the service's socket accepts when
+    # that socket says it is TCP.
+    import asyncio
+    import socket
+
+    from handover.engine.service.server import bind
+
+    async def accepted_nodelay() -> int:
+        listening = bind("127.0.0.1", 0)
+        seen: asyncio.Future = asyncio.get_running_loop().create_future()
+
+        class Probe(asyncio.Protocol):
+            def connection_made(self, transport) -> None:
+                sock = transport.get_extra_info("socket")
+                seen.set_result(sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY))
+                transport.close()
+
+        server = await asyncio.get_running_loop().create_server(Probe, sock=listening)
+        with socket.create_connection(listening.getsockname()[:2]):
+            value = await asyncio.wait_for(seen, 10)
+        server.close()
+        await server.wait_closed()
+        return value
+
+    assert asyncio.run(accepted_nodelay()) != 0
+
+
+def test_the_client_sends_a_request_at_once(service) -> None:
+    # http.client writes the headers and the body of a request in two sends; with Nagle's
+    # algorithm on, the body may wait for the headers' acknowledgement. The client's
+    # connection turns it off, as curl does.
+    import socket
+
+    from handover import Client
+
+    client = Client(service.url, token=TOKEN)
+    assert client.health()["kb"]["counts"]["objects"] >= 10
+    sock = client._connection().sock
+    assert sock is not None
+    assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) != 0
+
+
 def test_the_documented_requests_are_answered(service, docs, tmp_path, monkeypatch) -> None:
     import re
 
