@@ -69,7 +69,8 @@ def physics_plan(kb: KB, query: Query, planned: Plan, db=None, *,
     passed_over = {}
     for group in failed:
         passed_over.update(with_site(failing_grasps(group)))
-    for _ in range(FALLBACKS if rounds is None else rounds):
+    budget = FALLBACKS if rounds is None else rounds
+    for done in range(1, budget + 1):
         again = replan(query, passed_over=passed_over)
         if again.outcome != "handover":
             break
@@ -85,9 +86,12 @@ def physics_plan(kb: KB, query: Query, planned: Plan, db=None, *,
                        f"{len(passed_over)} grasps on the same contacts); the plan holds with "
                        + ", ".join(f"grasp {i}" for i in checked.checked.ids))
             again.result.warnings.append(warning)
-            return again, replace(checked, failed=tuple(failed),
-                                  seconds=time.perf_counter() - start,
-                                  notes=tuple(notes), passed_over=tuple(passed_over.items()))
+            found = replace(checked, failed=tuple(failed), seconds=time.perf_counter() - start,
+                            notes=tuple(notes), passed_over=tuple(passed_over.items()))
+            if checked.checked.result.robust:
+                return again, found
+            return _robust_instead(kb, query, again, found, replan, db, budget - done, start,
+                                   passed_over)
         failed.append(checked.checked)
         more = {i: w for i, w in with_site(failing_grasps(checked.checked)).items()
                 if i not in passed_over}
@@ -126,7 +130,7 @@ def _weak_runs(check) -> str:
 
 
 def _robust_instead(kb: KB, query: Query, planned: Plan, first, replan: Callable[..., Plan],
-                    db, rounds: int, start: float):
+                    db, rounds: int, start: float, passed_over: dict[int, str] | None = None):
     """When the plan's grasps hold in the nominal run but not across the ensemble (a share
     below :class:`~handover.geometry.physics.Thresholds`' ``ensemble_fraction`` of the
     perturbed runs pass): planned again without them (and every roll and depth on their
@@ -134,11 +138,13 @@ def _robust_instead(kb: KB, query: Query, planned: Plan, first, replan: Callable
     that plan, with a warning naming what it replaced and why, or else the plan as it was,
     with a warning that its grasps hold only at the nominal friction and force. The
     built-in hammer's head grasp drops in the lift at 30 % less friction or force; its claw
-    grasp, scored the same, holds in every run."""
+    grasp, scored the same, holds in every run. ``first`` : the plan's check (its ``failed``
+    and ``passed_over`` kept: the grasps passed over before it, for slipping, ``passed_over``
+    too, still passed over)."""
     from handover.engine.plan.physics import check_plan
 
     site = planned.context.candidates.site
-    passed_over: dict[int, str] = {}
+    passed_over = dict(passed_over or {})
     weak = [first.checked]
 
     def pass_over(check) -> None:
@@ -148,32 +154,39 @@ def _robust_instead(kb: KB, query: Query, planned: Plan, first, replan: Callable
                             if i not in passed_over})
 
     pass_over(first.checked)
+    stopped = "no replanning was left to look for others"
     for _ in range(rounds):
         again = replan(query, passed_over=passed_over)
         if again.outcome != "handover":
+            stopped = "planned again without them, nothing else is handed over"
             break
         try:
             checked = check_plan(kb, again.result.to_dict(), convex_cache(db))
         except UsageError:
+            stopped = "the next plan could not be checked"
             break
         if checked.passed and checked.checked.result.robust:
             notes = tuple(f"grasp {', '.join(map(str, w.ids))} passed over: it holds, but "
                           f"not in the ensemble: {_weak_runs(w)}" for w in weak)
+            again.result.warnings.extend(  # what was passed over before, for slipping
+                w for w in planned.result.warnings if w.startswith("physics: "))
             again.result.warnings.append(
                 "physics: " + "; ".join(notes) + "; the plan holds in the "
                 f"ensemble (margin {checked.checked.result.margin:.2f}) with "
                 + ", ".join(f"grasp {i}" for i in checked.checked.ids))
-            return again, replace(checked, seconds=time.perf_counter() - start, notes=notes,
+            return again, replace(checked, failed=first.failed,
+                                  seconds=time.perf_counter() - start,
+                                  notes=first.notes + notes,
                                   passed_over=tuple(passed_over.items()))
         if not checked.passed:
-            break  # the next best fail outright: keep the plan whose grasps hold
+            stopped = "the next plan's grasps do not hold at all"
+            break
         weak.append(checked.checked)
         pass_over(checked.checked)
-    tried = (f"none of the {len(weak) - 1} next plans checked holds in it either"
-             if len(weak) > 1 else "planned again without them, nothing is handed over")
+        stopped = f"none of the {len(weak) - 1} next plans checked holds in it either"
     said = (f"physics: the plan's grasps hold, but not in the ensemble: "
-            f"{_weak_runs(first.checked)}; {tried} (run it with care: pads wet or worn, or "
-            "a weaker grip, may drop it)")
+            f"{_weak_runs(first.checked)}; {stopped} (run it with care: pads wet or worn, "
+            "or a weaker grip, may drop it)")
     planned.result.warnings.append(said)
     return planned, replace(first, seconds=time.perf_counter() - start,
                             notes=first.notes + (said.removeprefix("physics: "),))
