@@ -146,17 +146,17 @@ def with_squeeze_sites(situation: Situation, part_mesh: PartMesh, gripper: Gripp
                        candidates: CandidateSet) -> CandidateSet:
     """``candidates`` with the object's squeeze sites after them
     (:func:`handover.geometry.squeeze.squeeze_sites`) when the robot squeezes (its
-    ``squeeze_force``), has two hands, no candidate lies within the gripper's opening and
-    the object is wider than that opening every way (its oriented bounding box's smallest
-    extent): an object no single gripper spans is then carried between two grippers, jaws closed,
-    pressing opposite sides (H2G1). Otherwise ``candidates`` as they are."""
+    ``squeeze_force``), has two hands and the object is wider than the gripper's opening
+    every way (its oriented bounding box's smallest extent): an object no single gripper
+    spans is then carried between two grippers, jaws closed, pressing opposite sides
+    (H2G1), whether or not a small part of it fits the jaws (a bottle of water too heavy
+    for one hand, whose cap is all a gripper spans: two grippers on one cap make no pair).
+    Otherwise ``candidates`` as they are."""
     from handover.geometry.candidates import CandidateSet as Rows
     from handover.geometry.squeeze import squeeze_sites
 
     robot = situation.robot
     if robot.squeeze_force is None or len(robot.hands) < 2:
-        return candidates
-    if len(candidates) and (candidates.width <= gripper.max_opening + 1e-12).any():
         return candidates
     extents = part_mesh.mesh.bounding_box_oriented.primitive.extents
     if float(min(extents)) <= gripper.max_opening:  # too small or too thin for the jaws, not too

@@ -126,11 +126,20 @@ def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
     limit = CONFIRM_LIMIT if limit is None else limit
     failures: list[str] = []
     failed: set[tuple[str, int, int]] = set()  # (arm, grasp, presentation) not held
+    # (arm, grasp) that cannot take the object off the table, whatever the presentation (its
+    # pick-up pose is the same in every one): the pairs it would lift are passed over before
+    # their handover is checked, so the exact checks go to pairs that may lift it
+    no_lift: set[tuple[str, int]] = set()
     checks = 0
     for pair in pairs:
         il, ir, k = pair[1], pair[2], pair[3]
         if ("left", il, k) in failed or ("right", ir, k) in failed:
             continue
+        both = bool(both_pick[il] or both_pick[ir])
+        lifters = [(side, i) for side, i in (("left", il), ("right", ir)) if picks[i]]
+        known = [lifter in no_lift for lifter in lifters]
+        if lifters and (any(known) if both else all(known)):
+            continue  # no hand of the pair can lift it
         if checks >= limit:
             break
         held = {}
@@ -162,6 +171,8 @@ def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
             wrist = wrist_failures(ctx, lift, side, np.array([i]), np.array([k]))[0]
             if wrist is not None:
                 failures.append(f"grasp {i}: {wrist}")
+                if wrist.endswith(STAGE_WORDS["pickup"]):
+                    no_lift.add((side, i))
                 continue
             c = confirm(ctx, lift, side, np.array([i]), np.array([k]))[0]
             if c.ok:
@@ -169,7 +180,8 @@ def choose_pair_h2g1(ctx: PlanContext, phase: Phase, pairs: list[tuple],
                 lifted[side] = (c, i)
             else:
                 failures.append(f"grasp {i}: {c.failure()}")
-        both = bool(both_pick[il] or both_pick[ir])
+                if "pickup" in c.stages and not c.held[c.stages.index("pickup")]:
+                    no_lift.add((side, i))
         if both and len(lifts) == 2:
             touch = pair_contacts(ctx, "pickup", lifted["left"], lifted["right"], k,
                                   pose_key(phase))
