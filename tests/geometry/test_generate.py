@@ -283,3 +283,26 @@ def test_a_coin_is_pinched_at_the_fingertips_from_either_face_and_a_ball_is_not(
     thick = gm.PartMesh.single(gm.icosphere(0.02, 3))
     t = generate_candidates(thick, GRIPPER, collider=ObjectCollider(thick.mesh))
     assert set(np.round(t.offset, 12)) <= set(np.round(contact_offsets(GRIPPER), 12))
+
+
+def test_the_thinnest_directions_of_a_fine_hull_are_found_a_block_at_a_time(monkeypatch):
+    """A fine convex mesh (an icosphere of 82k faces has 41k hull vertices) asked for every
+    vertex on every face normal at once: 25 GB. Computed a block of normals at a time, the
+    answer is the one the whole product gives: a cube's three tied directions, and a
+    flattened icosphere's faces nearest its squashed axis."""
+    import handover.geometry.generate as generate
+
+    box = gm.box((0.1, 0.1, 0.1)).vertices
+    flat = gm.icosphere(0.05, 3).vertices * [1.0, 1.0, 0.2]
+    for hull in (box, flat):
+        whole = generate.thinnest_directions(hull)
+        monkeypatch.setattr(generate, "_PROJECTION_BLOCK", 7)  # a few normals a block
+        blocks = generate.thinnest_directions(hull)
+        monkeypatch.undo()
+        assert_allclose(blocks[0], whole[0])
+        assert blocks[1] == pytest.approx(whole[1])
+    assert len(generate.thinnest_directions(box)[0]) == 3
+    # the flattened sphere is thinnest across its squashed axis, 2 x 0.2 x 0.05 m
+    directions, width = generate.thinnest_directions(flat)
+    assert (np.abs(directions[:, 2]) > 0.999).all()
+    assert width == pytest.approx(0.02, rel=1e-3)
