@@ -46,7 +46,7 @@ def compare(
                          receivers=_list(receiver), tasks=_list(task), grippers=_list(gripper),
                          scene=scene)
     if json_out:
-        from handover.engine.report.result import dumps
+        from handover.engine.plan.jsonable import dumps
 
         typer.echo(dumps(report), nl=False)
         return

@@ -45,7 +45,7 @@ def grasps(
     Exit codes: 0 done, 2 unknown id or bad option, 3 invalid KB, 5 bad mesh.
     """
     from handover.engine.load.loader import load_kb
-    from handover.engine.report.result import dumps
+    from handover.engine.plan.jsonable import dumps
     from handover.engine.tools.grasps import list_grasps
 
     check_mesh_scale(mesh_scale)

@@ -87,8 +87,8 @@ def review(
     """
     import subprocess
 
+    from handover.engine.plan.jsonable import dumps
     from handover.engine.report.rerun.reader import read_recording
-    from handover.engine.report.result import dumps
 
     data = read_recording(file)  # validates the file first, whatever is asked
     if not (summary or json_out):

@@ -26,10 +26,7 @@ def to_jsonable(value: Any) -> Any:
     dict keys to strings. Idempotent (JSON-able data comes back equal)."""
     kind = type(value)
     if kind is float:  # the commonest leaf first (a result holds some 10^4 of them)
-        if not math.isfinite(value):
-            return None
-        r = round(value, DECIMALS)
-        return 0.0 if r == 0 else r  # no "-0.0"
+        return _float(value)
     if kind is str or kind is int or kind is bool or value is None:
         return value
     if isinstance(value, dict):
@@ -45,12 +42,16 @@ def to_jsonable(value: Any) -> Any:
     if isinstance(value, (int, np.integer)):
         return int(value)
     if isinstance(value, (float, np.floating)):
-        f = float(value)
-        if not math.isfinite(f):
-            return None
-        r = round(f, DECIMALS)
-        return 0.0 if r == 0 else r  # no "-0.0"
+        return _float(float(value))
     return value
+
+
+def _float(value: float) -> float | None:
+    """``value`` rounded to ``DECIMALS``, None when not finite, never -0.0."""
+    if not math.isfinite(value):
+        return None
+    r = round(value, DECIMALS)
+    return 0.0 if r == 0 else r
 
 
 def _rounded(values: np.ndarray) -> list:
@@ -71,7 +72,7 @@ def _rounded(values: np.ndarray) -> list:
         return out.tolist()
     flat, good = out.ravel().astype(object), exact.ravel()
     for k in np.flatnonzero(~good):
-        flat[k] = to_jsonable(float(x.flat[k]))
+        flat[k] = _float(float(x.flat[k]))
     return flat.reshape(x.shape).tolist()
 
 

@@ -22,16 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from handover.engine.plan.jsonable import (
-    DECIMALS,
-    dumps,
-    read_back,
-    stored_json,
-    to_jsonable,
-)
+from handover.engine.plan.jsonable import DECIMALS, read_back, stored_json, to_jsonable
 
-__all__ = ["DECIMALS", "to_jsonable", "dumps", "read_back", "stored_json", "robot_grasp_of",
-           "human_grasp_of", "ArmJoints", "GraspSupport", "RobotGrasp",
+__all__ = ["robot_grasp_of", "human_grasp_of", "ArmJoints", "GraspSupport", "RobotGrasp",
            "Corridor", "HandBox", "TakenGrasp", "ReachingArm", "HumanGrasp",
            "PlacementSite", "RobotArm", "Robot", "robot_of"]
 

@@ -15,19 +15,10 @@ from typing import Any
 
 import numpy as np
 
-from handover.engine.plan.records import (
-    DECIMALS,
-    HumanGrasp,
-    RobotGrasp,
-    dumps,
-    human_grasp_of,
-    read_back,
-    robot_grasp_of,
-    stored_json,
-    to_jsonable,
-)
+from handover.engine.plan.jsonable import dumps, read_back, stored_json, to_jsonable
+from handover.engine.plan.records import HumanGrasp, RobotGrasp, human_grasp_of, robot_grasp_of
 
-__all__ = ["PlanResult", "Regrasp", "to_jsonable", "dumps", "OUTCOMES", "DECIMALS"]
+__all__ = ["PlanResult", "Regrasp", "OUTCOMES"]
 
 OUTCOMES = ("handover", "place", "refuse", "infeasible")
 """What a plan can come to; ``feasible`` is true for the first two."""

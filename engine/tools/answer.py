@@ -279,7 +279,7 @@ def render(planned: Plan, fmt: str = "json") -> bytes:
 
 def json_text(data: Any) -> str:
     """Deterministic JSON text of plain data: indent 2, key order as built, a newline."""
-    from handover.engine.report.result import dumps
+    from handover.engine.plan.jsonable import dumps
 
     return dumps(data)
 

@@ -16,6 +16,7 @@ import pytest
 
 from handover import Planner
 from handover.engine.plan.arms.stages import MIDAIR_BACKOFF
+from handover.engine.plan.jsonable import to_jsonable
 from handover.engine.plan.records import (
     ArmJoints,
     GraspSupport,
@@ -23,7 +24,6 @@ from handover.engine.plan.records import (
     HumanGrasp,
     PlacementSite,
     RobotGrasp,
-    to_jsonable,
 )
 from handover.engine.report.result import Regrasp
 
@@ -180,7 +180,6 @@ def test_an_array_rounds_as_each_of_its_numbers_does():
     """The JSON's numbers are Python's ``round(x, 6)`` of each value (no -0.0, NaN and
     infinities null), whether a record holds an array or a list: ties, values a hair either
     side of a tie, negatives, tiny and huge values, in any shape."""
-    from handover.engine.plan.jsonable import to_jsonable
 
     rng = np.random.default_rng(7)
     ties = (np.arange(-20000, 20000) + 0.5) / 1e6
