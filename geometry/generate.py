@@ -72,12 +72,12 @@ __all__ = [
 # Contacts this far (m) from the fingertips at the pulled-back depth (contact_offsets).
 TIP_MARGIN = 0.006
 FLUSH_GAP = 0.0002
+"""m: at a flush depth (:func:`flush_rows`) the fingers' lowest edge stops this short of the
+object's far side (the side it rests on when picked from above)."""
 FLUSH_TILT_DEG = 12.0
 """deg: how far from level a site's closing direction may be for a flush grasp (a cylinder
 lying on its side, meshed with 16 sides: its facets' normals are 22.5 deg apart, the most
 level 11.25 deg off, and its antipodal contacts lie on them)."""
-"""m: at a flush depth (:func:`flush_rows`) the fingertips stop this short of the object's
-far side along the approach (the side it rests on when picked from above)."""
 
 
 @dataclass

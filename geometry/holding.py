@@ -34,11 +34,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.geometry.gripper import pad_grid
+
 if TYPE_CHECKING:
     import trimesh
 
-__all__ = ["PadGrip", "Patches", "contact_patches", "holding_capacity", "squeeze_capacity",
-           "load_torques", "utilisation", "GRAVITY"]
+__all__ = ["PadGrip", "Patches", "pad_rays", "contact_patches", "holding_capacity",
+           "squeeze_capacity", "load_torques", "utilisation", "GRAVITY"]
 
 GRAVITY = 9.81
 """m/s^2."""
@@ -86,11 +88,28 @@ class Patches:
     touching: np.ndarray
 
 
-def _pad_grid(grip: PadGrip, spacing: float) -> np.ndarray:
-    """(G, 2) (u along n, v along a) m: points on a pad, corners included."""
-    from handover.geometry.gripper import pad_grid
+def pad_rays(mesh: trimesh.Trimesh, poses: np.ndarray, widths: np.ndarray, grid: np.ndarray,
+             standoff: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """What each pad of grasps ``poses`` (N, 4, 4) meets closing along ``o``: rays from the
+    points ``grid`` (G, 2) m (along n, along a, :func:`~handover.geometry.gripper.pad_grid`)
+    of pad 0 (on the ``-o`` side) and pad 1, cast toward each other from ``standoff`` (N,)
+    m out from the grasp origin. Returns (N, 2, G) the first face each ray hits (-1: none)
+    and (N, 2, G) m its gap: how far behind the pad's plane at the contacts (``width / 2``
+    out, ``widths`` (N,) m) the surface it meets lies (negative: standing proud of it)."""
+    from handover.geometry.mesh import ray_first_hits
 
-    return pad_grid(grip.finger_width, grip.finger_length, spacing)
+    n_rows, g = len(poses), len(grid)
+    n_ax, o_ax, a_ax, p = poses[:, :3, 0], poses[:, :3, 1], poses[:, :3, 2], poses[:, :3, 3]
+    on_pad = (p[:, None] + grid[None, :, :1] * n_ax[:, None] + grid[None, :, 1:] * a_ax[:, None])
+    faces = np.empty((n_rows, 2, g), dtype=np.int64)
+    gaps = np.empty((n_rows, 2, g))
+    for k, side in enumerate((-1.0, 1.0)):
+        origins = on_pad + (side * standoff)[:, None, None] * o_ax[:, None]
+        directions = np.repeat(-side * o_ax[:, None], g, axis=1)
+        face, dist = ray_first_hits(mesh, origins.reshape(-1, 3), directions.reshape(-1, 3))
+        faces[:, k] = face.reshape(n_rows, g)
+        gaps[:, k] = dist.reshape(n_rows, g) - (standoff - widths / 2)[:, None]
+    return faces, gaps
 
 
 def contact_patches(mesh: trimesh.Trimesh, poses: np.ndarray, widths: np.ndarray,
@@ -105,30 +124,18 @@ def contact_patches(mesh: trimesh.Trimesh, poses: np.ndarray, widths: np.ndarray
     sinks a fraction of a millimetre (``depth``); a cylinder of radius ``r`` under a flat pad
     then touches over ``2 sqrt(2 r depth)``.
     """
-    from handover.geometry.mesh import ray_first_hits
-
     poses = np.asarray(poses, dtype=float).reshape(-1, 4, 4)
     widths = np.asarray(widths, dtype=float).reshape(-1)
     if len(poses) != len(widths):
         raise ValueError(f"{len(poses)} poses but {len(widths)} widths")
     n_rows = len(poses)
-    grid = _pad_grid(grip, spacing)  # (G, 2)
-    g = len(grid)
-    n_ax, o_ax, a_ax, p = poses[:, :3, 0], poses[:, :3, 1], poses[:, :3, 2], poses[:, :3, 3]
-    on_pad = (p[:, None] + grid[None, :, :1] * n_ax[:, None] + grid[None, :, 1:] * a_ax[:, None])
+    grid = pad_grid(grip.finger_width, grip.finger_length, spacing)  # (G, 2)
     standoff = widths / 2 + 0.02  # start outside the object, 2 cm beyond the contact plane
-    touch = np.zeros((n_rows, 2, g), dtype=bool)
-    for k, side in enumerate((-1.0, 1.0)):
-        origins = on_pad + (side * standoff)[:, None, None] * o_ax[:, None]
-        directions = np.repeat(-side * o_ax[:, None], g, axis=1)
-        face, dist = ray_first_hits(mesh, origins.reshape(-1, 3), directions.reshape(-1, 3))
-        face, dist = face.reshape(n_rows, g), dist.reshape(n_rows, g)
-        gap = dist - (standoff[:, None] - widths[:, None] / 2)  # >0: surface behind the plane
-        hit = face >= 0
-        facing = np.zeros_like(hit)
-        normals = mesh.face_normals[np.where(hit, face, 0)]
-        facing = np.einsum("ngj,nj->ng", normals, o_ax) * side > 0.5  # faces the pad
-        touch[:, k] = hit & facing & (np.abs(gap) <= depth + 1e-9)
+    faces, gaps = pad_rays(mesh, poses, widths, grid, standoff)
+    hit = faces >= 0
+    normals = mesh.face_normals[np.where(hit, faces, 0)]  # (N, 2, G, 3)
+    facing = np.einsum("nkgj,nj->nkg", normals, poses[:, :3, 1]) * [[-1.0], [1.0]] > 0.5
+    touch = hit & facing & (np.abs(gaps) <= depth + 1e-9)  # faces the pad, at its plane
     radius = np.zeros((n_rows, 2))
     ext_n = np.zeros((n_rows, 2))
     ext_a = np.zeros((n_rows, 2))
@@ -173,8 +180,7 @@ def squeeze_capacity(grip: PadGrip, force: float, tip: tuple[float, float],
     if not (np.isfinite(force) and force > 0):
         raise ValueError(f"a squeeze force must be a positive number of N, got {force}")
     ext_n, ext_o = (float(v) for v in tip)
-    grid = _pad_grid(PadGrip(force, grip.friction, grip.torsional_friction, ext_n, ext_o),
-                     min(ext_n, ext_o) / 4.0)
+    grid = pad_grid(ext_n, ext_o, min(ext_n, ext_o) / 4.0)
     rho = float(np.linalg.norm(grid - grid.mean(axis=0), axis=1).mean())
     row = [force * ext_o / 2.0, force * ext_n / 2.0,
            force * (grip.friction * rho + grip.torsional_friction), grip.friction * force]

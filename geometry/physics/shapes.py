@@ -163,7 +163,7 @@ def flush_boxes(shapes: tuple[Primitive | ConvexPart, ...],
 
     The physics check collides the union instead of the group: a pad pressed across the
     seam then touches one face at its corners, not each box's face with contacts doubled
-    along the seam (a book held over its spine: 9 contacts a pad instead of 4), which
+    along the seam (a book held over its spine: 9 contacts a pad instead of 5), which
     costs the solver and weighs the seam twice. ``tol`` m: how far alike is alike.
     """
     groups = [((k,), s) for k, s in enumerate(shapes)
