@@ -84,6 +84,7 @@ class Memo:
     object_key: str | None = None  # PlanContext.object_key
     grasps_key: str | None = None  # PlanContext.grasps_key
     pad_patches: np.ndarray | None = None  # (N, 3) pads' patch radius, extents; NaN: not yet
+    torque_uses: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N*K,) by rule fields
     gripper_boxes: PosedBoxes | None = None  # the gripper's boxes at every candidate
     d_obj: np.ndarray | None = None  # (K, 3) robot->receiver per presentation, object frame
     world: World | None = None

@@ -143,7 +143,7 @@ def _forget_everything_kept() -> None:
     from handover.engine.plan.judge import torque
 
     for kept in (hands.RECEIVER_SITES, prepare.PART_MESHES, corridors.OBJECT_DISTANCE,
-                 features.KEEP_OUT, torque.PATCHES):
+                 features.KEEP_OUT, torque.PATCHES, torque.TABLES):
         kept.clear()
 
 

@@ -309,6 +309,44 @@ def _threshold(rule: TorqueRule, ctx: PlanContext) -> str:
             f"{spec.friction:g}, load x{rule.load_factor:g}{cap})")
 
 
+TABLE_ROWS = 250_000
+"""Rows up to which a table of :func:`table_uses` is kept across plans (:data:`TABLES`):
+2 MB each; a larger one is kept for its plan only."""
+
+TABLES: LRU[str, np.ndarray] = LRU(32)
+""":func:`table_uses` by what it is a function of (grasps, presentations, pick-up pose, the
+object's mass and centre of mass, the pads' grip, the rule's ``about``, ``load_factor`` and
+``max_nm``): a warm plan of the same object to the same presentations judges its torque
+rules by indexing (about 70 ms of a warm plan of the built-in objects, three torque rules
+on the same loads in each mode tried). At most 32 x :data:`TABLE_ROWS` rows, 64 MB."""
+
+
+def table_uses(rule: TorqueRule, ctx: PlanContext) -> np.ndarray:
+    """(N * K,) :func:`uses` of a grasp holding the object alone on every row of ``ctx``
+    (grasp-major: row ``g * K + p``), computed once per context and rule fields."""
+    fields = (rule.about, float(rule.load_factor), rule.max_nm)
+    memo = ctx.memo.torque_uses
+    if fields not in memo:
+        n, k = ctx.n, ctx.k
+
+        def every() -> np.ndarray:
+            gi = np.repeat(np.arange(n, dtype=np.int64), k)
+            pk = np.tile(np.arange(k, dtype=np.int64), n)
+            out = uses(rule, ctx, gi, pk, np.ones(n * k))
+            out.setflags(write=False)
+            return out
+
+        if n * k > TABLE_ROWS:
+            memo[fields] = every()
+        else:
+            grip = np.array(dataclasses.astuple(pad_grip(ctx)), dtype=float)
+            key = content_key(ctx.grasps_key(), ctx.rotations, ctx.initial,
+                              np.asarray(ctx.part_mesh.mass_centre, dtype=float),
+                              np.array([ctx.facts.mass], dtype=float), grip, repr(fields))
+            memo[fields] = TABLES.fetch(key, every)
+    return memo[fields]
+
+
 def evaluate(rule: TorqueRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
              pk: np.ndarray) -> Outcome:
     threshold = _threshold(rule, ctx)
@@ -319,7 +357,7 @@ def evaluate(rule: TorqueRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
     if phase is not None and phase.mode == "H2G1":
         use = pair_uses(rule, ctx, gi, np.full(len(gi), phase.other_grasp), pk)
     else:
-        use = uses(rule, ctx, gi, pk, np.ones(len(gi)))
+        use = table_uses(rule, ctx)[gi * ctx.k + pk]
     known = np.isfinite(use) | (use == np.inf)
     ok = known & (use <= 1.0 + 1e-12)
     score = np.where(np.isfinite(use), np.clip(1.0 - use, 0.0, 1.0), 0.0)
