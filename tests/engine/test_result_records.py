@@ -16,7 +16,7 @@ import pytest
 
 from handover import Planner
 from handover.engine.plan.arms.stages import MIDAIR_BACKOFF
-from handover.engine.plan.jsonable import to_jsonable
+from handover.engine.plan.jsonable import dumps, to_jsonable
 from handover.engine.plan.records import (
     ArmJoints,
     GraspSupport,
@@ -121,6 +121,38 @@ def test_to_jsonable_is_idempotent_and_rounds_to_micrometres():
     once = to_jsonable(data)
     assert once == {"a": 1.234568, "2": [3, 0.0, None], "b": [True, [[0.123457]]]}
     assert to_jsonable(once) == once
+
+
+def _indented(data) -> str:
+    return json.dumps(data, indent=2, ensure_ascii=False) + "\n"
+
+
+def test_the_json_text_is_json_s_own_indented_text_byte_for_byte(planner):
+    """``dumps`` writes its text itself (json's indented encoder is pure Python, slow): the
+    same bytes as json's, for a real plan and for the corners of JSON text."""
+    plan = planner.plan("knife")
+    assert plan.to_json() == dumps(plan.to_dict(), jsonable=True) == _indented(plan.to_dict())
+    corners = {
+        "empty": [[], {}, [[]], [{}], {"a": {}, "b": []}, ""],
+        "text": ["é ü 😀 \u2028", 'a "quoted" \\ back\\slash', "\x00\x1f\t\n\r\x7f /",
+                 "\ud800"],
+        'key "with" \\ and\n and é': None,
+        "ints": [0, -1, 10**40, -(10**30)],
+        "floats": [-0.0, 0.0, 1e-07, 1e16, 1.5e-300, 5e-324, 1.7976931348623157e308, -2.5],
+        "not finite": [float("nan"), float("inf"), -float("inf"), 1.0, 2],
+        "mixed": [1, 2.0, True, False, None, "x", [1.0, 2], {"k": [[1, 2.5], [3, 4.0]]}],
+        "tables": [[[0.1, 0.2], [0.3, 0.4]], [[1.0], [float("nan")]], [[1.0, 2.0], [3.0]],
+                   [[1.0], []], [[True], [False]]],
+        "tuples": (1, (2.0, "x"), ()),
+        "deep": [[[[{"x": [[[1.0]]], "y": {"z": {}}}]]]],
+    }
+    for data in (corners, [], {}, "a\"b", 1.0, float("nan"), 3, None, True, [corners, []]):
+        assert dumps(data, jsonable=True) == _indented(data)
+    # What JSON-able data does not hold is json's to write, or to refuse.
+    keys = {1: 2.0, "a": {None: [1]}}
+    assert dumps(keys, jsonable=True) == _indented(keys) and '"1": 2.0' in dumps(keys, True)
+    with pytest.raises(TypeError, match="not JSON serializable"):
+        dumps([1.0, {"a": np.int64(3)}], jsonable=True)
 
 
 def test_the_facade_hands_out_the_records_the_json_is_written_from(planner):
