@@ -200,6 +200,7 @@ def grasp_planning_task(goal: Any) -> Reply:
     infeasible plan has no grasp; ``X-Handover-Outcome`` says which)."""
     start = time.perf_counter()
     try:
+        from handover.engine.plan.jsonable import dumps
         from handover.engine.report.moveit import grasp_planning_result
         from handover.engine.tools.answer import grasp_planning_request, plan_request
 
@@ -207,7 +208,7 @@ def grasp_planning_task(goal: Any) -> Reply:
         request, group = grasp_planning_request(goal, state.kb)
         planned = plan_request(state.kb, request, state.db)
         result = grasp_planning_result(json.loads(planned.result.to_json()), group)
-        body = (json.dumps(result, indent=2, ensure_ascii=False) + "\n").encode("utf-8")
+        body = dumps(result, jsonable=True).encode("utf-8")
         return Reply(200, body, "application/json", planned.outcome, False, os.getpid(),
                      time.perf_counter() - start)
     except Exception as e:  # noqa: BLE001 - every error is an answer

@@ -266,8 +266,9 @@ def render(planned: Plan, fmt: str = "json") -> bytes:
 
     data = json.loads(text)
     if fmt == "moveit":
-        messages = moveit_messages(data).to_dict()
-        return (json.dumps(messages, indent=2, ensure_ascii=False) + "\n").encode("utf-8")
+        from handover.engine.plan.jsonable import dumps
+
+        return dumps(moveit_messages(data).to_dict(), jsonable=True).encode("utf-8")
     if fmt == "mcap":
         import io
 
