@@ -15,7 +15,12 @@ that round is reported apart), then plans the 10 built-in objects for the 4 rece
   one untimed round: every answer planned by a worker whose caches are warm, the cost of
   planning itself;
 - throughput: ``--clients`` clients at once sending the 40 queries, answers per second, with
-  and without the memo.
+  and without the memo;
+- ``a receiver new to the worker``: one worker, no memo, that has planned every object for
+  adult and seated_adult, plans each for child and elder, first time: what is kept across
+  plans by content (the grasp candidates, the arms and their maps, the torque tables, the
+  pads' patches) serves; what depends on the receiver is computed. The cost of a query the
+  service has not seen.
 
 Prints p50/p95/max in ms (latency measured at the client: HTTP, JSON and all; the client's
 connection sends without Nagle's delay, as ``handover.Client`` and curl do). Targets
@@ -141,6 +146,17 @@ def main() -> None:
             conn.close()
             rate = throughput(host, port, queries, args.clients, 1)
             print(f"throughput, {args.clients} clients, no memo: {rate:7.1f} plans/s")
+        finally:
+            stop(proc)
+        proc, host, port = start(1, 0, env)
+        try:
+            conn = NoDelayConnection(host, port, timeout=600)
+            seen = [q for q in queries if q["receiver"] in RECEIVERS[:2]]
+            new = [q for q in queries if q["receiver"] not in RECEIVERS[:2]]
+            for q in seen:  # every object planned, for two receivers
+                ask(conn, q)
+            stats("a receiver new to the worker", [ask(conn, q) for q in new])
+            conn.close()
         finally:
             stop(proc)
     print("targets: warm p50 <= 60 ms, p95 <= 200 ms")
