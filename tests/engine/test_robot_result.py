@@ -127,7 +127,11 @@ def stage_poses(result: dict, grasp: dict) -> dict[str, np.ndarray]:
 def check_grasps_by_fk(kb: Path, result: dict) -> list[tuple[str, str]]:
     """Every robot grasp's joints at every stage, by yourdfpy's FK from the ``robot`` block,
     put the grasp frame at the plan's pose, within the URDF's joint limits; the joints are
-    the block's arm's, in its order. Returns the (arm, stage) pairs checked."""
+    the block's arm's, in its order. And the object the gripper takes at its first stage,
+    carried rigidly by the tool to each later stage (the gripper holds it in between), is
+    where the plan says it is there: the fingers' order does not change between stages (a
+    wrist turned half a turn about ``a`` would turn the object with it). Returns the (arm,
+    stage) pairs checked."""
     robot = result["robot"]
     urdf = urdf_of(kb, robot)
     base = np.asarray(robot["base_pose"])
@@ -137,6 +141,7 @@ def check_grasps_by_fk(kb: Path, result: dict) -> list[tuple[str, str]]:
         tcp = np.asarray(arm["tcp"])
         wanted = stage_poses(result, g)
         assert g["joints"], "a grasp with no joint values"
+        held = None  # the object in the tool frame, from the first stage on
         for stage, joints in g["joints"].items():
             assert list(joints) == arm["joints"]
             for name, value in joints.items():
@@ -148,6 +153,12 @@ def check_grasps_by_fk(kb: Path, result: dict) -> list[tuple[str, str]]:
             if stage in g.get("fingers_swapped", []):  # the fingers are alike
                 target = target @ FLIP
             assert_same_pose(reached, target, f"{g['arm']} arm {stage}")
+            if g.get("id") is not None:  # a supporting gripper holds nothing
+                object_there = wanted[stage] @ np.linalg.inv(np.asarray(g["pose"]))
+                if held is None:
+                    held = np.linalg.inv(reached) @ object_there
+                assert_same_pose(reached @ held, object_there,
+                                 f"{g['arm']} arm {stage}: the object carried there")
             checked.append((g["arm"], stage))
     return checked
 
@@ -187,6 +198,36 @@ def test_the_knife_s_robot_block_puts_each_grasp_where_the_plan_says(capsys):
     # One arm gives it: at pick-up (initial_pose @ pose) and at the handover (pose_world).
     (grasp,) = r["robot_grasps"]
     assert check_grasps_by_fk(kb, r) == [(grasp["arm"], "pickup"), (grasp["arm"], "handover")]
+
+
+@pytest.mark.parametrize(("receiver", "culture"), [("adult", "common"), ("elder", "korean")])
+def test_the_knife_the_arm_carries_from_the_table_reaches_the_receiver_tip_away(
+        capsys, receiver, culture):
+    """Run as its joints say, the arm takes the knife off the table and carries it to the
+    handover: yourdfpy's FK of the joints at pick-up and at the handover, the knife rigid in
+    the gripper in between. There its tip (the KB's ``tip`` axis, +x) points away from the
+    receiver, and the knife is where the plan says: a wrist that turned half a turn about
+    the approach between the two stages would have offered the tip first."""
+    kb = builtin_kb_dir()
+    r = plan_json(capsys, "plan", "knife", "--receiver", receiver, "--culture", culture)
+    assert r["outcome"] == "handover" and r["mode"] == "H1G1"
+    (grasp,) = r["robot_grasps"]
+    robot = r["robot"]
+    urdf = urdf_of(kb, robot)
+    arm = robot["arms"][grasp["arm"]]
+
+    def tool(stage: str) -> np.ndarray:
+        urdf.update_cfg(grasp["joints"][stage])
+        return (np.asarray(robot["base_pose"])
+                @ urdf.get_transform(arm["tip_link"], urdf.base_link) @ np.asarray(arm["tcp"]))
+
+    on_table = np.asarray(r["initial_pose"])
+    carried = tool("handover") @ np.linalg.inv(tool("pickup")) @ on_table
+    tip = carried[:3, 0]
+    to_receiver = np.asarray(r["receiver"]["position"]) - carried[:3, 3]
+    to_receiver[2] = 0.0
+    assert tip @ to_receiver / np.linalg.norm(to_receiver) < -0.5
+    assert_same_pose(carried, np.asarray(r["object_pose"]), "the knife carried to the handover")
 
 
 def test_a_moved_robot_s_block_carries_its_base_pose(capsys, moved_kb):

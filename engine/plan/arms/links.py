@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.plan.arms.stages import (
+    FLIP,
     STAGE_WORDS,
     ArmCheck,
-    canonical_first,
     hit_words,
     objects_at,
     other_arm_idle,
@@ -316,10 +316,11 @@ def clear_links(arms, side: str, body, poses: np.ndarray, rows: np.ndarray,
     """At one stage: test the links of the arm at the reached ``rows`` against ``body``
     (and ``held(rows, q)``: the contacts :func:`held_contacts` finds for those rows at
     configurations q (m, dof)); for those touching something, take the first of
-    :data:`LINK_STARTS` other answers (as planned, then with the fingers swapped) whose
-    links are clear, updating ``stage`` (q (n, dof), swapped (n,), position and rotation
-    errors (n,), views of the stage's column) in place; ``hits[r][t]`` records what row r's
-    links still touch."""
+    :data:`LINK_STARTS` other answers in the row's finger order (``swapped``: the grasp held
+    turned half a turn about ``a``; the order holds at every stage, the object held in
+    between) whose links are clear, updating ``stage`` (q (n, dof), swapped (n,), position
+    and rotation errors (n,), views of the stage's column) in place; ``hits[r][t]`` records
+    what row r's links still touch."""
     if not len(rows):
         return
     q, swapped, pos_err, rot_err = stage
@@ -336,22 +337,17 @@ def clear_links(arms, side: str, body, poses: np.ndarray, rows: np.ndarray,
         hits[r][t] = tuple(f)
     if not len(bad):
         return
-    tries, turned = canonical_first(poses[bad])  # canonical finger order first, then the other
-    targets = np.concatenate([tries[0], tries[1]])  # (2b, 4, 4)
+    targets = np.where(swapped[bad, None, None], poses[bad] @ FLIP, poses[bad])  # (b, 4, 4)
     sol = arms.solve_each(side, targets, LINK_STARTS, avoid=[body], pool=LINK_POOL)
     good = np.argwhere(sol.ok)  # (g, 2): target, start
     clear = np.zeros(sol.ok.shape, dtype=bool)
     if len(good):
-        touch = touching(bad[good[:, 0] % len(bad)], sol.q[good[:, 0], good[:, 1]])
+        touch = touching(bad[good[:, 0]], sol.q[good[:, 0], good[:, 1]])
         clear[good[:, 0], good[:, 1]] = [not f for f in touch]
-    b = len(bad)
     for j, r in enumerate(bad):
-        options = np.concatenate([clear[j], clear[b + j]])  # canonical order, then the other
-        if not options.any():
+        if not clear[j].any():
             continue
-        pick = int(np.argmax(options))
-        flip, s = divmod(pick, clear.shape[1])
-        row = flip * b + j
-        q[r], swapped[r] = sol.q[row, s], bool(turned[j] != bool(flip))
-        pos_err[r], rot_err[r] = sol.position_error[row, s], sol.rotation_error[row, s]
+        s = int(np.argmax(clear[j]))
+        q[r] = sol.q[j, s]
+        pos_err[r], rot_err[r] = sol.position_error[j, s], sol.rotation_error[j, s]
         hits[r][t] = ()

@@ -75,8 +75,9 @@ CONFIRM_LIMIT = 24
 """(row, arm) pairs a mode checks by exact inverse kinematics before it gives up."""
 
 FLIP_WITHIN = 0.01
-"""m: a stage whose inverse kinematics ended nearer than this to the position is tried with
-the fingers swapped."""
+"""m: a row whose first stage not held ended nearer than this to its position (the rotation
+not reached, or the links touching something) is tried again with the fingers swapped at
+every stage."""
 
 ROW_WINDOW = 16
 """:func:`choose_row` looks at up to ``limit`` x this many rows of a ranking, in chunks of
@@ -147,18 +148,19 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
             pk: np.ndarray) -> list[ArmCheck]:
     """Exact checks of rows ``(gi, pk)`` ((R,) int) held by the arm ``side`` through the
     stages of ``phase``: IK per stage from the nearest of the arm's sampled poses, with
-    restarts (:meth:`~handover.engine.assets.robot.RobotArms.solve`), the grasp in the finger order
-    nearer the arm's start poses first (:func:`~handover.engine.plan.arms.stages.canonical_first`:
-    the same in any frame), then, where the position was reached but not the rotation, the
-    other. At each stage reached, the arm's links are tested against
-    :func:`~handover.engine.plan.arms.links.link_targets` and the object held and the hands taking
-    it (:func:`~handover.engine.plan.arms.links.held_contacts`); where they touch something, up to
-    :data:`~handover.engine.plan.arms.links.LINK_STARTS` other answers (in one finger order, then
-    the other) are tried and the first whose links are clear is kept
-    (:func:`~handover.engine.plan.arms.links.clear_links`). A stage not held ends the row's checks.
+    restarts (:meth:`~handover.engine.assets.robot.RobotArms.solve`), the grasp in one finger
+    order at every stage (the object is held from the first to the last: turning the wrist
+    half a turn about ``a`` between them would turn the object too): the order nearer the
+    arm's start poses at the first stage first (:func:`~handover.engine.plan.arms.stages.
+    canonical_first`: the same in any frame), then, for the rows it does not hold where the
+    arm reached the position, the other at every stage. At each stage reached, the arm's
+    links are tested against :func:`~handover.engine.plan.arms.links.link_targets` and the
+    object held and the hands taking it (:func:`~handover.engine.plan.arms.links.
+    held_contacts`); where they touch something, up to :data:`~handover.engine.plan.arms.links.
+    LINK_STARTS` other answers in the same finger order are tried and the first whose links
+    are clear is kept (:func:`~handover.engine.plan.arms.links.clear_links`). A stage not held
+    ends the row's checks.
     Memoised per (arm, row, stages, hands) in the context."""
-    from handover.engine.assets.robot import IK_RESTARTS
-
     arms = ctx.arms
     gi, pk, names, keys = row_keys(side, phase, gi, pk)
     memo = ctx.memo.arm_checks
@@ -167,52 +169,34 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
     if todo:
         rows = np.array([keys.index(unique[r]) for r in todo])
         poses = stage_poses(ctx, phase, gi[rows], pk[rows])
-        n, dof = len(rows), arms.arm(side).dof
-        q = np.zeros((n, len(names), dof))
-        ok = np.zeros((n, len(names)), dtype=bool)
-        swapped = np.zeros((n, len(names)), dtype=bool)
-        pos_err = np.full((n, len(names)), np.inf)
-        rot_err = np.full((n, len(names)), np.inf)
-        hits: list[list[tuple]] = [[() for _ in names] for _ in range(n)]
+        n = len(rows)
+        # One finger order for every stage of a row: the gripper holds the object from the
+        # first stage to the last, so the wrist cannot turn half a turn about ``a`` between
+        # them (the object would turn with it: a knife's tip toward the receiver). The order
+        # nearer the arm's start poses at the first stage first (canonical_first: the same
+        # physical grasp met the same way in any frame), then, for the rows it does not
+        # hold where the arm reached the position (the swap only turns the wrist), the other.
+        first = canonical_first(poses[names[0]], arms.start_distance, side)[1] if names \
+            else np.zeros(n, dtype=bool)
+        found = _stages(ctx, phase, side, names, poses, rows, pk, first, np.ones(n, bool))
+        q, ok, swapped, pos_err, rot_err, hits = found
+        held_all = ok.all(axis=1) & np.array([not any(h) for h in hits], dtype=bool)
+        stop = np.argmin(ok & np.array([[not h for h in row] for row in hits], dtype=bool)
+                         .reshape(n, len(names)), axis=1) if names else np.zeros(n, int)
+        near = pos_err[np.arange(n), stop] < FLIP_WITHIN if names else np.zeros(n, bool)
+        again = ~held_all & near
+        if again.any():
+            other = _stages(ctx, phase, side, names, poses, rows, pk, ~first, again)
+            better = again & other[1].all(axis=1) & np.array(
+                [not any(h) for h in other[5]], dtype=bool)
+            for arr, alt in zip(found[:5], other[:5], strict=True):
+                arr[better] = alt[better]
+            for r in np.flatnonzero(better):
+                hits[r] = other[5][r]
         against: tuple[str, ...] = ()
-        for t, stage in enumerate(names):
-            # From the nearest sampled poses (with restarts), in one finger order, then the
-            # fingers swapped for the rows whose position was reached but not the rotation
-            # (the same position: the swap only turns the wrist). A row an earlier stage
-            # did not hold (not reached, or its links touching something) is not pursued.
-            pursued = ok[:, :t].all(axis=1) & np.array(
-                [not any(h[:t]) for h in hits], dtype=bool)
-            # The same physical grasp is met the same way in any frame: the finger order
-            # nearer the arm's start poses first (canonical_first), then the other.
-            tries, turned = canonical_first(poses[stage], arms.start_distance, side)
-            for second in (False, True):
-                todo_r = np.flatnonzero(~ok[:, t] & pursued
-                                        & (~second | (pos_err[:, t] < FLIP_WITHIN)))
-                if not len(todo_r):
-                    break
-                sol = arms.solve(side, tries[int(second)][todo_r], restarts=IK_RESTARTS)
-                better = sol.ok | (sol.position_error < pos_err[todo_r, t])
-                take = todo_r[better]
-                q[take, t] = sol.q[better]
-                pos_err[take, t] = sol.position_error[better]
-                rot_err[take, t] = sol.rotation_error[better]
-                ok[take, t] = sol.ok[better]
-                swapped[take, t] = turned[take] != second
+        for stage in names:
             body = link_targets(ctx, phase, side, stage)
             against += target_groups((*body.names, *held_names(ctx, phase, stage)))
-
-            def held(at, qs, stage=stage):  # the object held, the hands taking it
-                return held_contacts(ctx, phase, side, stage, qs, pk[rows[at]])
-
-            reached = np.flatnonzero(ok[:, t] & pursued)
-            # Where the other arm cannot wait at its rest, no joint values of this one help.
-            blocked = rest_blocked(ctx, phase, side, stage, pk[rows[reached]])
-            for r, why in zip(reached, blocked, strict=True):
-                hits[r][t] = why
-            clear_links(arms, side, body, poses[stage],
-                        reached[[not why for why in blocked]],
-                        (q[:, t], swapped[:, t], pos_err[:, t], rot_err[:, t]),
-                        hits, t, held)  # fmt: skip
         against = tuple(dict.fromkeys(against))
         for r, u in enumerate(todo):
             memo[unique[u]] = ArmCheck(side, names, np.stack([poses[s][r] for s in names])
@@ -220,6 +204,53 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
                                        swapped[r], pos_err[r], rot_err[r],
                                        tuple(tuple(h) for h in hits[r]), against)  # fmt: skip
     return [memo[key] for key in keys]
+
+def _stages(ctx: PlanContext, phase: Phase, side: str, names: tuple[str, ...],
+            poses: dict[str, np.ndarray], rows: np.ndarray, pk: np.ndarray,
+            turned: np.ndarray, pursue: np.ndarray) -> tuple:
+    """:func:`confirm`'s checks of rows ``pursue`` ((n,) bool) through the stages ``names``,
+    each row's grasp held turned half a turn about ``a`` where ``turned`` ((n,) bool) at every
+    stage: IK per stage (restarts), the links tested, other answers in the same finger order
+    where they touch something. Returns q (n, T, dof), ok, swapped, position and rotation
+    errors (n, T) and per row per stage what the links touch; a stage not held ends the
+    row's checks."""
+    from handover.engine.assets.robot import IK_RESTARTS
+    from handover.engine.plan.arms.stages import FLIP
+
+    arms = ctx.arms
+    n, dof = len(rows), arms.arm(side).dof
+    q = np.zeros((n, len(names), dof))
+    ok = np.zeros((n, len(names)), dtype=bool)
+    swapped = np.zeros((n, len(names)), dtype=bool)
+    pos_err = np.full((n, len(names)), np.inf)
+    rot_err = np.full((n, len(names)), np.inf)
+    hits: list[list[tuple]] = [[() for _ in names] for _ in range(n)]
+    for t, stage in enumerate(names):
+        pursued = pursue & ok[:, :t].all(axis=1) & np.array(
+            [not any(h[:t]) for h in hits], dtype=bool)
+        todo_r = np.flatnonzero(pursued)
+        if not len(todo_r):
+            break
+        targets = np.where(turned[todo_r, None, None], poses[stage][todo_r] @ FLIP,
+                           poses[stage][todo_r])
+        sol = arms.solve(side, targets, restarts=IK_RESTARTS)
+        q[todo_r, t], ok[todo_r, t] = sol.q, sol.ok
+        pos_err[todo_r, t], rot_err[todo_r, t] = sol.position_error, sol.rotation_error
+        swapped[:, t] = turned
+        body = link_targets(ctx, phase, side, stage)
+
+        def held(at, qs, stage=stage):  # the object held, the hands taking it
+            return held_contacts(ctx, phase, side, stage, qs, pk[rows[at]])
+
+        reached = np.flatnonzero(ok[:, t] & pursued)
+        # Where the other arm cannot wait at its rest, no joint values of this one help.
+        blocked = rest_blocked(ctx, phase, side, stage, pk[rows[reached]])
+        for r, why in zip(reached, blocked, strict=True):
+            hits[r][t] = why
+        clear_links(arms, side, body, poses[stage], reached[[not why for why in blocked]],
+                    (q[:, t], swapped[:, t], pos_err[:, t], rot_err[:, t]), hits, t, held)
+    return q, ok, swapped, pos_err, rot_err, hits
+
 
 def confirm_row(ctx: PlanContext, phase: Phase, grasp: int, presentation: int,
                 mapped: np.ndarray | None = None, skip: set | None = None
