@@ -52,12 +52,24 @@ def _spec(ctx: PlanContext):
 
 
 def held_box(ctx: PlanContext, pose: np.ndarray) -> list:
-    """The object as one box (its bounding box in its own frame) at ``pose`` (4, 4), world:
-    ``[("object", extents (3,), pose (4, 4))]`` (what the gripper carries on a lift)."""
-    lo, hi = np.asarray(ctx.part_mesh.mesh.bounds, dtype=float)
-    local = np.eye(4)
-    local[:3, 3] = 0.5 * (lo + hi)
-    return [("object", np.maximum(hi - lo, 1e-6), pose @ local)]
+    """The object as boxes at ``pose`` (4, 4), world: each part's bounding box in the object's
+    frame, ``[(name, extents (3,), pose (4, 4))]`` (what the gripper carries on a lift and
+    to the handover), named ``object`` for an object of one part, ``object's <part>`` else.
+    A box per part, not one around them all: a knife's box would be its handle's 2 cm
+    thick along its 2 mm blade too, and its blade offered 5 mm over a table would touch it."""
+    pm = ctx.part_mesh
+    vertices = np.asarray(pm.mesh.vertices, dtype=float)
+    faces = np.asarray(pm.mesh.faces)
+    parts = [k for k in range(len(pm.part_names)) if (pm.face_part == k).any()]
+    out = []
+    for k in parts:
+        points = vertices[faces[pm.face_part == k].ravel()]
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        local = np.eye(4)
+        local[:3, 3] = 0.5 * (lo + hi)
+        name = "object" if len(parts) == 1 else f"object's {pm.part_names[k]}"
+        out.append((name, np.maximum(hi - lo, 1e-6), pose @ local))
+    return out
 
 
 def _world_poses(pose: np.ndarray, grasp_poses: np.ndarray) -> np.ndarray:

@@ -109,7 +109,7 @@ def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index
     model = ArmModel(a.kin, a.shapes, a.base)
     open_boxes = ctx.gripper.boxes(float(grasp.width))
     closed = ctx.gripper.boxes(max(float(grasp.width) - 2 * ctx.gripper.clearance, 0.0))
-    # The object's box in the tool frame, where the gripper closes on it.
+    # The object's parts' boxes in the tool frame, where the gripper closes on it.
     taking = next(s for s in ("pickup", "midair", "handover") if s in grasp.joints)
     midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
     object_pose = {"pickup": ctx.initial,
@@ -117,8 +117,9 @@ def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index
                    "handover": grasp.pose_world @ np.linalg.inv(grasp.pose)}[taking]
     q_take = np.array([grasp.joints[taking][n] for n in a.chain.joint_names])
     tool = ctx.arms.fk(side, q_take[None])[0]
-    ((_, ext, box),) = held_box(ctx, object_pose)
-    held = [("held object", ext, np.linalg.inv(tool) @ box)]
+    held = [(f"held {name}", ext, np.linalg.inv(tool) @ box)
+            for name, ext, box in held_box(ctx, object_pose)]
+    held_names = {name for name, _, _ in held}
     memo: dict = {}
 
     def checker(where: str, carried: bool, start: str = "") -> ValidityChecker:
@@ -128,13 +129,13 @@ def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index
                                       other_joints(ctx, grasps, side, where, carried))
             allowed = []
             if carried:  # another gripper may hold it; it leaves the table
-                allowed = [("held object", t) for t in targets.names
+                allowed = [(box, t) for box in sorted(held_names) for t in targets.names
                            if t.startswith("arm:") or (start == "grasp" and "table" in t)]
-                # what its bounding box (coarser than the object) touches where the
+                # what its parts' bounding boxes (coarser than the object) touch where the
                 # gripper takes it, as MoveIt's allowed collision matrix would
                 taken = ValidityChecker(model, targets, attached=[*closed, *held])
                 allowed += [(link, t) for link, t in taken.contacts(q_take)
-                            if link == "held object" and (link, t) not in allowed]
+                            if link in held_names and (link, t) not in allowed]
             memo[key] = ValidityChecker(model, targets,
                                         attached=[*closed, *held] if carried else open_boxes,
                                         allowed=allowed)

@@ -203,3 +203,27 @@ def test_a_corridor_distance_of_zero_or_less_is_a_kb_error_at_its_line(tmp_path)
 def test_the_documented_corridors_are_the_built_in_gripper_s(docs):
     shown = yaml.safe_load(docs.example("gripper-corridors").text)["corridors"]
     assert CorridorSpec(**shown).model_dump() == gripper_spec()["corridors"]
+
+
+def test_the_object_a_gripper_carries_is_its_parts_boxes_not_one_box_around_them():
+    """What the lift corridors and the arm's motion carry: each part's box. The knife's
+    blade is its 2 mm (the KB's primitive), not the handle's 2 cm: a blade carried 5 mm over
+    a table does not touch it. Every point of the knife lies in one of the boxes."""
+    from handover.engine.plan.corridors import held_box
+
+    spec = yaml.safe_load((builtin_kb_dir() / "objects" / "knife.yaml").read_text())
+    written = {p["part"]: np.asarray(p["extents"]) for p in spec["geometry"]["primitives"]}
+    ctx = Planner().plan("knife", motion=False).context
+    pose = np.eye(4)
+    pose[:3, 3] = [0.5, 0.1, 0.8]
+    boxes = {name: (ext, box) for name, ext, box in held_box(ctx, pose)}
+    assert set(boxes) == {f"object's {part}" for part in written}
+    for part, extents in written.items():
+        np.testing.assert_allclose(np.sort(boxes[f"object's {part}"][0]), np.sort(extents),
+                                   atol=1e-6)
+    points = np.asarray(ctx.part_mesh.mesh.vertices) @ pose[:3, :3].T + pose[:3, 3]
+    inside = np.zeros(len(points), dtype=bool)
+    for ext, box in boxes.values():
+        local = (points - box[:3, 3]) @ box[:3, :3]
+        inside |= (np.abs(local) <= ext / 2 + 1e-9).all(axis=1)
+    assert inside.all()
