@@ -26,7 +26,9 @@ rest while the other lifts and carries the object there, and comes once it is th
 gripper's boxes carried in the tool frame, and while the object is held, the gripper closed on
 it and the object's bounding box (attached; lifted off the table it rests on, that pair is
 allowed for the lift). Arms are planned one at a time, each against the other at a fixed
-configuration per segment (not coordinated in time). The object, when not held, is not an
+configuration per segment (not coordinated in time). So a plan whose two arms both carry
+the object (H2G1 lifting with both) has no motion (:data:`TWO_ARM_CARRY`): two paths planned
+apart would not keep the object between the grippers. The object, when not held, is not an
 obstacle to the arm (the corridors judge the gripper's way in and out against its mesh).
 
 Deterministic: OMPL is seeded per segment and iteration-bounded, so the same plan gives the same
@@ -49,7 +51,7 @@ if TYPE_CHECKING:
     from handover.geometry.motion.planner import PlannerSettings, Segment
 
 __all__ = ["MotionFailure", "MotionPlan", "StagePlan", "motion_plan", "stage_plan",
-           "SETTINGS", "IK_ANSWERS", "IK_STEP", "SHORTEST"]
+           "SETTINGS", "IK_ANSWERS", "IK_STEP", "SHORTEST", "TWO_ARM_CARRY"]
 
 
 def _settings() -> PlannerSettings:
@@ -57,6 +59,15 @@ def _settings() -> PlannerSettings:
 
     return PlannerSettings(max_iterations=5_000, timeout=5.0, seed=1)
 
+
+TWO_ARM_CARRY = ("both arms carry the object from the table to the handover: their motion "
+                 "would be planned one arm at a time, which does not keep the object between "
+                 "the grippers, and a coordinated two-arm motion is not planned: the plan's "
+                 "poses and joints stand, without trajectories")
+"""Why a plan whose two arms both lift the object (H2G1: too heavy for one hand, or a
+squeeze) has no motion: each arm's path is its own (joint space, timed on its own), so the
+grippers' relative pose changes on the way, which a rigid object held by both does not
+allow."""
 
 IK_ANSWERS = 16
 """Answers of inverse kinematics tried for a pose between stages where the straight steps do
@@ -108,8 +119,9 @@ class MotionFailure:
                 "reason": self.reason}
 
     def sentence(self) -> str:
-        return (f"no motion for grasp {self.grasp} ({self.arm} arm): segment {self.segment}: "
-                f"{self.reason}")
+        who = (f"grasp {self.grasp} ({self.arm} arm)" if self.grasp is not None
+               else f"the {self.arm} arms")
+        return f"no motion for {who}: segment {self.segment}: {self.reason}"
 
 
 @dataclass(frozen=True)
@@ -331,6 +343,11 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
     from handover.geometry.motion import ends_failure, plan_segment
 
     settings = settings or SETTINGS or _settings()
+    carriers = [g for g in grasps[:len(attempt.chosen)] if g.arm is not None
+                and g.supports is None and "pickup" in g.joints and "handover" in g.joints]
+    if len(carriers) > 1:
+        return MotionPlan((), MotionFailure(None, " and ".join(sorted(g.arm for g in carriers)),
+                                            "lift->approach", TWO_ARM_CARRY))
     staged: list[tuple[RobotGrasp, StagePlan, object] | None] = []
     for index, grasp in enumerate(grasps):
         if index >= len(attempt.chosen) or grasp.arm is None or grasp.supports is not None:

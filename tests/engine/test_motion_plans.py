@@ -366,3 +366,31 @@ def test_one_arm_carries_it_to_the_presentation_while_the_other_waits_at_rest(kb
                         f"{segment['segment']} sample {k}: {link} touches {other}")
             checked += 1
     assert checked > 20
+
+
+def test_two_arms_carrying_one_object_get_no_motion_that_would_pull_it_apart(kb, planned,
+                                                                            urdf):
+    """The tray to an adult: both arms lift it (H2G1). Two arm paths planned apart would not
+    keep the tray between the grippers, so the plan has no trajectory and says why; its
+    poses and both arms' joints stand, and yourdfpy puts the two grippers at pick-up and at
+    the handover the same distance apart (the tray is rigid)."""
+    result = planned["tray"]
+    assert result["mode"] == "H2G1"
+    carriers = [g for g in result["robot_grasps"] if "pickup" in g["joints"]]
+    assert len(carriers) == 2
+    assert not result["motion"]["planned"]
+    assert result["motion"]["failure"]["grasp"] is None
+    assert "both arms carry the object" in result["motion"]["failure"]["reason"]
+    assert not any(g.get("trajectory") for g in result["robot_grasps"])
+    assert any("no motion for the left and right arms" in w for w in result["warnings"])
+    base = np.asarray(result["robot"]["base_pose"], dtype=float)
+
+    def tool(g: dict, stage: str) -> np.ndarray:
+        arm = result["robot"]["arms"][g["arm"]]
+        urdf.update_cfg(g["joints"][stage])
+        return base @ urdf.get_transform(arm["tip_link"], urdf.base_link) @ np.asarray(
+            arm["tcp"])
+
+    apart = [np.linalg.inv(tool(carriers[0], s)) @ tool(carriers[1], s)
+             for s in ("pickup", "handover")]
+    np.testing.assert_allclose(apart[0][:3, 3], apart[1][:3, 3], atol=2e-3)
