@@ -7,7 +7,8 @@ verify PLAN.json`` check the same thing, an edited plan included): the object fr
 convex parts by CoACD, cached in the grasp database's folder), the gripper from the KB
 (:func:`gripper_hand`: its boxes, ``grip_force`` and pad friction), the motion from the
 plan's stage poses (:func:`plan_motion`: the initial pose, the midair pose of a regrasp, the
-handover pose). One grasp group is checked per plan (:func:`check_plan`): H1G1's gripper
+handover pose; with the plan's motion, along the holding arms' paths). One grasp group is
+checked per plan (:func:`check_plan`): H1G1's gripper
 (an object set down: the grasp carrying it there), H2G2's two grippers one after the other
 (pick to midair, midair to handover) and H2G1's two grippers at once, each with the
 robustness ensemble (friction and force +-30 %, torsion x0.5 and x2) for a margin. When
@@ -38,6 +39,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from handover.engine.errors import UnknownIdError, UsageError
+from handover.engine.plan.carry import plan_motion, plan_pose
 
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
@@ -53,7 +55,7 @@ if TYPE_CHECKING:
     )
 
 __all__ = ["FALLBACKS", "GraspCheck", "PlanPhysics", "object_model", "gripper_hand",
-           "squeeze_hand", "plan_motion", "plan_grasps", "receiver_grasps", "check_group",
+           "squeeze_hand", "plan_grasps", "receiver_grasps", "check_group",
            "check_plan", "check_alternatives", "failing_grasps", "record_plan", "carried",
            "SET_DOWN_NOTE"]
 
@@ -108,43 +110,6 @@ def gripper_hand(kb: KB, spec: GripperSpec) -> Hand:
                              torsional_friction=spec.torsional_friction)
 
 
-def _matrix(data: Any, where: str) -> np.ndarray:
-    try:
-        m = np.asarray(data, dtype=float)
-    except (TypeError, ValueError):
-        m = None
-    if m is None or m.shape != (4, 4) or not np.isfinite(m).all():
-        raise UsageError(f"the plan's {where} must be a 4x4 matrix of numbers")
-    u, sv, vt = np.linalg.svd(m[:3, :3])
-    if np.abs(sv - 1.0).max() > 1e-3 or np.linalg.det(m[:3, :3]) <= 0 or \
-            not np.allclose(m[3], [0.0, 0.0, 0.0, 1.0]):
-        raise UsageError(f"the plan's {where} is not a rigid transform (a rotation and a "
-                         "translation)")
-    m = m.copy()
-    m[:3, :3] = u @ vt  # the JSON's 6 decimals, made orthonormal again
-    return m
-
-
-def plan_motion(data: dict) -> Motion:
-    """The object's world poses along a plan's JSON result: pick-up at ``initial_pose``,
-    carried to ``object_pose`` (the handover), through ``regrasp.midair_pose`` for H2G2.
-    Raises UsageError when a pose is missing or not a rigid 4x4 matrix."""
-    from handover.geometry.physics import Motion
-
-    for key in ("initial_pose", "object_pose"):
-        if data.get(key) is None:
-            raise UsageError(f"the plan has no '{key}': it is not a feasible handover plan")
-    pickup = _matrix(data["initial_pose"], "initial_pose")
-    handover = _matrix(data["object_pose"], "object_pose")
-    if data.get("mode") == "H2G2":
-        regrasp = data.get("regrasp")
-        if not isinstance(regrasp, dict) or "midair_pose" not in regrasp:
-            raise UsageError("the H2G2 plan has no 'regrasp.midair_pose'")
-        midair = _matrix(regrasp["midair_pose"], "regrasp.midair_pose")
-        return Motion(pickup, midair[None], handover[None])
-    return Motion(pickup, handover[None])
-
-
 def _grasp(hand: Hand, g: Any, where: str, squeeze: Hand | None = None) -> Grasp:
     from handover.geometry.frames import transform_from
     from handover.geometry.physics import Grasp
@@ -155,7 +120,7 @@ def _grasp(hand: Hand, g: Any, where: str, squeeze: Hand | None = None) -> Grasp
     width = g.get("width")
     if isinstance(width, bool) or not isinstance(width, int | float) or not width >= 0:
         raise UsageError(f"the plan's {where}.width must be a length in metres")
-    pose = _matrix(g.get("pose"), f"{where}.pose")
+    pose = plan_pose(g.get("pose"), f"{where}.pose")
     try:
         if g.get("hold") == "squeeze":
             if squeeze is None:
@@ -221,7 +186,7 @@ def receiver_grasps(data: dict, pinch_force: float) -> tuple[list[Grasp], list[s
     from handover.geometry.physics import Grasp, Hand
 
     pads = Hand.receiver_pads(pinch_force)
-    to_object = invert_transform(_matrix(data["object_pose"], "object_pose"))
+    to_object = invert_transform(plan_pose(data["object_pose"], "object_pose"))
     out: list[Grasp] = []
     notes: list[str] = []
     for k, h in enumerate(data.get("human_grasps") or []):
@@ -230,7 +195,7 @@ def receiver_grasps(data: dict, pinch_force: float) -> tuple[list[Grasp], list[s
             notes.append(f"receiver's {h.get('hand', k)} hand not simulated: its model has no "
                          "palm, fingers and thumb")
             continue
-        centre = {n: (to_object @ _matrix(boxes[n]["pose"], f"human_grasps[{k}].{n}"))[:3, 3]
+        centre = {n: (to_object @ plan_pose(boxes[n]["pose"], f"human_grasps[{k}].{n}"))[:3, 3]
                   for n in ("palm", "fingers", "thumb")}
         across = centre["thumb"] - centre["fingers"]
         width = float(np.linalg.norm(across) - float(boxes["fingers"]["extents"][1]))
@@ -401,7 +366,7 @@ def check_plan(kb: KB, data: dict, cache_dir: str | Path | None = None,
     placed, data = data["outcome"] == "place", carried(data)
     hand = gripper_hand(kb, grip_spec)
     grasps = plan_grasps(hand, data, squeeze_hand(kb, data, hand))
-    motion = plan_motion(data)
+    motion = plan_motion(data, kb)
     taker, notes = _receiver(kb, data) if receiver and not placed else ([], [])
     notes = [SET_DOWN_NOTE] * placed + notes
     try:
@@ -449,7 +414,7 @@ def check_alternatives(kb: KB, ctx: PlanContext, data: dict, physics: PlanPhysic
     obj_spec, grip_spec = _specs(kb, data)
     obj = object_model(kb, obj_spec, cache_dir)
     hand = gripper_hand(kb, grip_spec)
-    motion = plan_motion(data)
+    motion = plan_motion(data, kb)
     presentation = (data.get("presentation") or {}).get("index")
     side = data["robot_grasps"][0].get("hand", "?")
     poses, widths = ctx.candidates.poses(), ctx.candidates.width
@@ -493,7 +458,7 @@ def record_plan(kb: KB, data: dict, cache_dir: str | Path | None = None) -> Traj
     data = carried(data)
     grasps = plan_grasps(hand, data, squeeze_hand(kb, data, hand))
     try:
-        result = check(obj, [g for _, _, g in grasps], plan_motion(data), mode=data["mode"],
+        result = check(obj, [g for _, _, g in grasps], plan_motion(data, kb), mode=data["mode"],
                        record=True, stop_early=False)  # drawn to the end, a drop included
     except ValueError as e:
         raise UsageError(f"the plan's grasp cannot be simulated: {e}") from None

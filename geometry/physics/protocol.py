@@ -47,11 +47,15 @@ class Motion:
         a presentation turn is a change of rotation along them).
     regrasp_carry : (k2, 4, 4), H2G2 only: from the midair pose to the handover pose, the
         last one the handover pose.
+    carry_time, regrasp_carry_time : s, how long each carry takes (the plan's timed motion:
+        an arm's long way round takes its time); None: the protocol's ``carry_time``.
     """
 
     pickup: np.ndarray
     carry: np.ndarray
     regrasp_carry: np.ndarray | None = None
+    carry_time: float | None = None
+    regrasp_carry_time: float | None = None
 
     def __post_init__(self) -> None:
         pickup, _ = check_poses(self.pickup, 0.0)
@@ -66,6 +70,11 @@ class Motion:
             if len(poses) == 0:
                 raise ValueError(f"Motion.{name} needs at least one pose (its end)")
             object.__setattr__(self, name, poses)
+        for name in ("carry_time", "regrasp_carry_time"):
+            value = getattr(self, name)
+            if value is not None and not (np.isfinite(value) and value > 0):
+                raise ValueError(f"Motion.{name} must be a positive number of seconds, "
+                                 f"got {value}")
 
 
 @dataclass(frozen=True)
@@ -272,8 +281,9 @@ class _Builder:
         weight = min_jerk(np.arange(1, n + 1) * self.dt / p.weight_ramp_time)
         self.add("lift", holders, objs, weight=weight)
 
-    def carry(self, name: str, poses: np.ndarray, holders: tuple[str, ...]) -> None:
-        n = self.steps(self.protocol.carry_time)
+    def carry(self, name: str, poses: np.ndarray, holders: tuple[str, ...],
+              duration: float | None = None) -> None:
+        n = self.steps(self.protocol.carry_time if duration is None else duration)
         keys = np.concatenate([self.pose[None], poses])
         self.add(name, holders, _path(keys, min_jerk(np.arange(1, n + 1) / n)))
 
@@ -357,7 +367,7 @@ def schedule(
     holding = tuple(names[h] for h in first)
     b.close("close", first, ())
     b.lift(holding)
-    b.carry("carry", motion.carry, holding)
+    b.carry("carry", motion.carry, holding, motion.carry_time)
     b.hold("hold", p.hold_time, holding)
     b.shake("shake", first[0], holding)
     if mode == "H2G2":
@@ -365,7 +375,7 @@ def schedule(
         b.close("regrasp_close", [1], holding)
         b.release("regrasp_release", [0], (names[1],))
         holding = (names[1],)
-        b.carry("regrasp_carry", motion.regrasp_carry, holding)
+        b.carry("regrasp_carry", motion.regrasp_carry, holding, motion.regrasp_carry_time)
         b.hold("regrasp_hold", p.hold_time, holding)
         b.shake("regrasp_shake", 1, holding)
     if receivers:

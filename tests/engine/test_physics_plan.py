@@ -396,3 +396,46 @@ def test_a_broom_handle_no_single_gripper_holds_is_handed_with_both_arms(capsys,
     t = Thresholds()
     for slip in physics["chosen"]["slip"]:
         assert slip["translation_mm"] <= t.max_slip_mm and slip["rotation_deg"] <= t.max_slip_deg
+
+
+def test_the_physics_check_carries_the_object_along_the_arm_s_planned_path(kb):
+    """With the plan's motion, the physics check carries the object where the arm takes it:
+    each pose of its carry, with the gripper on the object at the plan's grasp, is where
+    yourdfpy's FK of some sample of the arm's trajectory from the lift to the handover puts
+    the gripper; the last is the plan's handover pose; the carry lasts as long as those
+    segments. Without the motion, the carry goes from the stages' poses alone."""
+    import yourdfpy
+
+    from handover.engine.plan.carry import plan_motion
+    from handover.engine.store.kb import builtin_kb_dir
+
+    data = Planner(db=False).plan("knife", motion=True).to_dict()
+    assert data["motion"]["planned"]
+    (grasp,) = data["robot_grasps"]
+    robot = data["robot"]
+    arm = robot["arms"][grasp["arm"]]
+    urdf = yourdfpy.URDF.load(str(builtin_kb_dir() / robot["urdf"]), load_meshes=False)
+    carried = [s for s in grasp["trajectory"]
+               if s["segment"] in ("lift->approach", "approach->handover")]
+    assert len(carried) == 2
+    tools = []
+    for segment in carried:
+        for q in segment["positions"]:
+            urdf.update_cfg(dict(zip(segment["joint_names"], q, strict=True)))
+            tools.append(np.asarray(robot["base_pose"]) @ urdf.get_transform(
+                arm["tip_link"], urdf.base_link) @ np.asarray(arm["tcp"]))
+    tools = np.array(tools)
+    held = np.asarray(grasp["pose"])
+    if "handover" in grasp.get("fingers_swapped", []):  # held turned about a everywhere
+        held = held @ np.diag([-1.0, -1.0, 1.0, 1.0])
+
+    motion = plan_motion(data, kb)
+    assert len(motion.carry) > 10
+    np.testing.assert_allclose(motion.carry[-1], np.asarray(data["object_pose"]), atol=1e-6)
+    for pose in motion.carry[:-1]:
+        gripper = pose @ held
+        gap = np.abs(tools - gripper).max(axis=(1, 2)).min()
+        assert gap < 1e-3
+    assert motion.carry_time == pytest.approx(sum(s["times"][-1] for s in carried))
+    staged = plan_motion(data)
+    assert len(staged.carry) == 1 and staged.carry_time is None
