@@ -142,6 +142,50 @@ def test_restarts_only_help_and_the_answer_is_deterministic(left):
     np.testing.assert_array_equal(more.q, again.q)
 
 
+def test_a_joint_on_its_limit_does_not_slow_the_run(left, monkeypatch):
+    # Targets whose joints put one joint on a limit, each from 0.1 rad away: the joint on
+    # its limit sits out the steps that would push it out of range. (Before, the clamp cut
+    # its share of every step: 53 of these 70 were reached, one at a time in 30 iterations
+    # on average; now all 70, each within 8.)
+    rng = np.random.default_rng(4)
+    goal = left.random_configurations(70, rng)
+    rows = np.arange(70)
+    joint = rows % 7
+    goal[rows, joint] = np.where(rng.random(70) < 0.5, left.upper[joint], left.lower[joint])
+    starts = left.clamp(goal + rng.normal(0.0, 0.1, goal.shape))
+    calls = []
+    real = left._fk_jacobian
+    monkeypatch.setattr(left, "_fk_jacobian", lambda q: calls.append(len(q)) or real(q))
+    result = left.ik_from(left.fk(goal), starts[:, None, :])
+    assert result.success.all()
+    assert len(calls) <= 12
+    assert left.chain.within_limits(result.q).all()
+
+
+def test_a_target_s_answer_is_the_same_to_the_bit_in_any_batch(left):
+    # Reachable targets, targets a joint limit keeps out of reach (the run presses against
+    # it) and one far out of reach, from several starts each: one batch, then one at a time.
+    rng = np.random.default_rng(8)
+    goal = left.random_configurations(12, rng)
+    goal[4:8, 3] = left.upper[3] + 0.05  # the elbow straighter than it can be
+    goal[8:11, 1] = left.lower[1] - 0.05
+    targets = left.fk(goal)
+    targets[11, :3, 3] = [3.0, 0.5, 1.2]
+    starts = left.clamp(goal[:, None, :] + rng.normal(0.0, 0.3, (12, 3, left.dof)))
+    whole = left.ik_from(targets, starts)
+    assert 0 < whole.success.sum() < 12
+    for i in range(12):
+        alone = left.ik_from(targets[i : i + 1], starts[i : i + 1])
+        np.testing.assert_array_equal(alone.q[0], whole.q[i])
+        assert alone.position_error[0] == whole.position_error[i]
+        assert alone.rotation_error[0] == whole.rotation_error[i]
+    shared = left.ik(targets, restarts=3, shared_restarts=True)
+    for i in (0, 5, 9, 11):
+        alone = left.ik(targets[i : i + 1], restarts=3, shared_restarts=True)
+        np.testing.assert_array_equal(alone.q[0], shared.q[i])
+        assert alone.position_error[0] == shared.position_error[i]
+
+
 def test_target_three_metres_away_fails_and_stays_within_limits(left):
     target = np.eye(4)
     target[:3, 3] = [3.0, 0.5, 1.2]
