@@ -28,8 +28,11 @@ it and the object's bounding box (attached; lifted off the table it rests on, th
 allowed for the lift). Arms are planned one at a time, each against the other at a fixed
 configuration per segment (not coordinated in time). So a plan whose two arms both carry
 the object (H2G1 lifting with both) has no motion (:data:`TWO_ARM_CARRY`): two paths planned
-apart would not keep the object between the grippers. The object, when not held, is not an
-obstacle to the arm (the corridors judge the gripper's way in and out against its mesh).
+apart would not keep the object between the grippers. The object, when not held, is an
+obstacle (its parts' boxes) where the arm comes from rest or goes back after letting go (on
+the table, at the midair pose, in the receiver's hands); the gripper's way in and out next
+to it (pregrasp->grasp, handover->retreat, midair->release) is the corridors' to judge
+against its mesh.
 
 Deterministic: OMPL is seeded per segment and iteration-bounded, so the same plan gives the same
 trajectories, bit for bit.

@@ -100,9 +100,10 @@ def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index
     on first use and kept: ``checker(where, carried, start="")`` for a segment checked in plan
     stage ``where`` (``pickup`` | ``midair`` | ``handover``), the object held or not, from
     stage ``start`` (from ``grasp``, the held object may touch the table it is lifted
-    from)."""
+    from; from ``rest``, ``retreat`` or ``release``, the arm and its open gripper keep off
+    the object where it is then, its parts' boxes)."""
     from handover.engine.plan.corridors import held_box
-    from handover.geometry.motion import ArmModel, ValidityChecker
+    from handover.geometry.motion import ArmModel, ValidityChecker, obstacles
 
     side = grasp.arm
     a = ctx.arms.arm(side)
@@ -120,13 +121,25 @@ def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index
     held = [(f"held {name}", ext, np.linalg.inv(tool) @ box)
             for name, ext, box in held_box(ctx, object_pose)]
     held_names = {name for name, _, _ in held}
+    handed = grasp.pose_world @ np.linalg.inv(grasp.pose)  # where a handover grasp holds it
+    midair = np.eye(4) if midair_at is None else np.asarray(midair_at)
     memo: dict = {}
 
     def checker(where: str, carried: bool, start: str = "") -> ValidityChecker:
-        key = (where, carried, start == "grasp")
+        # The object where it is while this arm comes or goes without it: on the table (or
+        # at the midair pose, or held at the handover) as the arm comes from rest, in the
+        # receiver's hands as it goes back from the retreat, in the other gripper's after a
+        # midair release. The gripper's way in and out next to it (pregrasp, retreat,
+        # release) is the corridors' to judge against its mesh.
+        around = None if carried else {
+            "rest": {"pickup": ctx.initial, "midair": midair, "handover": handed}.get(where),
+            "retreat": handed, "release": midair}.get(start)
+        key = (where, carried, start == "grasp", start if around is not None else "")
         if key not in memo:
             targets = segment_targets(ctx, attempt, index, side, where,
                                       other_joints(ctx, grasps, side, where, carried))
+            if around is not None:
+                targets = targets + obstacles(boxes=held_box(ctx, around))
             allowed = []
             if carried:  # another gripper may hold it; it leaves the table
                 allowed = [(box, t) for box in sorted(held_names) for t in targets.names

@@ -394,3 +394,46 @@ def test_two_arms_carrying_one_object_get_no_motion_that_would_pull_it_apart(kb,
     apart = [np.linalg.inv(tool(carriers[0], s)) @ tool(carriers[1], s)
              for s in ("pickup", "handover")]
     np.testing.assert_allclose(apart[0][:3, 3], apart[1][:3, 3], atol=2e-3)
+
+
+def test_the_arm_coming_and_going_without_the_object_keeps_off_it(kb, planned, urdf):
+    """From rest to the pre-grasp the object lies on the table; from the retreat back to rest
+    it is in the receiver's hands at the handover pose. On those ways every sample of the
+    arm's open gripper (the gripper YAML's boxes, posed by yourdfpy's FK) keeps off the
+    object's mesh (fcl): the arm knocks nothing over and nothing out of the receiver's
+    hands on its way back."""
+    from tests.engine.test_corridors import gripper_boxes, gripper_spec
+
+    spec = gripper_spec()
+    request = fcl.CollisionRequest()
+    checked = 0
+    for obj, result in planned.items():
+        if not result["motion"]["planned"]:
+            continue
+        mesh = plan(kb, Query(object=obj)).context.part_mesh.mesh
+        model = fcl.BVHModel()
+        model.beginModel(len(mesh.vertices), len(mesh.faces))
+        model.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32))
+        model.endModel()
+        base = np.asarray(result["robot"]["base_pose"], dtype=float)
+        for grasp in result["robot_grasps"]:
+            arm = result["robot"]["arms"][grasp["arm"]]
+            boxes = gripper_boxes(spec, float(grasp["width"]))
+            for segment in grasp.get("trajectory", []):
+                where = {"rest->pregrasp": "initial_pose",
+                         "retreat->rest": "object_pose"}.get(segment["segment"])
+                if where is None:
+                    continue
+                pose = np.asarray(result[where], dtype=float)
+                thing = fcl.CollisionObject(model, fcl.Transform(pose[:3, :3], pose[:3, 3]))
+                for k, q in enumerate(segment["positions"]):
+                    urdf.update_cfg(dict(zip(segment["joint_names"], q, strict=True)))
+                    tool = base @ urdf.get_transform(arm["tip_link"], urdf.base_link) \
+                        @ np.asarray(arm["tcp"])
+                    for extents, centre in boxes:
+                        box = fcl.CollisionObject(fcl.Box(*map(float, extents)), fcl.Transform(
+                            tool[:3, :3], tool[:3, :3] @ centre + tool[:3, 3]))
+                        assert not fcl.collide(box, thing, request, fcl.CollisionResult()), (
+                            f"{obj}: {segment['segment']} sample {k} touches the object")
+                    checked += 1
+    assert checked > 500
