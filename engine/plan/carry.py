@@ -40,10 +40,9 @@ def leg_poses(fk, grasp: dict, start: str, end: str, held_at_start: np.ndarray,
     leaving stage ``start`` (``lift`` for a grasp that picks the object up) to the one
     reaching stage ``end``, at most :data:`CARRY_KEYS` poses, the last ``ends_at`` (4, 4)
     exactly, and s, how long those segments take; None when the trajectory has no such
-    segments. ``fk(q (n, dof)) -> (n, 4, 4)``:
-    the arm's grasp frame in the world; ``held_at_start`` (4, 4): the object where the
-    gripper holds it at stage ``grasp.joints``' first stage (its tool pose there gives the
-    object in the tool frame)."""
+    segments. ``fk(q (n, dof)) -> (n, 4, 4)``: the arm's grasp frame in the world;
+    ``held_at_start`` (4, 4): the object where the gripper holds it at the first stage of
+    ``grasp["joints"]`` (its tool pose there gives the object in the tool frame)."""
     segments = grasp.get("trajectory") or []
     names = [str(s.get("segment", "")) for s in segments]
     first = next((i for i, n in enumerate(names) if n.startswith(f"{start}->")), None)
@@ -63,13 +62,13 @@ def leg_poses(fk, grasp: dict, start: str, end: str, held_at_start: np.ndarray,
     return out, float(sum(segments[i]["times"][-1] for i in range(first, last + 1)))
 
 
-def arm_carry(kb: KB, data: dict) -> dict | None:
-    """The object's poses along the carried legs of a plan's JSON ``data`` with its motion,
-    and how long each takes: ``carry`` (k, 4, 4), ``carry_time`` (s) and for H2G2
-    ``regrasp_carry``, ``regrasp_carry_time``, as :class:`~handover.geometry.physics.Motion`
-    takes them; None when the plan has no trajectory for a leg, or its robot has no arms
-    in ``kb``."""
+def arm_carry(kb: KB, data: dict) -> Motion | None:
+    """The object's motion along the carried legs of a plan's JSON ``data`` with its arms'
+    motion: picked up at ``initial_pose``, its poses along each leg and how long each takes
+    (:class:`~handover.geometry.physics.Motion`); None when the plan has no trajectory for a
+    leg, or its robot has no arms in ``kb``."""
     from handover.engine.assets.robot import plan_arms
+    from handover.geometry.physics import Motion
 
     grasps = [g for g in data.get("robot_grasps") or [] if g.get("trajectory")
               and g.get("arm") and g.get("joints")]
@@ -93,7 +92,7 @@ def arm_carry(kb: KB, data: dict) -> dict | None:
     if carry is None:
         return None
     if not h2g2:
-        return {"carry": carry[0], "carry_time": carry[1]}
+        return Motion(initial, carry[0], carry_time=carry[1])
     taker = next((g for g in grasps if list(g["joints"])[:1] == ["midair"]), None)
     if taker is None:
         return None
@@ -101,8 +100,8 @@ def arm_carry(kb: KB, data: dict) -> dict | None:
                         midair, handover)
     if regrasp is None:
         return None
-    return {"carry": carry[0], "carry_time": carry[1], "regrasp_carry": regrasp[0],
-            "regrasp_carry_time": regrasp[1]}
+    return Motion(initial, carry[0], regrasp[0], carry_time=carry[1],
+                  regrasp_carry_time=regrasp[1])
 
 
 def plan_pose(data: Any, where: str) -> np.ndarray:
@@ -137,8 +136,13 @@ def plan_motion(data: dict, kb: KB | None = None) -> Motion:
             raise UsageError(f"the plan has no '{key}': it is not a feasible handover plan")
     pickup = plan_pose(data["initial_pose"], "initial_pose")
     handover = plan_pose(data["object_pose"], "object_pose")
-    if kb is not None and (path := arm_carry(kb, data)) is not None:
-        return Motion(pickup, **path)
+    if kb is not None:
+        try:
+            along = arm_carry(kb, data)
+        except (KeyError, TypeError, ValueError, IndexError) as e:
+            raise UsageError(f"the plan's trajectory cannot be followed: {e!r}") from None
+        if along is not None:
+            return along
     if data.get("mode") == "H2G2":
         regrasp = data.get("regrasp")
         if not isinstance(regrasp, dict) or "midair_pose" not in regrasp:

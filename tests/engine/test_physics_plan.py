@@ -196,6 +196,19 @@ def test_verify_refuses_what_is_not_a_plan(capsys, tmp_path: Path, content, says
     assert code == 2 and says in err and "Traceback" not in err
 
 
+def test_verify_says_which_trajectory_it_cannot_follow(capsys, tmp_path: Path):
+    """A plan whose arm trajectory was edited into nonsense is a usage error that says so,
+    not a traceback (the check follows the arm's path where a plan has one)."""
+    data = Planner(db=False).plan("knife", motion=True).to_dict()
+    segment = next(s for s in data["robot_grasps"][0]["trajectory"]
+                   if s["segment"] == "lift->approach")
+    segment["positions"] = [["a"] * len(segment["joint_names"])]
+    path = tmp_path / "plan.json"
+    path.write_text(json.dumps(data))
+    code, _, err = _run(capsys, "verify", str(path), "--db", str(tmp_path / "db"))
+    assert code == 2 and "trajectory cannot be followed" in err and "Traceback" not in err
+
+
 def test_unknown_object_or_gripper_is_a_clear_error(kb, hammer_plan):
     other = dict(hammer_plan, object="anvil")
     with pytest.raises(UnknownIdError, match="object 'anvil'"):
