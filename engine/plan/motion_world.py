@@ -113,16 +113,14 @@ def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index
     # The object's parts' boxes in the tool frame, where the gripper closes on it.
     taking = next(s for s in ("pickup", "midair", "handover") if s in grasp.joints)
     midair_at = None if attempt.notes.midair is None else attempt.notes.midair.pose
-    object_pose = {"pickup": ctx.initial,
-                   "midair": np.eye(4) if midair_at is None else np.asarray(midair_at),
-                   "handover": grasp.pose_world @ np.linalg.inv(grasp.pose)}[taking]
+    object_at = {"pickup": ctx.initial,  # the object at each stage, world
+                 "midair": np.eye(4) if midair_at is None else np.asarray(midair_at),
+                 "handover": grasp.pose_world @ np.linalg.inv(grasp.pose)}
     q_take = np.array([grasp.joints[taking][n] for n in a.chain.joint_names])
     tool = ctx.arms.fk(side, q_take[None])[0]
     held = [(f"held {name}", ext, np.linalg.inv(tool) @ box)
-            for name, ext, box in held_box(ctx, object_pose)]
+            for name, ext, box in held_box(ctx, object_at[taking])]
     held_names = {name for name, _, _ in held}
-    handed = grasp.pose_world @ np.linalg.inv(grasp.pose)  # where a handover grasp holds it
-    midair = np.eye(4) if midair_at is None else np.asarray(midair_at)
     memo: dict = {}
 
     def checker(where: str, carried: bool, start: str = "") -> ValidityChecker:
@@ -132,8 +130,8 @@ def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index
         # midair release. The gripper's way in and out next to it (pregrasp, retreat,
         # release) is the corridors' to judge against its mesh.
         around = None if carried else {
-            "rest": {"pickup": ctx.initial, "midair": midair, "handover": handed}.get(where),
-            "retreat": handed, "release": midair}.get(start)
+            "rest": object_at.get(where), "retreat": object_at["handover"],
+            "release": object_at["midair"]}.get(start)
         key = (where, carried, start == "grasp", start if around is not None else "")
         if key not in memo:
             targets = segment_targets(ctx, attempt, index, side, where,

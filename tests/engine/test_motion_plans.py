@@ -18,6 +18,7 @@ from handover.engine.planner import plan
 from handover.engine.spec.query import Query
 from handover.geometry.frames import frame_from_o_a
 from handover.geometry.motion import DEFAULT_RESOLUTION, PlannerSettings
+from tests.engine.test_robot_result import gripper_at
 
 OBJECTS = ("ball", "book", "bottle", "hammer", "knife", "mug", "pen", "scissors",
            "screwdriver", "tray")
@@ -383,13 +384,9 @@ def test_two_arms_carrying_one_object_get_no_motion_that_would_pull_it_apart(kb,
     assert "both arms carry the object" in result["motion"]["failure"]["reason"]
     assert not any(g.get("trajectory") for g in result["robot_grasps"])
     assert any("no motion for the left and right arms" in w for w in result["warnings"])
-    base = np.asarray(result["robot"]["base_pose"], dtype=float)
 
     def tool(g: dict, stage: str) -> np.ndarray:
-        arm = result["robot"]["arms"][g["arm"]]
-        urdf.update_cfg(g["joints"][stage])
-        return base @ urdf.get_transform(arm["tip_link"], urdf.base_link) @ np.asarray(
-            arm["tcp"])
+        return gripper_at(urdf, result["robot"], g["arm"], g["joints"][stage])
 
     apart = [np.linalg.inv(tool(carriers[0], s)) @ tool(carriers[1], s)
              for s in ("pickup", "handover")]
@@ -402,22 +399,20 @@ def test_the_arm_coming_and_going_without_the_object_keeps_off_it(kb, planned, u
     arm's open gripper (the gripper YAML's boxes, posed by yourdfpy's FK) keeps off the
     object's mesh (fcl): the arm knocks nothing over and nothing out of the receiver's
     hands on its way back."""
-    from tests.engine.test_corridors import gripper_boxes, gripper_spec
+    from handover.engine.plan.prepare import kb_part_mesh
+    from tests.engine.test_corridors import fcl_box, gripper_boxes, gripper_spec, touches
 
     spec = gripper_spec()
-    request = fcl.CollisionRequest()
     checked = 0
     for obj, result in planned.items():
         if not result["motion"]["planned"]:
             continue
-        mesh = plan(kb, Query(object=obj)).context.part_mesh.mesh
+        mesh = kb_part_mesh(kb, kb.objects[obj]).mesh
         model = fcl.BVHModel()
         model.beginModel(len(mesh.vertices), len(mesh.faces))
         model.addSubModel(np.asarray(mesh.vertices, float), np.asarray(mesh.faces, np.int32))
         model.endModel()
-        base = np.asarray(result["robot"]["base_pose"], dtype=float)
         for grasp in result["robot_grasps"]:
-            arm = result["robot"]["arms"][grasp["arm"]]
             boxes = gripper_boxes(spec, float(grasp["width"]))
             for segment in grasp.get("trajectory", []):
                 where = {"rest->pregrasp": "initial_pose",
@@ -427,13 +422,11 @@ def test_the_arm_coming_and_going_without_the_object_keeps_off_it(kb, planned, u
                 pose = np.asarray(result[where], dtype=float)
                 thing = fcl.CollisionObject(model, fcl.Transform(pose[:3, :3], pose[:3, 3]))
                 for k, q in enumerate(segment["positions"]):
-                    urdf.update_cfg(dict(zip(segment["joint_names"], q, strict=True)))
-                    tool = base @ urdf.get_transform(arm["tip_link"], urdf.base_link) \
-                        @ np.asarray(arm["tcp"])
+                    tool = gripper_at(urdf, result["robot"], grasp["arm"],
+                                      dict(zip(segment["joint_names"], q, strict=True)))
                     for extents, centre in boxes:
-                        box = fcl.CollisionObject(fcl.Box(*map(float, extents)), fcl.Transform(
-                            tool[:3, :3], tool[:3, :3] @ centre + tool[:3, 3]))
-                        assert not fcl.collide(box, thing, request, fcl.CollisionResult()), (
+                        box = fcl_box(extents, tool[:3, :3], tool[:3, :3] @ centre + tool[:3, 3])
+                        assert not touches(box, thing), (
                             f"{obj}: {segment['segment']} sample {k} touches the object")
                     checked += 1
     assert checked > 500

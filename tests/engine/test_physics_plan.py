@@ -417,27 +417,20 @@ def test_the_physics_check_carries_the_object_along_the_arm_s_planned_path(kb):
     yourdfpy's FK of some sample of the arm's trajectory from the lift to the handover puts
     the gripper; the last is the plan's handover pose; the carry lasts as long as those
     segments. Without the motion, the carry goes from the stages' poses alone."""
-    import yourdfpy
-
     from handover.engine.plan.carry import plan_motion
     from handover.engine.store.kb import builtin_kb_dir
+    from tests.engine.test_robot_result import gripper_at, urdf_of
 
     data = Planner(db=False).plan("knife", motion=True).to_dict()
     assert data["motion"]["planned"]
     (grasp,) = data["robot_grasps"]
-    robot = data["robot"]
-    arm = robot["arms"][grasp["arm"]]
-    urdf = yourdfpy.URDF.load(str(builtin_kb_dir() / robot["urdf"]), load_meshes=False)
+    urdf = urdf_of(builtin_kb_dir(), data["robot"])
     carried = [s for s in grasp["trajectory"]
                if s["segment"] in ("lift->approach", "approach->handover")]
     assert len(carried) == 2
-    tools = []
-    for segment in carried:
-        for q in segment["positions"]:
-            urdf.update_cfg(dict(zip(segment["joint_names"], q, strict=True)))
-            tools.append(np.asarray(robot["base_pose"]) @ urdf.get_transform(
-                arm["tip_link"], urdf.base_link) @ np.asarray(arm["tcp"]))
-    tools = np.array(tools)
+    tools = np.array([gripper_at(urdf, data["robot"], grasp["arm"],
+                                 dict(zip(s["joint_names"], q, strict=True)))
+                      for s in carried for q in s["positions"]])
     held = np.asarray(grasp["pose"])
     if "handover" in grasp.get("fingers_swapped", []):  # held turned about a everywhere
         held = held @ np.diag([-1.0, -1.0, 1.0, 1.0])

@@ -124,6 +124,15 @@ def stage_poses(result: dict, grasp: dict) -> dict[str, np.ndarray]:
     return out
 
 
+def gripper_at(urdf: yourdfpy.URDF, robot: dict, side: str, joints: dict) -> np.ndarray:
+    """(4, 4) world: the grasp frame of the arm ``side`` of a result's ``robot`` block at
+    ``joints`` (name -> rad), by yourdfpy's FK from the block's base pose and tcp."""
+    arm = robot["arms"][side]
+    urdf.update_cfg(joints)
+    return (np.asarray(robot["base_pose"]) @ urdf.get_transform(arm["tip_link"], urdf.base_link)
+            @ np.asarray(arm["tcp"]))
+
+
 def check_grasps_by_fk(kb: Path, result: dict) -> list[tuple[str, str]]:
     """Every robot grasp's joints at every stage, by yourdfpy's FK from the ``robot`` block,
     put the grasp frame at the plan's pose, within the URDF's joint limits; the joints are
@@ -134,11 +143,9 @@ def check_grasps_by_fk(kb: Path, result: dict) -> list[tuple[str, str]]:
     stage) pairs checked."""
     robot = result["robot"]
     urdf = urdf_of(kb, robot)
-    base = np.asarray(robot["base_pose"])
     checked = []
     for g in result["robot_grasps"]:
         arm = robot["arms"][g["arm"]]
-        tcp = np.asarray(arm["tcp"])
         wanted = stage_poses(result, g)
         assert g["joints"], "a grasp with no joint values"
         held = None  # the object in the tool frame, from the first stage on
@@ -147,8 +154,7 @@ def check_grasps_by_fk(kb: Path, result: dict) -> list[tuple[str, str]]:
             for name, value in joints.items():
                 limit = urdf.joint_map[name].limit
                 assert limit.lower - 1e-9 <= value <= limit.upper + 1e-9, name
-            urdf.update_cfg(joints)
-            reached = base @ urdf.get_transform(arm["tip_link"], urdf.base_link) @ tcp
+            reached = gripper_at(urdf, robot, g["arm"], joints)
             target = wanted[stage]
             if stage in g.get("fingers_swapped", []):  # the fingers are alike
                 target = target @ FLIP
@@ -212,14 +218,10 @@ def test_the_knife_the_arm_carries_from_the_table_reaches_the_receiver_tip_away(
     r = plan_json(capsys, "plan", "knife", "--receiver", receiver, "--culture", culture)
     assert r["outcome"] == "handover" and r["mode"] == "H1G1"
     (grasp,) = r["robot_grasps"]
-    robot = r["robot"]
-    urdf = urdf_of(kb, robot)
-    arm = robot["arms"][grasp["arm"]]
+    urdf = urdf_of(kb, r["robot"])
 
     def tool(stage: str) -> np.ndarray:
-        urdf.update_cfg(grasp["joints"][stage])
-        return (np.asarray(robot["base_pose"])
-                @ urdf.get_transform(arm["tip_link"], urdf.base_link) @ np.asarray(arm["tcp"]))
+        return gripper_at(urdf, r["robot"], grasp["arm"], grasp["joints"][stage])
 
     on_table = np.asarray(r["initial_pose"])
     carried = tool("handover") @ np.linalg.inv(tool("pickup")) @ on_table

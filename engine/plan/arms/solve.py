@@ -25,7 +25,7 @@ a turn about its approach ``a`` (``swapped``), whichever the arm reaches.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -179,20 +179,18 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
         first = canonical_first(poses[names[0]], arms.start_distance, side)[1] if names \
             else np.zeros(n, dtype=bool)
         found = _stages(ctx, phase, side, names, poses, rows, pk, first, np.ones(n, bool))
-        q, ok, swapped, pos_err, rot_err, hits = found
-        held_all = ok.all(axis=1) & np.array([not any(h) for h in hits], dtype=bool)
-        stop = np.argmin(ok & np.array([[not h for h in row] for row in hits], dtype=bool)
-                         .reshape(n, len(names)), axis=1) if names else np.zeros(n, int)
-        near = pos_err[np.arange(n), stop] < FLIP_WITHIN if names else np.zeros(n, bool)
-        again = ~held_all & near
+        held = found.held()
+        again = ~held.all(axis=1)
+        if names:  # where the first stage not held was reached in position
+            again &= found.pos_err[np.arange(n), np.argmin(held, axis=1)] < FLIP_WITHIN
         if again.any():
             other = _stages(ctx, phase, side, names, poses, rows, pk, ~first, again)
-            better = again & other[1].all(axis=1) & np.array(
-                [not any(h) for h in other[5]], dtype=bool)
-            for arr, alt in zip(found[:5], other[:5], strict=True):
-                arr[better] = alt[better]
+            better = again & other.held().all(axis=1)
+            for name in ("q", "ok", "swapped", "pos_err", "rot_err"):
+                getattr(found, name)[better] = getattr(other, name)[better]
             for r in np.flatnonzero(better):
-                hits[r] = other[5][r]
+                found.hits[r] = other.hits[r]
+        q, ok, swapped, pos_err, rot_err, hits = found
         against: tuple[str, ...] = ()
         for stage in names:
             body = link_targets(ctx, phase, side, stage)
@@ -205,15 +203,31 @@ def confirm(ctx: PlanContext, phase: Phase, side: str, gi: np.ndarray,
                                        tuple(tuple(h) for h in hits[r]), against)  # fmt: skip
     return [memo[key] for key in keys]
 
+class _Stages(NamedTuple):
+    """One finger order's checks of n rows through T stages: q (n, T, dof) rad, ok, swapped
+    (n, T) bool, position and rotation errors (n, T) m and rad, hits: per row per stage
+    what the links touch."""
+
+    q: np.ndarray
+    ok: np.ndarray
+    swapped: np.ndarray
+    pos_err: np.ndarray
+    rot_err: np.ndarray
+    hits: list[list[tuple]]
+
+    def held(self) -> np.ndarray:
+        """(n, T) bool: reached, its links touching nothing."""
+        clear = np.array([[not h for h in row] for row in self.hits], dtype=bool)
+        return self.ok & clear.reshape(self.ok.shape)
+
+
 def _stages(ctx: PlanContext, phase: Phase, side: str, names: tuple[str, ...],
             poses: dict[str, np.ndarray], rows: np.ndarray, pk: np.ndarray,
-            turned: np.ndarray, pursue: np.ndarray) -> tuple:
+            turned: np.ndarray, pursue: np.ndarray) -> _Stages:
     """:func:`confirm`'s checks of rows ``pursue`` ((n,) bool) through the stages ``names``,
     each row's grasp held turned half a turn about ``a`` where ``turned`` ((n,) bool) at every
     stage: IK per stage (restarts), the links tested, other answers in the same finger order
-    where they touch something. Returns q (n, T, dof), ok, swapped, position and rotation
-    errors (n, T) and per row per stage what the links touch; a stage not held ends the
-    row's checks."""
+    where they touch something; a stage not held ends the row's checks."""
     from handover.engine.assets.robot import IK_RESTARTS
     from handover.engine.plan.arms.stages import FLIP
 
@@ -221,7 +235,7 @@ def _stages(ctx: PlanContext, phase: Phase, side: str, names: tuple[str, ...],
     n, dof = len(rows), arms.arm(side).dof
     q = np.zeros((n, len(names), dof))
     ok = np.zeros((n, len(names)), dtype=bool)
-    swapped = np.zeros((n, len(names)), dtype=bool)
+    swapped = np.repeat(np.asarray(turned, dtype=bool)[:, None], len(names), axis=1)
     pos_err = np.full((n, len(names)), np.inf)
     rot_err = np.full((n, len(names)), np.inf)
     hits: list[list[tuple]] = [[() for _ in names] for _ in range(n)]
@@ -236,7 +250,6 @@ def _stages(ctx: PlanContext, phase: Phase, side: str, names: tuple[str, ...],
         sol = arms.solve(side, targets, restarts=IK_RESTARTS)
         q[todo_r, t], ok[todo_r, t] = sol.q, sol.ok
         pos_err[todo_r, t], rot_err[todo_r, t] = sol.position_error, sol.rotation_error
-        swapped[:, t] = turned
         body = link_targets(ctx, phase, side, stage)
 
         def held(at, qs, stage=stage):  # the object held, the hands taking it
@@ -249,7 +262,7 @@ def _stages(ctx: PlanContext, phase: Phase, side: str, names: tuple[str, ...],
             hits[r][t] = why
         clear_links(arms, side, body, poses[stage], reached[[not why for why in blocked]],
                     (q[:, t], swapped[:, t], pos_err[:, t], rot_err[:, t]), hits, t, held)
-    return q, ok, swapped, pos_err, rot_err, hits
+    return _Stages(q, ok, swapped, pos_err, rot_err, hits)
 
 
 def confirm_row(ctx: PlanContext, phase: Phase, grasp: int, presentation: int,
