@@ -3,7 +3,8 @@ arm's joint trajectory through the forward kinematics of the plan's robot, the o
 in the gripper (as the gripper took it at its first stage). What the physics check carries
 (:func:`handover.engine.plan.physics.plan_motion`) when the plan has its motion: the arm's
 joint-space path turns the object its own way between two stages, not along the shortest
-turn between their orientations.
+turn between their orientations, and at its own pace: every sample of the trajectory, at its
+time (the check's splines through them give the object the arm's accelerations).
 
 :func:`plan_motion` gives the physics check the object's poses along a plan (its stage
 poses, or the arms' paths); :func:`plan_pose` reads a pose of the plan's JSON.
@@ -26,23 +27,19 @@ if TYPE_CHECKING:
     from handover.engine.store.kb import KB
     from handover.geometry.physics import Motion
 
-__all__ = ["CARRY_KEYS", "plan_pose", "plan_motion", "arm_carry", "leg_poses"]
-
-CARRY_KEYS = 24
-"""Object poses a carried leg passes through (evenly along its samples, its last exactly
-the plan's pose where the leg ends): the physics check moves the object through them with
-its own timing, so its path follows the arm's."""
+__all__ = ["plan_pose", "plan_motion", "arm_carry", "leg_poses"]
 
 
 def leg_poses(fk, grasp: dict, start: str, end: str, held_at_start: np.ndarray,
-              ends_at: np.ndarray) -> tuple[np.ndarray, float] | None:
-    """(k, 4, 4) world: the object along the segments of ``grasp``'s trajectory from the one
-    leaving stage ``start`` (``lift`` for a grasp that picks the object up) to the one
-    reaching stage ``end``, at most :data:`CARRY_KEYS` poses, the last ``ends_at`` (4, 4)
-    exactly, and s, how long those segments take; None when the trajectory has no such
-    segments. ``fk(q (n, dof)) -> (n, 4, 4)``: the arm's grasp frame in the world;
-    ``held_at_start`` (4, 4): the object where the gripper holds it at the first stage of
-    ``grasp["joints"]`` (its tool pose there gives the object in the tool frame)."""
+              ends_at: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The object along the segments of ``grasp``'s trajectory from the one leaving stage
+    ``start`` (``lift`` for a grasp that picks the object up) to the one reaching stage
+    ``end``: (k, 4, 4) world, at every sample of those segments (the last ``ends_at``
+    (4, 4) exactly), and (k,) s, when (from the leg's start; each segment's times follow the
+    one before it); None when the trajectory has no such segments. ``fk(q (n, dof)) ->
+    (n, 4, 4)``: the arm's grasp frame in the world; ``held_at_start`` (4, 4): the object
+    where the gripper holds it at the first stage of ``grasp["joints"]`` (its tool pose
+    there gives the object in the tool frame)."""
     segments = grasp.get("trajectory") or []
     names = [str(s.get("segment", "")) for s in segments]
     first = next((i for i, n in enumerate(names) if n.startswith(f"{start}->")), None)
@@ -54,12 +51,20 @@ def leg_poses(fk, grasp: dict, start: str, end: str, held_at_start: np.ndarray,
     order = list(segments[first]["joint_names"])
     q0 = np.array([[joints[stage][n] for n in order]], dtype=float)
     in_tool = np.linalg.inv(fk(q0)[0]) @ held_at_start
-    q = np.concatenate([np.asarray(segments[i]["positions"], dtype=float)
-                        for i in range(first, last + 1)])
-    pick = np.unique(np.linspace(0, len(q) - 1, min(CARRY_KEYS, len(q))).round().astype(int))
-    out = fk(q[pick]) @ in_tool
+    qs, ts, since = [], [], 0.0
+    for i in range(first, last + 1):
+        q = np.asarray(segments[i]["positions"], dtype=float)
+        t = np.asarray(segments[i]["times"], dtype=float)
+        if q.ndim != 2 or t.shape != (len(q),) or len(q) == 0:
+            raise ValueError(f"segment {names[i]!r}: {len(t)} times for {len(q)} positions")
+        keep = slice(1, None) if qs else slice(None)  # a segment starts where the last ended
+        qs.append(q[keep])
+        ts.append(since + t[keep] - t[0])
+        since += float(t[-1] - t[0])
+    q, times = np.concatenate(qs), np.concatenate(ts)
+    out = fk(q) @ in_tool
     out[-1] = ends_at
-    return out, float(sum(segments[i]["times"][-1] for i in range(first, last + 1)))
+    return out, times
 
 
 def arm_carry(kb: KB, data: dict) -> Motion | None:
@@ -92,7 +97,7 @@ def arm_carry(kb: KB, data: dict) -> Motion | None:
     if carry is None:
         return None
     if not h2g2:
-        return Motion(initial, carry[0], carry_time=carry[1])
+        return Motion(initial, carry[0], carry_times=carry[1])
     taker = next((g for g in grasps if list(g["joints"])[:1] == ["midair"]), None)
     if taker is None:
         return None
@@ -100,8 +105,8 @@ def arm_carry(kb: KB, data: dict) -> Motion | None:
                         midair, handover)
     if regrasp is None:
         return None
-    return Motion(initial, carry[0], regrasp[0], carry_time=carry[1],
-                  regrasp_carry_time=regrasp[1])
+    return Motion(initial, carry[0], regrasp[0], carry_times=carry[1],
+                  regrasp_carry_times=regrasp[1])
 
 
 def plan_pose(data: Any, where: str) -> np.ndarray:

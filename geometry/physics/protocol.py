@@ -30,6 +30,7 @@ __all__ = [
     "Schedule",
     "schedule",
     "min_jerk",
+    "timed_path",
 ]
 
 MODES = ("H1G1", "H2G2", "H2G1")
@@ -49,6 +50,12 @@ class Motion:
         last one the handover pose.
     carry_time, regrasp_carry_time : s, how long each carry takes (the plan's timed motion:
         an arm's long way round takes its time); None: the protocol's ``carry_time``.
+    carry_times, regrasp_carry_times : (k,) / (k2,) s, when the object is at each pose of
+        ``carry`` / ``regrasp_carry``, from the start of the leg (increasing; the last is the
+        leg's duration, and ``carry_time`` / ``regrasp_carry_time`` must then be None or
+        equal to it): the poses are an arm's timed motion sampled densely, and the check
+        moves the object through them at those times (:func:`timed_path`), not along
+        straight pieces at a minimum-jerk pace of its own.
     """
 
     pickup: np.ndarray
@@ -56,6 +63,8 @@ class Motion:
     regrasp_carry: np.ndarray | None = None
     carry_time: float | None = None
     regrasp_carry_time: float | None = None
+    carry_times: np.ndarray | None = None
+    regrasp_carry_times: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         pickup, _ = check_poses(self.pickup, 0.0)
@@ -75,6 +84,22 @@ class Motion:
             if value is not None and not (np.isfinite(value) and value > 0):
                 raise ValueError(f"Motion.{name} must be a positive number of seconds, "
                                  f"got {value}")
+        for leg in ("carry", "regrasp_carry"):
+            times = getattr(self, f"{leg}_times")
+            if times is None:
+                continue
+            poses, duration = getattr(self, leg), getattr(self, f"{leg}_time")
+            times = np.asarray(times, dtype=float)
+            if poses is None or times.shape != (len(poses),):
+                raise ValueError(f"Motion.{leg}_times needs one time per pose of {leg}")
+            if not np.isfinite(times).all() or times[0] < 0 or (np.diff(times) <= 0).any() \
+                    or times[-1] <= 0:
+                raise ValueError(f"Motion.{leg}_times must increase from 0 s or later")
+            if duration is not None and abs(duration - times[-1]) > 1e-9:
+                raise ValueError(f"Motion.{leg}_time ({duration} s) is not when its last "
+                                 f"pose is reached ({times[-1]} s)")
+            object.__setattr__(self, f"{leg}_times", times)
+            object.__setattr__(self, f"{leg}_time", float(times[-1]))
 
 
 @dataclass(frozen=True)
@@ -167,6 +192,35 @@ def _path(poses: np.ndarray, s: np.ndarray) -> np.ndarray:
     for k in range(3):
         out[:, k, 3] = np.interp(s, knots, poses[:, k, 3])
     out[:, 3] = [0.0, 0.0, 0.0, 1.0]
+    return out
+
+
+def timed_path(poses: np.ndarray, times: np.ndarray, t: np.ndarray,
+               start: np.ndarray) -> np.ndarray:
+    """Poses (len(t), 4, 4) at times ``t`` (s) along ``poses`` (k, 4, 4) reached at
+    ``times`` (k,) s: C2 splines through them (positions: cubic, at rest at both ends, as an
+    arm's timed leg starts and ends; rotations: :class:`~scipy.spatial.transform.
+    RotationSpline`), so the object's acceleration is the motion's, not a kink's. The path
+    starts at ``start`` (4, 4) instead of ``poses[0]`` (the check's own lift may end a few
+    cm from the arm's): the offset, position and turn about the object's origin, fades by a
+    minimum-jerk profile over the leg."""
+    from scipy.interpolate import CubicSpline
+    from scipy.spatial.transform import RotationSpline
+
+    t = np.clip(np.asarray(t, dtype=float), times[0], times[-1])
+    out = np.empty((len(t), 4, 4))
+    out[:, 3] = [0.0, 0.0, 0.0, 1.0]
+    if len(poses) == 1:
+        out[:] = poses[0]
+    else:
+        pos = CubicSpline(times, poses[:, :3, 3], bc_type="clamped")(t)
+        rot = RotationSpline(times, Rotation.from_matrix(poses[:, :3, :3]))(t)
+        out[:, :3, :3] = rot.as_matrix()
+        out[:, :3, 3] = pos
+    fade = 1.0 - min_jerk((t - times[0]) / max(times[-1] - times[0], 1e-12))
+    turn = Rotation.from_matrix(start[:3, :3] @ poses[0, :3, :3].T).as_rotvec()
+    out[:, :3, :3] = Rotation.from_rotvec(fade[:, None] * turn).as_matrix() @ out[:, :3, :3]
+    out[:, :3, 3] += fade[:, None] * (start[:3, 3] - poses[0, :3, 3])
     return out
 
 
@@ -282,7 +336,12 @@ class _Builder:
         self.add("lift", holders, objs, weight=weight)
 
     def carry(self, name: str, poses: np.ndarray, holders: tuple[str, ...],
-              duration: float | None = None) -> None:
+              duration: float | None = None, times: np.ndarray | None = None) -> None:
+        if times is not None:  # an arm's timed motion: its own pace
+            n = self.steps(float(times[-1]))
+            t = times[0] + (times[-1] - times[0]) * np.arange(1, n + 1) / n
+            self.add(name, holders, timed_path(poses, times, t, self.pose))
+            return
         n = self.steps(self.protocol.carry_time if duration is None else duration)
         keys = np.concatenate([self.pose[None], poses])
         self.add(name, holders, _path(keys, min_jerk(np.arange(1, n + 1) / n)))
@@ -367,7 +426,7 @@ def schedule(
     holding = tuple(names[h] for h in first)
     b.close("close", first, ())
     b.lift(holding)
-    b.carry("carry", motion.carry, holding, motion.carry_time)
+    b.carry("carry", motion.carry, holding, motion.carry_time, motion.carry_times)
     b.hold("hold", p.hold_time, holding)
     b.shake("shake", first[0], holding)
     if mode == "H2G2":
@@ -375,7 +434,8 @@ def schedule(
         b.close("regrasp_close", [1], holding)
         b.release("regrasp_release", [0], (names[1],))
         holding = (names[1],)
-        b.carry("regrasp_carry", motion.regrasp_carry, holding, motion.regrasp_carry_time)
+        b.carry("regrasp_carry", motion.regrasp_carry, holding, motion.regrasp_carry_time,
+                motion.regrasp_carry_times)
         b.hold("regrasp_hold", p.hold_time, holding)
         b.shake("regrasp_shake", 1, holding)
     if receivers:

@@ -141,6 +141,30 @@ def test_every_built_in_default_plan_holds_in_physics(capsys, obj):
         assert any("not in the ensemble" in w for w in data["warnings"]), data["warnings"]
 
 
+def test_the_hammer_s_default_plan_holds_carried_at_its_arm_s_own_pace(capsys, tmp_path: Path):
+    """``handover plan hammer`` (no ``--physics``: the arms' motion planned) then ``handover
+    verify`` of that plan: its chosen grasp, on the head, carried along the arm's trajectory
+    at the trajectory's timing, holds (exit 0), no holder's slip past the thresholds. The
+    check once moved the object along straight pieces between 24 of the arm's samples, at a
+    pace of its own: every corner jerked it (482 m/s^2 where the arm's motion reaches 4) and
+    this grasp dropped in the carry."""
+    from handover.geometry.physics import Thresholds
+
+    code, out, _ = _run(capsys, "plan", "hammer", "--json")
+    assert code == 0
+    path = tmp_path / "hammer.json"
+    path.write_text(out)
+    data = json.loads(out)
+    assert data["motion"]["planned"]
+    code, out, _ = _run(capsys, "verify", str(path), "--db", str(tmp_path / "db"), "--json")
+    chosen = json.loads(out)["chosen"]
+    assert code == 0 and chosen["passed"] and chosen["dropped_in"] is None
+    assert chosen["grasps"] == [{"hand": g["hand"], "id": g["id"]} for g in data["robot_grasps"]]
+    t = Thresholds()
+    for slip in chosen["slip"]:
+        assert slip["translation_mm"] <= t.max_slip_mm and slip["rotation_deg"] <= t.max_slip_deg
+
+
 def test_a_grasp_that_holds_only_at_nominal_friction_is_passed_over_for_a_robust_one(
         capsys, tmp_path: Path, kb, hammer_plan):
     """The hammer's default grasp, on its head, holds at the gripper's own friction and
@@ -415,8 +439,9 @@ def test_the_physics_check_carries_the_object_along_the_arm_s_planned_path(kb):
     """With the plan's motion, the physics check carries the object where the arm takes it:
     each pose of its carry, with the gripper on the object at the plan's grasp, is where
     yourdfpy's FK of some sample of the arm's trajectory from the lift to the handover puts
-    the gripper; the last is the plan's handover pose; the carry lasts as long as those
-    segments. Without the motion, the carry goes from the stages' poses alone."""
+    the gripper; the last is the plan's handover pose; each is reached at its sample's time,
+    and the carry lasts as long as those segments. Without the motion, the carry goes from
+    the stages' poses alone."""
     from handover.engine.plan.carry import plan_motion
     from handover.engine.store.kb import builtin_kb_dir
     from tests.engine.test_robot_result import gripper_at, urdf_of
@@ -443,5 +468,10 @@ def test_the_physics_check_carries_the_object_along_the_arm_s_planned_path(kb):
         gap = np.abs(tools - gripper).max(axis=(1, 2)).min()
         assert gap < 1e-3
     assert motion.carry_time == pytest.approx(sum(s["times"][-1] for s in carried))
+    # every sample at its own time: the first segment's, then the second's after it
+    first = np.asarray(carried[0]["times"])
+    np.testing.assert_allclose(motion.carry_times[:len(first)], first)
+    np.testing.assert_allclose(motion.carry_times[len(first):],
+                               first[-1] + np.asarray(carried[1]["times"][1:]))
     staged = plan_motion(data)
     assert len(staged.carry) == 1 and staged.carry_time is None

@@ -506,3 +506,80 @@ def test_only_boxes_that_together_are_a_box_collide_as_one():
     rod = Primitive("cylinder", (0.003, 0.23), transform_from(None, [-0.072, 0, 0]))
     for other in (apart, thicker, askew, rod):
         assert flush_boxes((pages, other)) == []
+
+
+def arc(start: np.ndarray, radius: float, duration: float, step: float = 0.0075):
+    """An arm's timed carry sampled as a plan's trajectory is: the object swung a quarter
+    turn round a vertical axis ``radius`` m from it (turning with it), at rest at both ends
+    (a minimum-jerk angle over ``duration`` s), a pose every ``step`` s. Returns the poses
+    (k, 4, 4), their times (k,) and the largest acceleration of the object's origin on the
+    way, m/s^2, from the angle's derivatives (tangential r th'' and centripetal r th'^2)."""
+    times = np.append(np.arange(0.0, duration, step), duration)
+    tau = times / duration
+    angle = 0.5 * np.pi * tau**3 * (10 - 15 * tau + 6 * tau**2)
+    centre = start[:3, 3] - [radius, 0.0, 0.0]
+    turns = rotation_about_axis([0, 0, 1], angle)
+    poses = np.array([transform_from(r @ start[:3, :3], centre + r @ [radius, 0.0, 0.0])
+                      for r in turns])
+    fine = np.linspace(0.0, 1.0, 20001)
+    rate = 0.5 * np.pi * 30 * fine**2 * (1 - fine) ** 2 / duration
+    accel = 0.5 * np.pi * 60 * fine * (1 - fine) * (1 - 2 * fine) / duration**2
+    return poses, times, float(np.hypot(radius * accel, radius * rate**2).max())
+
+
+def test_a_timed_carry_moves_the_object_with_the_arm_s_own_accelerations():
+    """Given an arm's carry as dense timed samples (a plan's trajectory through its forward
+    kinematics), the check moves the object through them at their times: where they say at
+    each sample's time, for as long as they last, and never accelerated harder than the arm
+    does (no kink at a sample: straight pieces between 7.5 ms samples jerk the object at
+    every one of them)."""
+    from handover.geometry.physics.check import _plan
+    from handover.geometry.physics.protocol import schedule
+
+    lifted = PICK.copy()
+    lifted[2, 3] += Protocol().lift_height
+    poses, times, most = arc(lifted, 0.3, 2.0)
+    motion = Motion(PICK, poses, carry_times=times)
+    assert motion.carry_time == pytest.approx(2.0)
+    dt = 0.002
+    sched = schedule("H1G1", [_plan(BOX_TOP, "g0")], motion, Protocol(), dt)
+    carry = next(p for p in sched.phases if p.name == "carry")
+    assert (carry.stop - carry.start) * dt == pytest.approx(2.0, abs=dt)
+    path = sched.object_poses[carry.start - 1:carry.stop]  # from the lift's end
+    t = np.arange(len(path)) * dt
+    for k in range(0, len(times), 20):  # at the samples' times, where they say
+        np.testing.assert_allclose(path[int(round(times[k] / dt))], poses[k], atol=2e-4)
+    np.testing.assert_allclose(path[-1], poses[-1], atol=1e-9)
+    accel = np.diff(path[:, :3, 3], n=2, axis=0) / dt**2
+    assert np.linalg.norm(accel, axis=1).max() <= 1.05 * most
+    assert t[-1] == pytest.approx(2.0, abs=dt)
+    # Untimed, the same samples as straight pieces jerk the object at their corners.
+    untimed = Motion(PICK, poses, carry_time=2.0)
+    sched = schedule("H1G1", [_plan(BOX_TOP, "g0")], untimed, Protocol(), dt)
+    carry = next(p for p in sched.phases if p.name == "carry")
+    jerked = np.diff(sched.object_poses[carry.start - 1:carry.stop, :3, 3], n=2, axis=0)
+    assert np.linalg.norm(jerked, axis=1).max() / dt**2 > 3 * most
+
+
+def test_a_timed_carry_starts_where_the_check_s_lift_ends_and_ends_where_the_arm_does():
+    """The arm's leg starts 5 cm below where the check's own lift ends: the carry starts at
+    the lifted pose (no jump), the offset fading on the way, and ends at the arm's last
+    pose exactly; times that go back are refused."""
+    from handover.geometry.physics.check import _plan
+    from handover.geometry.physics.protocol import schedule
+
+    low = PICK.copy()
+    low[2, 3] += 0.05
+    poses, times, _ = arc(low, 0.3, 2.0)
+    sched = schedule("H1G1", [_plan(BOX_TOP, "g0")], Motion(PICK, poses, carry_times=times),
+                     Protocol(), 0.002)
+    carry = next(p for p in sched.phases if p.name == "carry")
+    lifted = sched.object_poses[carry.start - 1]
+    assert lifted[2, 3] == pytest.approx(PICK[2, 3] + Protocol().lift_height)
+    step = np.linalg.norm(sched.object_poses[carry.start, :3, 3] - lifted[:3, 3])
+    assert step < 1e-4
+    np.testing.assert_allclose(sched.object_poses[carry.stop - 1], poses[-1], atol=1e-9)
+    with pytest.raises(ValueError, match="increase"):
+        Motion(PICK, poses, carry_times=times[::-1])
+    with pytest.raises(ValueError, match="one time per pose"):
+        Motion(PICK, poses, carry_times=times[:-1])
