@@ -164,9 +164,10 @@ def add_motion(result: PlanResult, ctx: PlanContext, attempt: Attempt) -> Motion
     if found.failure is not None:
         result.warnings = [*result.warnings, found.failure.sentence()]
         return found
-    result.robot_grasps = [replace(g, trajectory=t) if t else g
-                           for g, t in zip(result.robot_grasps, found.trajectories,
-                                           strict=False)]
+    moved = found.joints or (None,) * len(found.trajectories)
+    result.robot_grasps = [replace(g, trajectory=t, arm_joints=j or g.arm_joints) if t else g
+                           for g, t, j in zip(result.robot_grasps, found.trajectories, moved,
+                                              strict=False)]
     return found
 
 

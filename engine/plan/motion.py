@@ -26,9 +26,11 @@ rest while the other lifts and carries the object there, and comes once it is th
 gripper's boxes carried in the tool frame, and while the object is held, the gripper closed on
 it and the object's bounding box (attached; lifted off the table it rests on, that pair is
 allowed for the lift). Arms are planned one at a time, each against the other at a fixed
-configuration per segment (not coordinated in time). So a plan whose two arms both carry
-the object (H2G1 lifting with both) has no motion (:data:`TWO_ARM_CARRY`): two paths planned
-apart would not keep the object between the grippers. The object, when not held, is an
+configuration per segment (not coordinated in time), but where both carry the object (H2G1
+lifting with both): their carry from the grasp to the handover is one motion of the two
+(:mod:`~handover.engine.plan.two_arm`; two paths planned apart would not keep the object
+between the grippers), and where it is not found the plan has no motion
+(:data:`TWO_ARM_CARRY`). The object, when not held, is an
 obstacle (its parts' boxes) where the arm comes from rest or goes back after letting go (on
 the table, at the midair pose, in the receiver's hands); the gripper's way in and out next
 to it (pregrasp->grasp, handover->retreat, midair->release) is the corridors' to judge
@@ -40,13 +42,14 @@ trajectories, bit for bit.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from handover.engine.plan.motion_world import Valid, checkers, joins_at_handover
-from handover.engine.plan.records import RobotGrasp
+from handover.engine.plan.records import ArmJoints, RobotGrasp
+from handover.engine.plan.two_arm import CarryFailure, TwoArmCarry, two_arm_carry
 
 if TYPE_CHECKING:
     from handover.engine.plan.attempt import Attempt
@@ -63,14 +66,12 @@ def _settings() -> PlannerSettings:
     return PlannerSettings(max_iterations=2_000, timeout=60.0, seed=1)
 
 
-TWO_ARM_CARRY = ("both arms carry the object from the table to the handover: their motion "
-                 "would be planned one arm at a time, which does not keep the object between "
-                 "the grippers, and a coordinated two-arm motion is not planned: the plan's "
-                 "poses and joints stand, without trajectories")
-"""Why a plan whose two arms both lift the object (H2G1: too heavy for one hand, or a
-squeeze) has no motion: each arm's path is its own (joint space, timed on its own), so the
-grippers' relative pose changes on the way, which a rigid object held by both does not
-allow."""
+TWO_ARM_CARRY = ("both arms carry the object from the table to the handover, and found no "
+                 "motion together that keeps it rigid between the grippers")
+"""The start of why a plan whose two arms both lift the object (H2G1: too heavy for one
+hand, or a squeeze) has no motion: their carry is one motion of both
+(:mod:`~handover.engine.plan.two_arm`), each arm's path planned on its own would change the
+grippers' relative pose on the way, which a rigid object held by both does not allow."""
 
 IK_ANSWERS = 16
 """Answers of inverse kinematics tried for a pose between stages where the straight steps do
@@ -134,10 +135,14 @@ class MotionFailure:
 @dataclass(frozen=True)
 class MotionPlan:
     """The motion of a plan: per robot grasp (in the result's order) its segments, or the
-    first failure (then ``failure`` says which segment failed, and no grasp has any)."""
+    first failure (then ``failure`` says which segment failed, and no grasp has any).
+    ``joints``: per robot grasp, its arm's joints where the motion moved them (the two arms
+    carrying the object together end their walk on their own branch at the handover), else
+    None; empty when none moved."""
 
     trajectories: tuple[tuple[Segment, ...], ...]
     failure: MotionFailure | None = None
+    joints: tuple[ArmJoints | None, ...] = ()
 
     @property
     def planned(self) -> bool:
@@ -162,7 +167,7 @@ def _backed(pose: np.ndarray, distance: float, direction: np.ndarray | None = No
 
 
 def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp,
-               valid=None) -> StagePlan | MotionFailure:
+               valid=None, together: bool = False) -> StagePlan | MotionFailure:
     """The stages of robot grasp ``grasp`` (the ``index``-th chosen of ``attempt``) and their
     joints: the plan's at pick-up, midair and handover, inverse kinematics between.
     ``valid(q (dof,), where, holding) -> bool``: whether joints found between the stages are
@@ -173,7 +178,9 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
     The first try of every stage between (its straight walk, at its first back-off distance)
     is solved for all of them together, step by step (a target's answer depends on it and its
     start alone, so this gives what solving them one by one gives, to the bit); the stages are
-    then judged in order, the first failure returned."""
+    then judged in order, the first failure returned. ``together``: the arm carries the
+    object with the other (:mod:`~handover.engine.plan.two_arm` plans that), so its stages go
+    from the grasp straight to the handover, no lift or approach of its own."""
     from handover.engine.plan.corridors import lift
 
     arms = ctx.arms
@@ -280,9 +287,10 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
         tool = arms.fk(side, q_grasp[None])[0]
         distance = spec.approach if grasp.approach is None else grasp.approach.distance
         _, directions = lift(ctx, np.array([chosen.grasp]))
-        between += [("pregrasp", tool, (distance, spec.approach_min), None, q_grasp, "pickup",
-                     False),
-                    ("lift", tool, (spec.lift,), directions[0], q_grasp, "pickup", True)]
+        between.append(("pregrasp", tool, (distance, spec.approach_min), None, q_grasp,
+                        "pickup", False))
+        if not together:
+            between.append(("lift", tool, (spec.lift,), directions[0], q_grasp, "pickup", True))
     elif not joins:  # H2G2's second grasp: taken at the midair regrasp
         q_mid = q_of["midair"]
         tool = arms.fk(side, q_mid[None])[0]
@@ -291,9 +299,11 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
     if "handover" in q_of:
         q_hand = q_of["handover"]
         tool = arms.fk(side, q_hand[None])[0]
-        between += [("approach", tool, (spec.approach,), None, q_hand, "handover", not joins),
-                    ("retreat", tool, (spec.retreat, spec.approach_min, least), None, q_hand,
-                     "handover", False)]
+        if not together:
+            between.append(("approach", tool, (spec.approach,), None, q_hand, "handover",
+                            not joins))
+        between.append(("retreat", tool, (spec.retreat, spec.approach_min, least), None, q_hand,
+                        "handover", False))
     elif "midair" in q_of and "pickup" in q_of:  # H2G2's first grasp lets go at midair
         q_mid = q_of["midair"]
         tool = arms.fk(side, q_mid[None])[0]
@@ -316,14 +326,16 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
         add("grasp", q_of["pickup"], False, "pickup")
         grasp_stage = len(names) - 1
         object_pose = ctx.initial
-        add("lift", found["lift"], True, "pickup")
+        if not together:
+            add("lift", found["lift"], True, "pickup")
     elif not joins:
         add("pregrasp", found["pregrasp"], False, "midair")
         add("midair", q_of["midair"], False, "midair")
         grasp_stage = len(names) - 1
         object_pose = np.eye(4) if midair_at is None else np.asarray(midair_at, dtype=float)
     if "handover" in q_of:
-        add("approach", found["approach"], not joins, "handover")
+        if not together:
+            add("approach", found["approach"], not joins, "handover")
         add("handover", q_of["handover"], not joins, "handover")
         if joins:
             grasp_stage = len(names) - 1
@@ -350,18 +362,34 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
     from handover.geometry.motion import ends_failure, plan_segment
 
     settings = settings or SETTINGS or _settings()
-    carriers = [g for g in grasps[:len(attempt.chosen)] if g.arm is not None
+    carriers = [i for i, g in enumerate(grasps[:len(attempt.chosen)]) if g.arm is not None
                 and g.supports is None and "pickup" in g.joints and "handover" in g.joints]
+    together: TwoArmCarry | None = None
     if len(carriers) > 1:
-        return MotionPlan((), MotionFailure(None, " and ".join(sorted(g.arm for g in carriers)),
-                                            "lift->approach", TWO_ARM_CARRY))
+        together = two_arm_carry(ctx, attempt, grasps, carriers,
+                                 lambda i: checkers(ctx, attempt, grasps, i, grasps[i],
+                                                    alone=True), settings.resolution)
+        if isinstance(together, CarryFailure):  # the arm at fault's grasp is passed over
+            at = next((grasps[i] for i in carriers if grasps[i].arm == together.side), None)
+            arms = at.arm if at is not None else " and ".join(
+                sorted(grasps[i].arm for i in carriers))
+            return MotionPlan((), MotionFailure(None if at is None else at.id, arms,
+                                                together.leg,
+                                                f"{TWO_ARM_CARRY}: {together.reason}"))
+        grasps = list(grasps)
+        for i, pick, hand in zip(carriers, together.pickup, together.handover, strict=True):
+            g = grasps[i]
+            moved = {**g.joints, "pickup": ctx.arms.joints_dict(g.arm, pick),
+                     "handover": ctx.arms.joints_dict(g.arm, hand)}
+            grasps[i] = replace(g, arm_joints=replace(g.arm_joints, joints=moved))
     staged: list[tuple[RobotGrasp, StagePlan, object] | None] = []
     for index, grasp in enumerate(grasps):
         if index >= len(attempt.chosen) or grasp.arm is None or grasp.supports is not None:
             staged.append(None)
             continue
         checker = checkers(ctx, attempt, grasps, index, grasp)
-        plan = stage_plan(ctx, attempt, index, grasp, Valid(checker))
+        plan = stage_plan(ctx, attempt, index, grasp, Valid(checker),
+                          together=index in carriers and together is not None)
         if isinstance(plan, MotionFailure):
             return MotionPlan((), plan)
         staged.append((grasp, plan, checker))
@@ -374,27 +402,33 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
                    plan.q[i + 1])
 
     ends = [(grasp, plan.side, *segment) for grasp, plan, checker in filter(None, staged)
-            for segment in segments(plan, checker)]
+            for segment in segments(plan, checker)
+            if not (together is not None and segment[0] == "grasp->handover")]
     clear = _ends_clear(ends)
     for (grasp, side, name, check, start, goal), ok in zip(ends, clear, strict=True):
         failure = None if ok else ends_failure(check, start, goal, name=name)
         if failure is not None:
             return MotionPlan((), MotionFailure(grasp.id, side, name, failure.reason))
     out: list[tuple[Segment, ...]] = []
-    for entry in staged:
+    for index, entry in enumerate(staged):
         if entry is None:
             out.append(())
             continue
         grasp, plan, checker = entry
         found = []
         for name, check, start, goal in segments(plan, checker):
+            if name == "grasp->handover" and together is not None:  # carried by both arms
+                found.extend(together.segments[carriers.index(index)])
+                continue
             seg = plan_segment(check, start, goal, name=name, settings=settings,
                                ends_checked=True)
             if not hasattr(seg, "positions"):
                 return MotionPlan((), MotionFailure(grasp.id, plan.side, name, seg.reason))
             found.append(seg)
         out.append(tuple(found))
-    return MotionPlan(tuple(out))
+    moved = () if together is None else tuple(
+        grasps[i].arm_joints if i in carriers else None for i in range(len(grasps)))
+    return MotionPlan(tuple(out), joints=moved)
 
 
 def _ends_clear(ends: list[tuple]) -> list[bool]:

@@ -95,13 +95,15 @@ class Valid:
 
 
 def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index: int,
-              grasp: RobotGrasp):
+              grasp: RobotGrasp, alone: bool = False):
     """The validity checkers of robot grasp ``grasp`` (the ``index``-th of ``grasps``), made
     on first use and kept: ``checker(where, carried, start="")`` for a segment checked in plan
     stage ``where`` (``pickup`` | ``midair`` | ``handover``), the object held or not, from
     stage ``start`` (from ``grasp``, the held object may touch the table it is lifted
     from; from ``rest``, ``retreat`` or ``release``, the arm and its open gripper keep off
-    the object where it is then, its parts' boxes)."""
+    the object where it is then, its parts' boxes). ``alone``: without the other arm (a
+    motion of both arms together checks them against each other where they are at the same
+    moment: :mod:`~handover.engine.plan.two_arm`)."""
     from handover.engine.plan.corridors import held_box
     from handover.geometry.motion import ArmModel, ValidityChecker, obstacles
 
@@ -134,8 +136,8 @@ def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index
             "release": object_at["midair"]}.get(start)
         key = (where, carried, start == "grasp", start if around is not None else "")
         if key not in memo:
-            targets = segment_targets(ctx, attempt, index, side, where,
-                                      other_joints(ctx, grasps, side, where, carried))
+            others = {} if alone else other_joints(ctx, grasps, side, where, carried)
+            targets = segment_targets(ctx, attempt, index, side, where, others)
             if around is not None:
                 targets = targets + obstacles(boxes=held_box(ctx, around))
             allowed = []

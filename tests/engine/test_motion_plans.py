@@ -369,28 +369,120 @@ def test_one_arm_carries_it_to_the_presentation_while_the_other_waits_at_rest(kb
     assert checked > 20
 
 
-def test_two_arms_carrying_one_object_get_no_motion_that_would_pull_it_apart(kb, planned,
-                                                                            urdf):
-    """The tray to an adult: both arms lift it (H2G1). Two arm paths planned apart would not
-    keep the tray between the grippers, so the plan has no trajectory and says why; its
-    poses and both arms' joints stand, and yourdfpy puts the two grippers at pick-up and at
-    the handover the same distance apart (the tray is rigid)."""
-    result = planned["tray"]
+def test_two_arms_carry_the_tray_together_keeping_it_rigid_and_level(planned, urdf):
+    """The tray to an adult: both arms lift it (H2G1) and carry it as one motion
+    (:func:`check_carried_together`); planned one arm at a time, its grippers moved 0.76 m
+    apart on the way."""
+    check_carried_together(planned["tray"], urdf)
+
+
+def test_the_recording_plays_the_two_arms_carry_at_once(kb):
+    """In the tray's recording (the ``motion`` timeline), each arm comes to its grasp in
+    turn, then both carry the tray at once (each carried leg starts at the same time for
+    both arms), then each goes back to rest."""
+    from handover.engine.plan.two_arm import LEGS
+    from handover.engine.report.rerun.motion import motion_schedule
+
+    planned = plan(kb, Query(object="tray"), motion=True)
+    grasps = [g for g in planned.result.robot_grasps if g.trajectory]
+    assert len(grasps) == 2
+    starts = {(g.arm, seg.name): (t, seg.duration) for g, seg, t in motion_schedule(grasps)}
+    assert len(starts) == sum(len(g.trajectory) for g in grasps)
+    for leg in LEGS:
+        assert starts[("left", leg)] == starts[("right", leg)]
+    carry = starts[("left", LEGS[0])][0]
+    for side in ("left", "right"):
+        t, took = starts[(side, "pregrasp->grasp")]
+        assert t + took <= carry + 1e-9
+        back = starts[(side, "handover->retreat")][0]
+        assert back >= starts[(side, LEGS[-1])][0] + starts[(side, LEGS[-1])][1] - 1e-9
+
+
+SHOEBOX = """id: shoebox
+name: Shoebox with shoes (33 x 20 x 12 cm, 1.1 kg)
+mass: 1.1
+tags: [box]
+geometry:
+  primitives:
+    - {shape: box, part: box, extents: [0.2, 0.33, 0.12], position: [0, 0, 0.06]}
+parts:
+  box: {tags: [body]}
+axes:
+  up: [0, 0, 1]
+"""
+
+
+def test_a_shoebox_of_your_own_too_wide_for_one_hand_is_carried_by_both_arms_at_once(
+        tmp_path, urdf):
+    """A user's shoebox, 33 cm long (too wide for one gripper), in a KB of their own: both
+    arms lift it and carry it together, rigid between the grippers and level, to the
+    receiver (:func:`check_carried_together`)."""
+    import shutil
+
+    from handover.engine.store.kb import builtin_kb_dir
+
+    root = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), root)
+    (root / "objects" / "shoebox.yaml").write_text(SHOEBOX, encoding="utf-8")
+    result = plan(load_kb(root), Query(object="shoebox"), motion=True).result.to_dict()
+    check_carried_together(result, urdf)
+
+
+def check_carried_together(result: dict, urdf) -> None:
+    """A plan whose two arms both lift the object (H2G1) carries it as one motion. Posed with
+    yourdfpy at every sample of the carried legs (the same times for both arms), the two
+    grippers keep their pick-up's relative pose within 2 mm and half a degree (the object is
+    not pulled apart or twisted between them), the object carried in the first gripper
+    stays level within a degree and arrives at the plan's ``object_pose``; the two arms'
+    links (the URDF's collision geometry, fcl) never touch each other; each leg starts where
+    the last ended, the carry starts at each arm's ``joints.pickup`` and ends at its
+    ``joints.handover``."""
     assert result["mode"] == "H2G1"
     carriers = [g for g in result["robot_grasps"] if "pickup" in g["joints"]]
     assert len(carriers) == 2
-    assert not result["motion"]["planned"]
-    assert result["motion"]["failure"]["grasp"] is None
-    assert "both arms carry the object" in result["motion"]["failure"]["reason"]
-    assert not any(g.get("trajectory") for g in result["robot_grasps"])
-    assert any("no motion for the left and right arms" in w for w in result["warnings"])
+    assert result["motion"]["planned"], result["motion"]
+    legs = ("grasp->lift", "lift->approach", "approach->handover")
+    segments = [{s["segment"]: s for s in g["trajectory"]} for g in carriers]
+    for leg in legs:
+        assert segments[0][leg]["times"] == segments[1][leg]["times"]
 
-    def tool(g: dict, stage: str) -> np.ndarray:
-        return gripper_at(urdf, result["robot"], g["arm"], g["joints"][stage])
+    def tools(g: dict, segment: dict) -> np.ndarray:
+        return np.array([gripper_at(urdf, result["robot"], g["arm"],
+                                    dict(zip(segment["joint_names"], q, strict=True)))
+                         for q in segment["positions"]])
 
-    apart = [np.linalg.inv(tool(carriers[0], s)) @ tool(carriers[1], s)
-             for s in ("pickup", "handover")]
-    np.testing.assert_allclose(apart[0][:3, 3], apart[1][:3, 3], atol=2e-3)
+    first = tools(carriers[0], segments[0]["grasp->lift"])[0]
+    relative = np.linalg.inv(first) @ tools(carriers[1], segments[1]["grasp->lift"])[0]
+    held = np.linalg.inv(first) @ np.asarray(result["initial_pose"], dtype=float)
+    base = np.asarray(result["robot"]["base_pose"], dtype=float)
+    request = fcl.CollisionRequest()
+    for leg in legs:
+        a, b = (tools(g, seg[leg]) for g, seg in zip(carriers, segments, strict=True))
+        apart = np.linalg.inv(a) @ b
+        assert np.abs(apart[:, :3, 3] - relative[:3, 3]).max() <= 2e-3, leg
+        turned = np.einsum("nij,ij->n", apart[:, :3, :3], relative[:3, :3])
+        assert np.degrees(np.arccos(np.clip((turned - 1) / 2, -1, 1))).max() <= 0.5, leg
+        carried = a @ held
+        assert np.degrees(np.arccos(np.clip(carried[:, 2, 2], -1, 1))).max() <= 1.0, leg
+        names = [seg[leg]["joint_names"] for seg in segments]
+        for k in range(0, len(a), 5):
+            urdf.update_cfg({**dict(zip(names[0], segments[0][leg]["positions"][k],
+                                        strict=True)),
+                             **dict(zip(names[1], segments[1][leg]["positions"][k],
+                                        strict=True))})
+            mine = _link_objects(urdf, base, _moving(urdf, names[0]))
+            theirs = _link_objects(urdf, base, _moving(urdf, names[1]))
+            for link, part in mine:
+                for other, obstacle in theirs:
+                    assert not fcl.collide(part, obstacle, request, fcl.CollisionResult()), (
+                        f"{leg} sample {k}: {link} touches {other}")
+    np.testing.assert_allclose(carried[-1], np.asarray(result["object_pose"]), atol=1e-4)
+    for g, seg in zip(carriers, segments, strict=True):
+        for before, after in zip(legs[:-1], legs[1:], strict=True):
+            assert seg[before]["positions"][-1] == seg[after]["positions"][0]
+        for leg, at, stage in ((legs[0], 0, "pickup"), (legs[-1], -1, "handover")):
+            q = dict(zip(seg[leg]["joint_names"], seg[leg]["positions"][at], strict=True))
+            assert q == pytest.approx(g["joints"][stage], abs=1e-9)
 
 
 def test_the_arm_coming_and_going_without_the_object_keeps_off_it(kb, planned, urdf):

@@ -1,5 +1,6 @@
 """The arms' planned motion in a plan's recording: on the ``motion`` timeline (seconds from
-the first arm's start, the arms one after the other as they were planned), each moving arm's
+the first arm's start, the arms one after the other as they were planned, two arms carrying
+the object together at once: :func:`motion_schedule`), each moving arm's
 links (``world/motion/<side>``: capsules and boxes, the arm's colour) and the object
 (``world/motion/object``: its mesh carried by the gripper that holds it, resting where it was
 put down otherwise) and each gripper's whole path (``world/motion/<side>/path``, static),
@@ -13,12 +14,13 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.plan.records import ArmJoints
+from handover.engine.plan.two_arm import CARRIED
 
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.report.result import PlanResult
 
-__all__ = ["MOTION_TIMELINE", "PERIOD", "HELD_SEGMENTS", "log_motion"]
+__all__ = ["MOTION_TIMELINE", "PERIOD", "HELD_SEGMENTS", "log_motion", "motion_schedule"]
 
 MOTION_TIMELINE = "motion"
 """The timeline of the planned arm motion (seconds)."""
@@ -54,35 +56,73 @@ def log_motion(rec, ctx: PlanContext, result: PlanResult, mesh) -> None:
             [path], radii=0.003, colors=[ARM_COLOURS.get(g.arm, (200, 200, 200))],
             labels=[f"{g.arm} gripper's path"]), static=True)
     object_pose = np.asarray(ctx.initial, dtype=float)
-    clock = 0.0
-    for g in grasps:
+    holding_offset: dict[str, np.ndarray | None] = {}
+    took: dict[str, bool] = {}  # the arm has closed its gripper on the object
+    for g, seg, clock in motion_schedule(grasps):
         side = g.arm
-        holding_offset = None
-        took = False  # the arm has closed its gripper on the object (at pick-up or midair)
-        for seg in g.trajectory:
-            took = took or seg.name.startswith("grasp->") or seg.name == "pregrasp->midair"
-            rec.set_time(MOTION_TIMELINE, duration=clock)
-            rec.log("log/motion", rr.TextLog(f"motion: {side} arm, {seg.name}"))
-            held = took and seg.name in HELD_SEGMENTS
-            times = np.asarray(seg.times, dtype=float)
-            picks = np.unique(np.concatenate([np.searchsorted(
-                times, np.arange(0.0, times[-1], PERIOD)), [len(times) - 1]]))
-            q = np.asarray(seg.positions, dtype=float)
-            tools = arms.fk(side, q[picks])
-            if held and holding_offset is None:  # the object's pose in the tool frame
-                holding_offset = np.linalg.inv(tools[0]) @ object_pose
-            for j, i in enumerate(picks):
-                rec.set_time(MOTION_TIMELINE, duration=clock + float(times[i]))
-                names = arms.arm(side).chain.joint_names
-                joints = ArmJoints(side, {"motion": dict(zip(names, q[i].tolist(),
-                                                             strict=True))})
-                prims, colours, _ = arm_primitives(arms, [joints], "motion")
-                log_body(rec, f"world/motion/{side}", prims, colours, static=False,
-                         show_labels=False)
-                if held and holding_offset is not None:
-                    object_pose = tools[j] @ holding_offset
-                rec.log("world/motion/object", rr.Transform3D(
-                    translation=object_pose[:3, 3], mat3x3=object_pose[:3, :3]))
-            if not held and seg.name.startswith(("handover->", "midair->release")):
-                holding_offset = None  # let go: the object stays where it was handed
-            clock += float(times[-1])
+        took[side] = took.get(side, False) or seg.name.startswith("grasp->") \
+            or seg.name == "pregrasp->midair"
+        rec.set_time(MOTION_TIMELINE, duration=clock)
+        rec.log("log/motion", rr.TextLog(f"motion: {side} arm, {seg.name}"))
+        held = took[side] and seg.name in HELD_SEGMENTS
+        times = np.asarray(seg.times, dtype=float)
+        picks = np.unique(np.concatenate([np.searchsorted(
+            times, np.arange(0.0, times[-1], PERIOD)), [len(times) - 1]]))
+        q = np.asarray(seg.positions, dtype=float)
+        tools = arms.fk(side, q[picks])
+        if held and holding_offset.get(side) is None:  # the object's pose in the tool frame
+            holding_offset[side] = np.linalg.inv(tools[0]) @ object_pose
+        for j, i in enumerate(picks):
+            rec.set_time(MOTION_TIMELINE, duration=clock + float(times[i]))
+            names = arms.arm(side).chain.joint_names
+            joints = ArmJoints(side, {"motion": dict(zip(names, q[i].tolist(), strict=True))})
+            prims, colours, _ = arm_primitives(arms, [joints], "motion")
+            log_body(rec, f"world/motion/{side}", prims, colours, static=False,
+                     show_labels=False)
+            if held and holding_offset.get(side) is not None:
+                object_pose = tools[j] @ holding_offset[side]
+            rec.log("world/motion/object", rr.Transform3D(
+                translation=object_pose[:3, 3], mat3x3=object_pose[:3, :3]))
+        if not held and seg.name.startswith(("handover->", "midair->release")):
+            holding_offset[side] = None  # let go: the object stays where it was handed
+
+
+def motion_schedule(grasps: list) -> list[tuple]:
+    """``(grasp, segment, start s)`` of every segment of the robot grasps' ``trajectory``, in
+    the order they run on :data:`MOTION_TIMELINE`: the arms one after the other as they were
+    planned, but where two arms carry the object together (segments planned by
+    :mod:`~handover.engine.plan.two_arm`, the same times in both): each arm's way to its grasp in
+    turn, then the carry, both at once, then each arm's way back in turn."""
+    together = set()
+    if len(grasps) == 2:
+        a, b = ({s.name: s for s in g.trajectory if s.planner == CARRIED} for g in grasps)
+        together = set(a) & set(b)
+    out, clock = [], 0.0
+    if not together:
+        for g in grasps:
+            for seg in g.trajectory:
+                out.append((g, seg, clock))
+                clock += float(seg.times[-1])
+        return out
+    before = [g.trajectory[:_first(g, together)] for g in grasps]
+    carried = [[s for s in g.trajectory if s.name in together] for g in grasps]
+    after = [g.trajectory[_first(g, together) + len(c):] for g, c in zip(grasps, carried,
+                                                                           strict=True)]
+    for g, segs in zip(grasps, before, strict=True):
+        for seg in segs:
+            out.append((g, seg, clock))
+            clock += float(seg.times[-1])
+    for k in range(len(carried[0])):
+        for g, segs in zip(grasps, carried, strict=True):
+            out.append((g, segs[k], clock))
+        clock += float(carried[0][k].times[-1])
+    for g, segs in zip(grasps, after, strict=True):
+        for seg in segs:
+            out.append((g, seg, clock))
+            clock += float(seg.times[-1])
+    return out
+
+
+def _first(grasp, names: set) -> int:
+    """The index of ``grasp``'s first trajectory segment named in ``names``."""
+    return next(i for i, s in enumerate(grasp.trajectory) if s.name in names)
