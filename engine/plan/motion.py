@@ -26,11 +26,12 @@ rest while the other lifts and carries the object there, and comes once it is th
 gripper's boxes carried in the tool frame, and while the object is held, the gripper closed on
 it and the object's bounding box (attached; lifted off the table it rests on, that pair is
 allowed for the lift). Arms are planned one at a time, each against the other at a fixed
-configuration per segment (not coordinated in time), but where both carry the object (H2G1
-lifting with both): their carry from the grasp to the handover is one motion of the two
-(:mod:`~handover.engine.plan.two_arm`; two paths planned apart would not keep the object
-between the grippers), and where it is not found the plan has no motion
-(:data:`TWO_ARM_CARRY`). The object, when not held, is an
+configuration per segment (not coordinated in time). The carry from the grasp to the
+handover follows the object's path set in the world (:mod:`~handover.engine.plan.carried`:
+one motion of both arms where both lift it, two paths planned apart would not keep it
+between the grippers, and where that is not found the plan has no motion,
+:data:`TWO_ARM_CARRY`); one arm that cannot so carry it is planned in joint space like the
+other segments. The object, when not held, is an
 obstacle (its parts' boxes) where the arm comes from rest or goes back after letting go (on
 the table, at the midair pose, in the receiver's hands); the gripper's way in and out next
 to it (pregrasp->grasp, handover->retreat, midair->release) is the corridors' to judge
@@ -47,9 +48,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.plan.carried import Carried, CarryFailure, axis_breach, carry
 from handover.engine.plan.motion_world import Valid, checkers, joins_at_handover
 from handover.engine.plan.records import ArmJoints, RobotGrasp
-from handover.engine.plan.two_arm import CarryFailure, TwoArmCarry, two_arm_carry
 
 if TYPE_CHECKING:
     from handover.engine.plan.attempt import Attempt
@@ -70,7 +71,7 @@ TWO_ARM_CARRY = ("both arms carry the object from the table to the handover, and
                  "motion together that keeps it rigid between the grippers")
 """The start of why a plan whose two arms both lift the object (H2G1: too heavy for one
 hand, or a squeeze) has no motion: their carry is one motion of both
-(:mod:`~handover.engine.plan.two_arm`), each arm's path planned on its own would change the
+(:mod:`~handover.engine.plan.carried`), each arm's path planned on its own would change the
 grippers' relative pose on the way, which a rigid object held by both does not allow."""
 
 IK_ANSWERS = 16
@@ -136,9 +137,9 @@ class MotionFailure:
 class MotionPlan:
     """The motion of a plan: per robot grasp (in the result's order) its segments, or the
     first failure (then ``failure`` says which segment failed, and no grasp has any).
-    ``joints``: per robot grasp, its arm's joints where the motion moved them (the two arms
-    carrying the object together end their walk on their own branch at the handover), else
-    None; empty when none moved."""
+    ``joints``: per robot grasp, its arm's joints where the motion moved them (an arm
+    carrying the object along its path starts and ends its walk on its own branch:
+    :mod:`~handover.engine.plan.carried`), else None; empty when none moved."""
 
     trajectories: tuple[tuple[Segment, ...], ...]
     failure: MotionFailure | None = None
@@ -179,7 +180,7 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
     is solved for all of them together, step by step (a target's answer depends on it and its
     start alone, so this gives what solving them one by one gives, to the bit); the stages are
     then judged in order, the first failure returned. ``together``: the arm carries the
-    object with the other (:mod:`~handover.engine.plan.two_arm` plans that), so its stages go
+    object with the other (:mod:`~handover.engine.plan.carried` plans that), so its stages go
     from the grasp straight to the handover, no lift or approach of its own."""
     from handover.engine.plan.corridors import lift
 
@@ -355,33 +356,43 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
     :class:`~handover.geometry.motion.planner.Segment` per grasp (empty for a supporting
     gripper or a grasp without an arm), or a failure.
 
-    The cheap checks come first, so that a grasp without motion costs little: every grasp's
-    stages (:func:`stage_plan`, inverse kinematics), then every segment's start and goal
-    (:func:`~handover.geometry.motion.planner.ends_failure`), then the segments are planned,
-    grasp by grasp; the failure is the first found in that order."""
+    The carry from the table to the handover first: along the object's path set in the
+    world (:func:`~handover.engine.plan.carried.carry`, the arm or both arms that lift it;
+    their joints at pick-up and handover are where it starts and ends); where one arm cannot
+    so carry it, its joint-space path below. Then the cheap checks, so that a grasp without
+    motion costs little: every grasp's stages (:func:`stage_plan`, inverse kinematics), then
+    every segment's start and goal (:func:`~handover.geometry.motion.planner.ends_failure`),
+    then the segments are planned, grasp by grasp, and what each arm carries is judged by the
+    rules judged on the way (:func:`_carried_breach`); the failure is the first found in that
+    order."""
     from handover.geometry.motion import ends_failure, plan_segment
 
     settings = settings or SETTINGS or _settings()
     carriers = [i for i, g in enumerate(grasps[:len(attempt.chosen)]) if g.arm is not None
                 and g.supports is None and "pickup" in g.joints and "handover" in g.joints]
-    together: TwoArmCarry | None = None
-    if len(carriers) > 1:
-        together = two_arm_carry(ctx, attempt, grasps, carriers,
-                                 lambda i: checkers(ctx, attempt, grasps, i, grasps[i],
-                                                    alone=True), settings.resolution)
-        if isinstance(together, CarryFailure):  # the arm at fault's grasp is passed over
+    together: Carried | None = None
+    if carriers:
+        together = carry(ctx, grasps, carriers,
+                         lambda i: checkers(ctx, attempt, grasps, i, grasps[i], alone=True),
+                         settings.resolution)
+        if isinstance(together, CarryFailure) and len(carriers) > 1:
+            # the arm at fault's grasp is passed over
             at = next((grasps[i] for i in carriers if grasps[i].arm == together.side), None)
             arms = at.arm if at is not None else " and ".join(
                 sorted(grasps[i].arm for i in carriers))
             return MotionPlan((), MotionFailure(None if at is None else at.id, arms,
                                                 together.leg,
                                                 f"{TWO_ARM_CARRY}: {together.reason}"))
-        grasps = list(grasps)
-        for i, pick, hand in zip(carriers, together.pickup, together.handover, strict=True):
-            g = grasps[i]
-            moved = {**g.joints, "pickup": ctx.arms.joints_dict(g.arm, pick),
-                     "handover": ctx.arms.joints_dict(g.arm, hand)}
-            grasps[i] = replace(g, arm_joints=replace(g.arm_joints, joints=moved))
+        if isinstance(together, CarryFailure):  # one arm: its own way in joint space,
+            together = None  # the rules judged on the way still judge it (_carried_breach)
+        else:
+            grasps = list(grasps)
+            for i, pick, hand in zip(carriers, together.pickup, together.handover,
+                                     strict=True):
+                g = grasps[i]
+                moved = {**g.joints, "pickup": ctx.arms.joints_dict(g.arm, pick),
+                         "handover": ctx.arms.joints_dict(g.arm, hand)}
+                grasps[i] = replace(g, arm_joints=replace(g.arm_joints, joints=moved))
     staged: list[tuple[RobotGrasp, StagePlan, object] | None] = []
     for index, grasp in enumerate(grasps):
         if index >= len(attempt.chosen) or grasp.arm is None or grasp.supports is not None:
@@ -415,20 +426,46 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
             out.append(())
             continue
         grasp, plan, checker = entry
-        found = []
-        for name, check, start, goal in segments(plan, checker):
-            if name == "grasp->handover" and together is not None:  # carried by both arms
+        found, held = [], []
+        for k, (name, check, start, goal) in enumerate(segments(plan, checker)):
+            if name == "grasp->handover" and together is not None:  # carried along its path
                 found.extend(together.segments[carriers.index(index)])
+                held.extend(together.segments[carriers.index(index)])
                 continue
             seg = plan_segment(check, start, goal, name=name, settings=settings,
                                ends_checked=True)
             if not hasattr(seg, "positions"):
                 return MotionPlan((), MotionFailure(grasp.id, plan.side, name, seg.reason))
             found.append(seg)
+            if plan.holding[k] and k >= plan.grasp_stage:
+                held.append(seg)
+        breach = _carried_breach(ctx, attempt, plan, held)
+        if breach is not None:
+            return MotionPlan((), MotionFailure(grasp.id, plan.side, breach[0], breach[1]))
         out.append(tuple(found))
     moved = () if together is None else tuple(
         grasps[i].arm_joints if i in carriers else None for i in range(len(grasps)))
     return MotionPlan(tuple(out), joints=moved)
+
+
+def _carried_breach(ctx: PlanContext, attempt: Attempt, plan: StagePlan,
+                    held: list[Segment]) -> tuple[str, str] | None:
+    """(segment, why) where the object, carried along the segments ``held`` of an arm's
+    ``plan`` (rigid in its gripper from its grasp stage), breaks a hard ``axis`` rule that
+    holds where it is taken and where it is let go
+    (:func:`~handover.engine.plan.carried.axis_breach`): a mug upright at both ends tipped on
+    the way; else None."""
+    if not held:
+        return None
+    taken = ctx.arms.fk(plan.side, plan.q[plan.grasp_stage][None])[0]
+    in_tool = np.linalg.inv(taken) @ plan.object_pose
+    poses = [ctx.arms.fk(plan.side, np.asarray(s.positions, dtype=float)) @ in_tool
+             for s in held]
+    ends = np.cumsum([len(p) for p in poses])
+    found = axis_breach(ctx, attempt.graph, np.concatenate(poses))
+    if found is None:
+        return None
+    return held[int(np.searchsorted(ends, found[0], side="right"))].name, found[1]
 
 
 def _ends_clear(ends: list[tuple]) -> list[bool]:

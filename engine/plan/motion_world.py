@@ -103,7 +103,7 @@ def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index
     from; from ``rest``, ``retreat`` or ``release``, the arm and its open gripper keep off
     the object where it is then, its parts' boxes). ``alone``: without the other arm (a
     motion of both arms together checks them against each other where they are at the same
-    moment: :mod:`~handover.engine.plan.two_arm`)."""
+    moment: :mod:`~handover.engine.plan.carried`)."""
     from handover.engine.plan.corridors import held_box
     from handover.geometry.motion import ArmModel, ValidityChecker, obstacles
 

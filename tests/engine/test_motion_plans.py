@@ -376,11 +376,110 @@ def test_two_arms_carry_the_tray_together_keeping_it_rigid_and_level(planned, ur
     check_carried_together(planned["tray"], urdf)
 
 
+def carried_poses(result: dict, grasp: dict, urdf) -> np.ndarray:
+    """(n, 4, 4) the object, world, at every sample of the segments ``grasp`` carries it
+    along (from the stage where it takes hold: ``pickup`` from ``initial_pose``, or H2G2's
+    ``midair`` from ``regrasp.midair_pose``), rigid in the grasp frame that yourdfpy's FK of
+    its joints there gives."""
+    held = {"pickup": ("grasp->lift", "lift->approach", "lift->midair", "approach->handover"),
+            "midair": ("midair->approach", "approach->handover")}
+    taken = "pickup" if "pickup" in grasp["joints"] else "midair"
+    start = np.asarray(result["initial_pose"] if taken == "pickup"
+                       else result["regrasp"]["midair_pose"], dtype=float)
+    in_tool = np.linalg.inv(gripper_at(urdf, result["robot"], grasp["arm"],
+                                       grasp["joints"][taken])) @ start
+    return np.array([gripper_at(urdf, result["robot"], grasp["arm"],
+                                dict(zip(s["joint_names"], q, strict=True))) @ in_tool
+                     for s in grasp["trajectory"] if s["segment"] in held[taken]
+                     for q in s["positions"]])
+
+
+def _angles(poses: np.ndarray, axis, direction) -> np.ndarray:
+    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    return np.degrees(np.arccos(np.clip((poses[:, :3, :3] @ axis) @ direction, -1.0, 1.0)))
+
+
+def test_the_mug_is_carried_upright_all_the_way(kb, planned, urdf):
+    """The mug (an open container: upright within 20 deg where it is offered and, the rule
+    says, on the way) is carried from the table to the handover upright within 5 deg at
+    every sample of its arm's motion, by yourdfpy's FK. Its arm's joint-space path tipped it
+    71 deg on the way."""
+    result = planned["mug"]
+    assert result["motion"]["planned"]
+    (grasp,) = result["robot_grasps"]
+    poses = carried_poses(result, grasp, urdf)
+    assert len(poses) > 50
+    tilt = _angles(poses, kb.objects["mug"].axes["up"], [0.0, 0.0, 1.0])
+    assert tilt.max() <= 5.0, tilt.max()
+    np.testing.assert_allclose(poses[-1], np.asarray(result["object_pose"]), atol=1e-4)
+
+
+def test_a_glass_of_water_of_your_own_is_carried_upright_to_every_receiver(tmp_path, urdf):
+    """A user's glass of water (liquid, an open container), in a KB of their own, handed to
+    an adult, a seated adult and an elder: upright within the rule's 20 deg at every sample of
+    the carry (yourdfpy's FK), and offered upright."""
+    import shutil
+
+    from handover.engine.store.kb import builtin_kb_dir
+
+    root = tmp_path / "kb"
+    shutil.copytree(builtin_kb_dir(), root)
+    (root / "objects" / "glass.yaml").write_text(GLASS, encoding="utf-8")
+    own = load_kb(root)
+    for receiver in ("adult", "seated_adult", "elder"):
+        result = plan(own, Query(object="glass", receiver=receiver), motion=True
+                      ).result.to_dict()
+        assert result["outcome"] == "handover" and result["motion"]["planned"], receiver
+        for grasp in result["robot_grasps"]:
+            if not grasp.get("trajectory") or "handover" not in grasp["joints"]:
+                continue
+            poses = carried_poses(result, grasp, urdf)
+            tilt = _angles(poses, [0.0, 0.0, 1.0], [0.0, 0.0, 1.0])
+            assert tilt.max() <= 20.0, (receiver, tilt.max())
+
+
+GLASS = """id: glass
+name: Glass of water (7 cm, 12 cm tall, 0.35 kg full)
+mass: 0.35
+tags: [drinkware, liquid, open_container, fragile]
+geometry:
+  primitives:
+    - {shape: tube, part: rim, radius: 0.035, height: 0.01, thickness: 0.003,
+       position: [0, 0, 0.115]}
+    - {shape: cup, part: body, radius: 0.035, height: 0.11, thickness: 0.003,
+       bottom_thickness: 0.008, position: [0, 0, 0.055]}
+parts:
+  body: {tags: [body]}
+  rim: {tags: [rim, food_contact]}
+axes:
+  up: [0, 0, 1]
+"""
+
+
+def test_the_knife_s_tip_never_swings_at_a_seated_receiver_on_the_way(kb, urdf):
+    """The knife to a seated adult is passed through a midair regrasp (H2G2). Where the
+    second arm takes it, and where it offers it, its tip points at least 100 deg away from
+    the receiver (``sharp_tip_away``, a safety rule); so it does at every sample of that
+    arm's way in between, by yourdfpy's FK. The plan's first choice of second grasp swung
+    the tip to the receiver on that way; it is passed over and says why."""
+    result = plan(kb, Query(object="knife", receiver="seated_adult"), motion=True
+                  ).result.to_dict()
+    assert result["mode"] == "H2G2" and result["motion"]["planned"]
+    position = np.asarray(result["receiver"]["position"], dtype=float) * [1.0, 1.0, 0.0]
+    toward = position / np.linalg.norm(position)
+    second = next(g for g in result["robot_grasps"] if "midair" in g["joints"]
+                  and "handover" in g["joints"])
+    angles = _angles(carried_poses(result, second, urdf), kb.objects["knife"].axes["tip"],
+                     toward)
+    assert angles.min() >= 100.0, angles.min()
+    assert any("sharp_tip_away" in w and "on the way" in w for w in result["warnings"])
+
+
 def test_the_recording_plays_the_two_arms_carry_at_once(kb):
     """In the tray's recording (the ``motion`` timeline), each arm comes to its grasp in
     turn, then both carry the tray at once (each carried leg starts at the same time for
     both arms), then each goes back to rest."""
-    from handover.engine.plan.two_arm import LEGS
+    from handover.engine.plan.carried import LEGS
     from handover.engine.report.rerun.motion import motion_schedule
 
     planned = plan(kb, Query(object="tray"), motion=True)

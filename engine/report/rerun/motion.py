@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from handover.engine.plan.carried import CARRIED
 from handover.engine.plan.records import ArmJoints
-from handover.engine.plan.two_arm import CARRIED
 
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
@@ -91,7 +91,7 @@ def motion_schedule(grasps: list) -> list[tuple]:
     """``(grasp, segment, start s)`` of every segment of the robot grasps' ``trajectory``, in
     the order they run on :data:`MOTION_TIMELINE`: the arms one after the other as they were
     planned, but where two arms carry the object together (segments planned by
-    :mod:`~handover.engine.plan.two_arm`, the same times in both): each arm's way to its grasp in
+    :mod:`~handover.engine.plan.carried`, the same times in both): each arm's way to its grasp in
     turn, then the carry, both at once, then each arm's way back in turn."""
     together = set()
     if len(grasps) == 2:

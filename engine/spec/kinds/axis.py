@@ -15,13 +15,21 @@ Degrees = Annotated[float, Field(ge=0, le=180)]
 
 @register
 class AxisRule(RuleBase):
-    """axis, toward, min_deg / max_deg (angle bounds, degrees)."""
+    """axis, toward, min_deg / max_deg (angle bounds, degrees); on_the_way: the angle must
+    also hold while the robot carries the object, where it holds at pick-up and at the
+    handover (a full mug kept upright on its way, not only where it is offered); unset, a
+    ``safety`` rule is so judged and another is not (:meth:`judged_on_the_way`)."""
 
     kind: Literal["axis"] = "axis"
     axis: Id
     toward: Direction
     min_deg: Degrees | None = None
     max_deg: Degrees | None = None
+    on_the_way: bool | None = None
+
+    def judged_on_the_way(self) -> bool:
+        """Whether the carry is judged too (``on_the_way``, unset: ``safety``)."""
+        return self.safety if self.on_the_way is None else self.on_the_way
 
     colour = (240, 130, 40)
     summary = "angle between an object axis and a receiver-frame direction"
