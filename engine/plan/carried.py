@@ -132,13 +132,14 @@ def _straight(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _between(a: np.ndarray, b: np.ndarray, u: np.ndarray) -> np.ndarray:
     """(len(u), 4, 4) poses at fractions ``u`` of the way from ``a`` to ``b``: positions on
-    the line, the turn spherical-linear."""
-    from scipy.spatial.transform import Rotation, Slerp
+    the line, the turn spherical-linear (``Ra exp(u log(Ra^T Rb))``)."""
+    from scipy.spatial.transform import Rotation
 
+    u = np.asarray(u, dtype=float)
+    turn = Rotation.from_matrix(a[:3, :3].T @ b[:3, :3]).as_rotvec()
     out = np.repeat(np.eye(4)[None], len(u), axis=0)
-    out[:, :3, :3] = Slerp([0.0, 1.0], Rotation.from_matrix([a[:3, :3], b[:3, :3]]))(
-        u).as_matrix()
-    out[:, :3, 3] = a[:3, 3] + np.asarray(u)[:, None] * (b[:3, 3] - a[:3, 3])
+    out[:, :3, :3] = a[:3, :3] @ Rotation.from_rotvec(u[:, None] * turn).as_matrix()
+    out[:, :3, 3] = a[:3, 3] + u[:, None] * (b[:3, 3] - a[:3, 3])
     return out
 
 
@@ -264,9 +265,9 @@ def carry(ctx: PlanContext, grasps: list[RobotGrasp], carriers: list[int], world
     one's validity checkers against the world without the other arm
     (:func:`~handover.engine.plan.motion_world.checkers` with ``alone``); ``resolution``: rad,
     the largest joint step between checked configurations. Each arm walks from its plan's
-    pick-up joints, or where that walk is lost, from another answer at pick-up
-    (:func:`_starts`); the combinations of walks (:data:`PATHS` each) are tried in order, the
-    first clear one taken, else the first one's failure."""
+    pick-up joints, or where that walk is lost, from the other answers at pick-up
+    (:func:`_starts`, up to :data:`PATHS` walks); the combinations of the arms' walks are
+    tried in order, the first clear one taken, else the first one's failure."""
     from itertools import product
 
     from handover.engine.plan.corridors import held_box, lift
@@ -288,8 +289,11 @@ def carry(ctx: PlanContext, grasps: list[RobotGrasp], carriers: list[int], world
     paths = []
     ends = np.cumsum([len(leg) for leg in legs])
     for s, t, q, check in zip(sides, tool, q_pick, checks, strict=True):
-        starts = _starts(ctx, s, t, q, check("pickup", True, "grasp").valid)
-        found, farthest = _paths(ctx, s, steps @ t, starts)
+        found, farthest = _paths(ctx, s, steps @ t, [q])  # the plan's joints first
+        if not found:  # then other answers at pick-up
+            starts = _starts(ctx, s, t, q, check("pickup", True, "grasp").valid)
+            found, further = _paths(ctx, s, steps @ t, starts)
+            farthest = max(farthest, further)
         if not found:
             leg = LEGS[min(int(np.searchsorted(ends, farthest, side="right")), len(LEGS) - 1)]
             return CarryFailure(leg, f"the {s} arm cannot follow the object on its straight "
