@@ -214,8 +214,8 @@ def _pair_clear(ctx: PlanContext, sides: tuple[str, ...], cuts: tuple[slice, ...
 
 def _starts(ctx: PlanContext, side: str, tool: np.ndarray, planned: np.ndarray,
             valid) -> list[np.ndarray]:
-    """Joints to start the carry from at pick-up, for the arm on ``side`` whose grasp frame
-    is at ``tool`` (4, 4) there: the plan's ``planned`` (dof,), then the other answers of
+    """Other joints to start the carry from at pick-up than the plan's ``planned`` (dof,),
+    for the arm on ``side`` whose grasp frame is at ``tool`` (4, 4) there: the answers of
     inverse kinematics (:data:`START_ANSWERS`) that ``valid(q (k, dof)) -> (k,) bool`` finds
     collision-free, nearest the plan's first."""
     found = ctx.arms.solve_each(side, tool[None], START_ANSWERS)
@@ -223,7 +223,7 @@ def _starts(ctx: PlanContext, side: str, tool: np.ndarray, planned: np.ndarray,
     if len(others):
         others = others[valid(others)]
         others = others[np.argsort(np.abs(others - planned).max(axis=1), kind="stable")]
-    return [planned, *(q for q in others if np.abs(q - planned).max() > 1e-6)]
+    return [q for q in others if np.abs(q - planned).max() > 1e-6]
 
 
 def _paths(ctx: PlanContext, side: str, tools: np.ndarray, starts: list[np.ndarray]
@@ -292,8 +292,9 @@ def carry(ctx: PlanContext, grasps: list[RobotGrasp], carriers: list[int], world
         found, farthest = _paths(ctx, s, steps @ t, [q])  # the plan's joints first
         if not found:  # then other answers at pick-up
             starts = _starts(ctx, s, t, q, check("pickup", True, "grasp").valid)
-            found, further = _paths(ctx, s, steps @ t, starts)
-            farthest = max(farthest, further)
+            if starts:
+                found, further = _paths(ctx, s, steps @ t, starts)
+                farthest = max(farthest, further)
         if not found:
             leg = LEGS[min(int(np.searchsorted(ends, farthest, side="right")), len(LEGS) - 1)]
             return CarryFailure(leg, f"the {s} arm cannot follow the object on its straight "
