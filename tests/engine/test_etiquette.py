@@ -222,6 +222,10 @@ def test_describe_rule_says_what_it_asks(builtin_kb):
     assert rules["giver_avoids_sharp"].describe() == (
         "giver never holds a part tagged sharp"
     )
-    assert rules["sharp_tip_away"].describe() == (
-        "axis 'tip' at least 100 deg from toward_receiver"
+    assert rules["sharp_tip_away"].describe() == (  # safety: judged on the way too
+        "axis 'tip' at least 100 deg from toward_receiver, also while carried"
     )
+    assert rules["open_container_upright"].describe() == (  # on_the_way: true
+        "axis 'up' at most 20 deg from up, also while carried"
+    )
+    assert rules["book_upright"].describe() == "axis 'up' at most 20 deg from up"

@@ -53,6 +53,7 @@ class AxisRule(RuleBase):
             said.append(f"at least {self.min_deg:g} deg")
         if self.max_deg is not None:
             said.append(f"at most {self.max_deg:g} deg")
-        return f"axis '{self.axis}' {' and '.join(said)} from {self.toward}"
+        where = ", also while carried" if self.judged_on_the_way() else ""
+        return f"axis '{self.axis}' {' and '.join(said)} from {self.toward}{where}"
 
 
