@@ -385,13 +385,14 @@ class _Along:
 def axis_breach(ctx: PlanContext, graph, poses: np.ndarray) -> tuple[int, str] | None:
     """Where a hard ``axis`` rule of ``graph`` (the attempt's compiled graph) judged on the
     way (:meth:`~handover.engine.spec.kinds.axis.AxisRule.judged_on_the_way`: a safety rule,
-    or one whose ``on_the_way`` says so) that holds at both ends of a carry does not hold
-    there: the object's world poses ``poses``
-    (n, 4, 4), from where the gripper took it to where it lets go. The first such rule in
-    evaluation order: the index of its worst pose and a sentence (its id, file:line, the
-    worst angle and the bound); None when none. A rule the object does not meet where it is
-    picked up (a mug lying on its side is not upright before it is lifted) is not judged on
-    the way; the handover is judged by the rule itself."""
+    or one whose ``on_the_way`` says so) stops holding while an arm carries the object: the
+    object's world poses ``poses`` (n, 4, 4), from where the gripper took it to where it lets
+    go. A rule that holds where it is let go must hold all the way from the first pose where
+    it holds (a mug upright on the table stays upright; a knife lying with its tip toward the
+    receiver, once turned away, does not swing back at them). The first such rule in
+    evaluation order: the index of its worst pose after that first one and a sentence (its
+    id, file:line, the worst angle and the bound); None when none. Where it is let go is the
+    rule's own to judge (the handover) or the next arm's carry's (a midair regrasp)."""
     from handover.engine.plan.judge.base import angle_deg, bounds
 
     obj = ctx.situation.obj
@@ -404,10 +405,13 @@ def axis_breach(ctx: PlanContext, graph, poses: np.ndarray) -> tuple[int, str] |
         axis = axis / np.linalg.norm(axis)
         angles = angle_deg(poses[:, :3, :3] @ axis, ctx.situation.directions[rule.toward])
         ok, bound = bounds(angles, rule.min_deg, rule.max_deg, "deg")
-        if ok[0] and ok[-1] and not ok.all():
-            over = rule.max_deg is not None and (angles > rule.max_deg + 1e-9).any()
-            worst = int(np.argmax(angles) if over else np.argmin(angles))
-            return worst, (f"rule {c.id} ({c.source}) holds where the object is taken and "
-                           f"let go but not on the way: angle({rule.axis}, {rule.toward}) "
-                           f"reaches {angles[worst]:.0f} deg ({bound})")
+        since = int(np.argmax(ok))  # from the first pose where it holds
+        if ok[-1] and not ok[since:].all():
+            rest = angles[since:]
+            over = rule.max_deg is not None and (rest > rule.max_deg + 1e-9).any()
+            worst = since + int(np.argmax(rest) if over else np.argmin(rest))
+            return worst, (f"rule {c.id} ({c.source}) holds on the way and where the object "
+                           f"is let go, but not all the way from where it first holds: "
+                           f"angle({rule.axis}, {rule.toward}) reaches {angles[worst]:.0f} "
+                           f"deg ({bound})")
     return None

@@ -451,8 +451,8 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
 def _carried_breach(ctx: PlanContext, attempt: Attempt, plan: StagePlan,
                     held: list[Segment]) -> tuple[str, str] | None:
     """(segment, why) where the object, carried along the segments ``held`` of an arm's
-    ``plan`` (rigid in its gripper from its grasp stage), breaks a hard ``axis`` rule that
-    holds where it is taken and where it is let go
+    ``plan`` (rigid in its gripper from its grasp stage), stops meeting a hard ``axis`` rule
+    judged on the way that it meets where it is let go
     (:func:`~handover.engine.plan.carried.axis_breach`): a mug upright at both ends tipped on
     the way; else None."""
     if not held:

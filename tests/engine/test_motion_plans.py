@@ -475,6 +475,32 @@ def test_the_knife_s_tip_never_swings_at_a_seated_receiver_on_the_way(kb, urdf):
     assert any("sharp_tip_away" in w and "on the way" in w for w in result["warnings"])
 
 
+def test_a_rule_judged_on_the_way_holds_from_where_it_first_holds_to_the_end(kb):
+    """``axis_breach`` on a knife turned about the vertical while carried to a receiver
+    straight ahead (+x): its tip first at the receiver (``sharp_tip_away`` not met where it
+    is picked up: not judged there), turned away, back at the receiver, away again at the
+    end. The breach is the pose back at the receiver; turned only away, none; a rule that
+    is not met where the object is let go is the handover's to judge, not the carry's."""
+    from handover.engine.plan.carried import axis_breach
+    from handover.geometry.frames import rotation_about_axis, transform_from
+
+    planned = plan(kb, Query(object="knife"))
+    ctx, graph = planned.context, planned.attempt.graph
+    tip = np.asarray(kb.objects["knife"].axes["tip"], dtype=float)
+    toward = ctx.situation.directions["toward_receiver"]
+    start = np.degrees(np.arctan2(np.cross(tip, toward)[2], tip @ toward))  # tip at them
+
+    def poses(*turns: float) -> np.ndarray:
+        return np.array([transform_from(rotation_about_axis([0, 0, 1], np.radians(start + t)),
+                                        [0.5, 0.0, 1.0]) for t in turns])
+
+    found = axis_breach(ctx, graph, poses(0, 60, 180, 170, 20, 180))
+    assert found is not None and found[0] == 4, found
+    assert "sharp_tip_away" in found[1] and "20 deg" in found[1]
+    assert axis_breach(ctx, graph, poses(0, 60, 120, 180)) is None
+    assert axis_breach(ctx, graph, poses(180, 20, 0)) is None  # not met at the end
+
+
 def test_the_recording_plays_the_two_arms_carry_at_once(kb):
     """In the tray's recording (the ``motion`` timeline), each arm comes to its grasp in
     turn, then both carry the tray at once (each carried leg starts at the same time for
