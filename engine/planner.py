@@ -158,8 +158,10 @@ def add_motion(result: PlanResult, ctx: PlanContext, attempt: Attempt) -> Motion
     (``{planned, segments, duration, failure}``; a failure names the segment, and its
     sentence joins the warnings). Returns what the motion planner found."""
     from handover.engine.plan.motion import motion_plan
+    from handover.engine.plan.motion_world import receiver_reach
 
-    found = motion_plan(ctx, attempt, result.robot_grasps)
+    found = motion_plan(ctx, attempt, result.robot_grasps,
+                        receiver=receiver_reach(result.human_grasps))
     result.motion = found.to_dict()
     if found.failure is not None:
         result.warnings = [*result.warnings, found.failure.sentence()]

@@ -350,11 +350,14 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
 
 
 def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
-                settings: PlannerSettings | None = None) -> MotionPlan:
+                settings: PlannerSettings | None = None, receiver=None) -> MotionPlan:
     """The arms' motion for the robot grasps ``grasps`` of a feasible ``attempt`` (the
     result's records, the chosen grasps first, in ``attempt.chosen``'s order): one tuple of
     :class:`~handover.geometry.motion.planner.Segment` per grasp (empty for a supporting
-    gripper or a grasp without an arm), or a failure.
+    gripper or a grasp without an arm), or a failure. ``receiver``: the receiver's hands and
+    arms holding the object after the handover
+    (:func:`~handover.engine.plan.motion_world.receiver_reach` of the result's human grasps),
+    which the arms going back to rest from the retreat keep off.
 
     The carry from the table to the handover first: along the object's path set in the
     world (:func:`~handover.engine.plan.carried.carry`, the arm or both arms that lift it;
@@ -398,7 +401,7 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
         if index >= len(attempt.chosen) or grasp.arm is None or grasp.supports is not None:
             staged.append(None)
             continue
-        checker = checkers(ctx, attempt, grasps, index, grasp)
+        checker = checkers(ctx, attempt, grasps, index, grasp, receiver=receiver)
         plan = stage_plan(ctx, attempt, index, grasp, Valid(checker),
                           together=index in carriers and together is not None)
         if isinstance(plan, MotionFailure):

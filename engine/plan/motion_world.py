@@ -16,9 +16,11 @@ if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Phase
     from handover.engine.plan.records import RobotGrasp
+    from handover.geometry.armcollision import Targets
     from handover.geometry.motion import ValidityChecker
 
-__all__ = ["segment_targets", "joins_at_handover", "other_joints", "Valid", "checkers"]
+__all__ = ["segment_targets", "joins_at_handover", "other_joints", "receiver_reach", "Valid",
+           "checkers"]
 
 
 def _phase_stage(phase: Phase, where: str) -> str:
@@ -75,6 +77,30 @@ def other_joints(ctx: PlanContext, grasps: list[RobotGrasp], side: str, where: s
     return out
 
 
+def receiver_reach(human_grasps) -> Targets:
+    """The receiver's hands that take the object (each :class:`~handover.engine.plan.records.
+    HumanGrasp`'s ``model`` boxes, named ``body:receiver:<hand>_hand:<box>``) and their arms
+    reaching for it (upper arm and forearm capsules of its ``arm``,
+    ``body:receiver:<hand>_upper_arm`` / ``_forearm``), world, as the result reports them:
+    what an arm going back to its rest from the retreat keeps off, the receiver holding the
+    object there (the corridors judge the gripper's way out next to the hand)."""
+    from handover.geometry.bodies import Body
+    from handover.geometry.motion import obstacles
+
+    boxes, names, p0, p1, radius = [], [], [], [], []
+    for h in human_grasps:
+        boxes += [(f"body:receiver:{h.hand}_hand:{b.name}", b.extents, b.pose) for b in h.model]
+        if h.arm is not None:
+            names += [f"body:receiver:{h.hand}_upper_arm", f"body:receiver:{h.hand}_forearm"]
+            p0 += [h.arm.shoulder, h.arm.elbow]
+            p1 += [h.arm.elbow, h.arm.wrist]
+            radius += list(h.arm.radius)
+    arms = Body(capsule_names=tuple(names), p0=np.array(p0, dtype=float).reshape(-1, 3),
+                p1=np.array(p1, dtype=float).reshape(-1, 3), radius=np.array(radius, dtype=float),
+                box_names=(), extents=np.zeros((0, 3)), poses=np.zeros((0, 4, 4)))
+    return obstacles(boxes=boxes, bodies=[arms] if names else [])
+
+
 class Valid:
     """``valid(q (dof,), where, carried) -> bool``: whether joints are collision-free in a
     plan stage, through a checker factory (:func:`checkers`); ``many`` asks it of several
@@ -95,13 +121,15 @@ class Valid:
 
 
 def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index: int,
-              grasp: RobotGrasp, alone: bool = False):
+              grasp: RobotGrasp, alone: bool = False, receiver: Targets | None = None):
     """The validity checkers of robot grasp ``grasp`` (the ``index``-th of ``grasps``), made
     on first use and kept: ``checker(where, carried, start="")`` for a segment checked in plan
     stage ``where`` (``pickup`` | ``midair`` | ``handover``), the object held or not, from
     stage ``start`` (from ``grasp``, the held object may touch the table it is lifted
     from; from ``rest``, ``retreat`` or ``release``, the arm and its open gripper keep off
-    the object where it is then, its parts' boxes). ``alone``: without the other arm (a
+    the object where it is then, its parts' boxes; from ``retreat``, also ``receiver``, the
+    receiver's hands and arms holding it: :func:`receiver_reach`). ``alone``: without the
+    other arm (a
     motion of both arms together checks them against each other where they are at the same
     moment: :mod:`~handover.engine.plan.carried`)."""
     from handover.engine.plan.corridors import held_box
@@ -140,6 +168,8 @@ def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index
             targets = segment_targets(ctx, attempt, index, side, where, others)
             if around is not None:
                 targets = targets + obstacles(boxes=held_box(ctx, around))
+            if start == "retreat" and not carried and receiver is not None:
+                targets = targets + receiver  # they hold it now: the arm goes round them
             allowed = []
             if carried:  # another gripper may hold it; it leaves the table
                 allowed = [(box, t) for box in sorted(held_names) for t in targets.names

@@ -475,6 +475,70 @@ def test_the_knife_s_tip_never_swings_at_a_seated_receiver_on_the_way(kb, urdf):
     assert any("sharp_tip_away" in w and "on the way" in w for w in result["warnings"])
 
 
+def _receiver_reach(result: dict) -> list[tuple[str, fcl.CollisionObject]]:
+    """fcl objects of the receiver's hands and reaching arms as the result gives them
+    (``human_grasps``: each hand model's boxes, the arm's upper arm and forearm capsules)."""
+    from tests.engine.test_corridors import fcl_box
+
+    out = []
+    for h in result["human_grasps"]:
+        for b in h.get("model") or []:
+            pose = np.asarray(b["pose"], dtype=float)
+            out.append((f"{h['hand']} hand {b['name']}",
+                        fcl_box(b["extents"], pose[:3, :3], pose[:3, 3])))
+        arm = h.get("arm") or {}
+        for name, a, b, r in (("upper arm", "shoulder", "elbow", 0), ("forearm", "elbow",
+                                                                      "wrist", 1)):
+            if not arm:
+                continue
+            p0, p1 = np.asarray(arm[a], dtype=float), np.asarray(arm[b], dtype=float)
+            axis = p1 - p0
+            side = np.cross(axis, [0.0, 0.0, 1.0])
+            frame = frame_from_o_a(side if np.linalg.norm(side) > 1e-9 else [1, 0, 0], axis)
+            out.append((f"{h['hand']} {name}", fcl.CollisionObject(
+                fcl.Capsule(arm["radius"][r], float(np.linalg.norm(axis))),
+                fcl.Transform(frame, (p0 + p1) / 2))))
+    return out
+
+
+@pytest.mark.parametrize("receiver", ["adult", "seated_adult"])
+def test_the_arm_going_back_to_rest_keeps_off_the_receiver_s_hands_and_arms(kb, urdf,
+                                                                              receiver):
+    """Once the receiver holds the object, the arm goes from its retreat back to rest: at
+    every sample, its URDF links and its open gripper (the gripper YAML's boxes), posed by
+    yourdfpy, keep off the receiver's hands and reaching arms as the result gives them
+    (fcl). The mug's arm going back from a seated adult swept its gripper through their
+    forearm."""
+    from tests.engine.test_corridors import fcl_box, gripper_boxes, gripper_spec, touches
+
+    spec = gripper_spec()
+    checked = 0
+    for obj in ("mug", "bottle", "hammer", "knife", "tray"):
+        result = plan(kb, Query(object=obj, receiver=receiver), motion=True).result.to_dict()
+        if not result["motion"]["planned"]:
+            continue
+        reach = _receiver_reach(result)
+        assert reach, obj
+        base = np.asarray(result["robot"]["base_pose"], dtype=float)
+        for grasp in result["robot_grasps"]:
+            segment = next((s for s in grasp.get("trajectory") or []
+                            if s["segment"] == "retreat->rest"), None)
+            if segment is None:
+                continue
+            links = _moving(urdf, segment["joint_names"])
+            boxes = gripper_boxes(spec, float(grasp["width"]))
+            for k, q in enumerate(segment["positions"]):
+                joints = dict(zip(segment["joint_names"], q, strict=True))
+                tool = gripper_at(urdf, result["robot"], grasp["arm"], joints)
+                parts = [("gripper", fcl_box(e, tool[:3, :3], tool[:3, :3] @ c + tool[:3, 3]))
+                         for e, c in boxes] + _link_objects(urdf, base, links)
+                for name, part in parts:
+                    for other, body in reach:
+                        assert not touches(part, body), (obj, k, name, other)
+                checked += 1
+    assert checked > 100
+
+
 def test_a_rule_judged_on_the_way_holds_from_where_it_first_holds_to_the_end(kb):
     """``axis_breach`` on a knife turned about the vertical while carried to a receiver
     straight ahead (+x): its tip first at the receiver (``sharp_tip_away`` not met where it
