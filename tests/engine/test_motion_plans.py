@@ -270,12 +270,12 @@ def test_a_grasp_whose_arm_cannot_move_is_passed_over_for_the_next(kb, monkeypat
     blocked = first["robot_grasps"][0]["id"]
     real = motion.motion_plan
 
-    def blocking(ctx, attempt, grasps, settings=None):
+    def blocking(ctx, attempt, grasps, settings=None, receiver=None):
         if any(g.id == blocked for g in grasps[:len(attempt.chosen)]):
             failure = motion.MotionFailure(blocked, grasps[0].arm or "left", "rest->pregrasp",
                                            "blocked for this test")
             return motion.MotionPlan((), failure)
-        return real(ctx, attempt, grasps, settings)
+        return real(ctx, attempt, grasps, settings, receiver=receiver)
 
     monkeypatch.setattr(motion, "motion_plan", blocking)
     result = plan(kb, Query(object="hammer"), motion=True).result.to_dict()
@@ -294,7 +294,7 @@ def test_when_no_plan_tried_moves_the_first_is_kept_with_its_failure(kb, monkeyp
 
     first = plan(kb, Query(object="hammer")).result.to_dict()
 
-    def failing(ctx, attempt, grasps, settings=None):
+    def failing(ctx, attempt, grasps, settings=None, receiver=None):
         g = grasps[0]
         return motion.MotionPlan((), motion.MotionFailure(g.id, g.arm or "left",
                                                           "rest->pregrasp", "blocked"))
