@@ -266,8 +266,9 @@ def carry(ctx: PlanContext, grasps: list[RobotGrasp], carriers: list[int], world
     """The carrying arms' motion along :data:`LEGS` (module docstring): ``carriers``, the
     indices in ``grasps`` of the one or two grasps that lift the object (each with joints at
     ``pickup`` and ``handover``); ``world(index) -> checker(where, carried, start)``, each
-    one's validity checkers against the world without the other arm
-    (:func:`~handover.engine.plan.motion_world.checkers` with ``alone``); ``resolution``: rad,
+    one's validity checkers against the world (:func:`~handover.engine.plan.motion_world.
+    checkers`: with the other arm where it waits, or for two carriers without it, ``alone``,
+    since they are checked against each other here); ``resolution``: rad,
     the largest joint step between checked configurations. Each arm walks from its plan's
     pick-up joints, or where that walk is lost, from the other answers at pick-up
     (:func:`_starts`, up to :data:`PATHS` walks); the combinations of the arms' walks are

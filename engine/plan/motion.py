@@ -375,8 +375,9 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
                 and g.supports is None and "pickup" in g.joints and "handover" in g.joints]
     together: Carried | None = None
     if carriers:
+        alone = len(carriers) > 1  # two arms carrying are checked against each other
         together = carry(ctx, grasps, carriers,
-                         lambda i: checkers(ctx, attempt, grasps, i, grasps[i], alone=True),
+                         lambda i: checkers(ctx, attempt, grasps, i, grasps[i], alone=alone),
                          settings.resolution)
         if isinstance(together, CarryFailure) and len(carriers) > 1:
             # the arm at fault's grasp is passed over
