@@ -48,7 +48,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from handover.engine.plan.carried import Carried, CarryFailure, axis_breach, carry
+from handover.engine.plan.carried import CARRIED, Carried, CarryFailure, axis_breach, carry
 from handover.engine.plan.motion_world import Valid, checkers, joins_at_handover
 from handover.engine.plan.records import ArmJoints, RobotGrasp
 
@@ -151,10 +151,17 @@ class MotionPlan:
 
     def to_dict(self) -> dict:
         """The result's ``motion`` block: ``{planned, segments, duration, failure}``
-        (``duration``: s, the arms' motions one after the other)."""
+        (``duration``: s, the arms' motions one after the other, a carry two arms run at
+        once counted once)."""
         segments = [s for t in self.trajectories for s in t]
+        duration, carried = 0.0, set()
+        for s in segments:  # two arms' carried segments of one name run at once
+            if s.planner == CARRIED and s.name in carried:
+                continue
+            carried |= {s.name} if s.planner == CARRIED else set()
+            duration += s.duration
         return {"planned": self.planned, "segments": len(segments),
-                "duration": round(sum(s.duration for s in segments), 6),
+                "duration": round(duration, 6),
                 "failure": None if self.failure is None else self.failure.to_dict()}
 
 

@@ -579,6 +579,8 @@ def test_the_recording_plays_the_two_arms_carry_at_once(kb):
     assert len(starts) == sum(len(g.trajectory) for g in grasps)
     for leg in LEGS:
         assert starts[("left", leg)] == starts[("right", leg)]
+    end = max(t + took for t, took in starts.values())
+    assert planned.result.motion["duration"] == pytest.approx(end, abs=1e-5)  # carry once
     carry = starts[("left", LEGS[0])][0]
     for side in ("left", "right"):
         t, took = starts[(side, "pregrasp->grasp")]
