@@ -294,10 +294,10 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
         q_grasp = q_of["pickup"]
         tool = arms.fk(side, q_grasp[None])[0]
         distance = spec.approach if grasp.approach is None else grasp.approach.distance
-        _, directions = lift(ctx, np.array([chosen.grasp]))
         between.append(("pregrasp", tool, (distance, spec.approach_min), None, q_grasp,
                         "pickup", False))
-        if not together:
+        if not together:  # the carry, where it planned the lift, judged its corridor there
+            _, directions = lift(ctx, np.array([chosen.grasp]))
             between.append(("lift", tool, (spec.lift,), directions[0], q_grasp, "pickup", True))
     elif not joins:  # H2G2's second grasp: taken at the midair regrasp
         q_mid = q_of["midair"]

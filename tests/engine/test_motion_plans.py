@@ -81,23 +81,26 @@ def _obstacles(result):
         if any(word in part["name"] for word in REACHING):
             continue
         if part["shape"] == "capsule":
-            p0, p1 = np.asarray(part["p0"], float), np.asarray(part["p1"], float)
-            axis = p1 - p0
-            length = float(np.linalg.norm(axis))
-            if length < 1e-9:
-                geom, frame = fcl.Sphere(part["radius"]), np.eye(3)
-            else:
-                side = np.cross(axis, [0, 0, 1])
-                frame = frame_from_o_a(side if np.linalg.norm(side) > 1e-9 else [1, 0, 0],
-                                       axis)
-                geom = fcl.Capsule(part["radius"], length)
-            out.append((f"receiver:{part['name']}", fcl.CollisionObject(
-                geom, fcl.Transform(frame, (p0 + p1) / 2))))
+            out.append((f"receiver:{part['name']}",
+                        _fcl_capsule(part["p0"], part["p1"], part["radius"])))
         else:
             pose = np.asarray(part["pose"], dtype=float)
             out.append((f"receiver:{part['name']}", fcl.CollisionObject(
                 fcl.Box(*part["extents"]), fcl.Transform(pose[:3, :3], pose[:3, 3]))))
     return out
+
+
+def _fcl_capsule(p0, p1, radius: float) -> fcl.CollisionObject:
+    """An fcl capsule from ``p0`` to ``p1`` (3,) world (a sphere where they meet)."""
+    p0, p1 = np.asarray(p0, dtype=float), np.asarray(p1, dtype=float)
+    axis = p1 - p0
+    length = float(np.linalg.norm(axis))
+    if length < 1e-9:
+        return fcl.CollisionObject(fcl.Sphere(radius), fcl.Transform(np.eye(3), p0))
+    side = np.cross(axis, [0, 0, 1])
+    frame = frame_from_o_a(side if np.linalg.norm(side) > 1e-9 else [1, 0, 0], axis)
+    return fcl.CollisionObject(fcl.Capsule(radius, length),
+                               fcl.Transform(frame, (p0 + p1) / 2))
 
 
 def _trajectories(planned):
@@ -486,18 +489,12 @@ def _receiver_reach(result: dict) -> list[tuple[str, fcl.CollisionObject]]:
             pose = np.asarray(b["pose"], dtype=float)
             out.append((f"{h['hand']} hand {b['name']}",
                         fcl_box(b["extents"], pose[:3, :3], pose[:3, 3])))
-        arm = h.get("arm") or {}
-        for name, a, b, r in (("upper arm", "shoulder", "elbow", 0), ("forearm", "elbow",
-                                                                      "wrist", 1)):
-            if not arm:
-                continue
-            p0, p1 = np.asarray(arm[a], dtype=float), np.asarray(arm[b], dtype=float)
-            axis = p1 - p0
-            side = np.cross(axis, [0.0, 0.0, 1.0])
-            frame = frame_from_o_a(side if np.linalg.norm(side) > 1e-9 else [1, 0, 0], axis)
-            out.append((f"{h['hand']} {name}", fcl.CollisionObject(
-                fcl.Capsule(arm["radius"][r], float(np.linalg.norm(axis))),
-                fcl.Transform(frame, (p0 + p1) / 2))))
+        arm = h.get("arm")
+        if arm:
+            out += [(f"{h['hand']} upper arm",
+                     _fcl_capsule(arm["shoulder"], arm["elbow"], arm["radius"][0])),
+                    (f"{h['hand']} forearm",
+                     _fcl_capsule(arm["elbow"], arm["wrist"], arm["radius"][1]))]
     return out
 
 
