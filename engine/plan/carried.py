@@ -149,9 +149,10 @@ def _between(a: np.ndarray, b: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 def _pose_errors(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(n,) m and (n,) rad between poses ``a`` and ``b`` (n, 4, 4)."""
-    trans = np.linalg.norm(a[:, :3, 3] - b[:, :3, 3], axis=1)
-    cos = (np.einsum("nij,nij->n", a[:, :3, :3], b[:, :3, :3]) - 1.0) / 2.0
-    return trans, np.arccos(np.clip(cos, -1.0, 1.0))
+    from handover.geometry.kinematics import rotation_angle
+
+    return (np.linalg.norm(a[:, :3, 3] - b[:, :3, 3], axis=1),
+            rotation_angle(a[:, :3, :3], b[:, :3, :3]))
 
 
 def _within(errors: tuple[np.ndarray, np.ndarray], tolerance: tuple[float, float]) -> bool:
