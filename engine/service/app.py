@@ -149,7 +149,7 @@ def create_app(service: Service, token: str | None = None) -> Starlette:
             return _reply(error_reply(_unknown(body["object"], known)))
         request.state.object = body.get("object") if isinstance(body, dict) else None
         return _reply(await service.run(plan_task, body, deadline=_deadline(request),
-                                        key=plan_key(body)))
+                                        key=plan_key(body), affinity=request.state.object))
 
     async def grasp_planning(request: Request) -> Response:
         goal = await _body(request)
@@ -157,7 +157,7 @@ def create_app(service: Service, token: str | None = None) -> Starlette:
         request.state.object = obj.get("name") if isinstance(obj, dict) else None
         key = grasp_planning_key(goal, service.served.kb)
         return _reply(await service.run(grasp_planning_task, goal, deadline=_deadline(request),
-                                        key=key))
+                                        key=key, affinity=request.state.object))
 
     async def verify(request: Request) -> Response:
         body = await _body(request, required=False)

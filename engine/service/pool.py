@@ -1,12 +1,18 @@
 """The service's worker processes, its deadlines and its KB, reloaded atomically.
 
-Requests run in a pool of worker processes (Pebble's ``ProcessPool``: each worker started
-with the served KB by :func:`~.worker.start_worker`, one request at a time per worker, a
-worker that dies replaced). Processes rather than threads: planning is numpy and Python
-that holds the GIL for most of a plan, so two threads would not plan twice as fast; each
-process has state of its own, so nothing mutable is shared between concurrent requests; and
-a request past its deadline can be stopped for real: its worker is ended and a fresh one
-started (a thread cannot be stopped), while every other request goes on. Workers are forked
+Requests run in worker processes (each a Pebble ``ProcessPool`` of one process, started with
+the served KB by :func:`~.worker.start_worker`, one request at a time, a worker that dies
+replaced). A plan goes to the worker its object is given to (a stable hash of its id) when
+that worker is free, else to the least busy one: the caches a plan warms (the object's
+candidates, its torque tables, the arms' inverse-kinematics answers for its poses) serve the
+next plan of that object (benchmarks/service.py: p50 of a plan by a warm worker 300-340 ms
+with two workers taking any request, 240 ms when each object has its worker).
+
+Processes rather than threads: planning is numpy and Python that holds the GIL for most of a
+plan, so two threads would not plan twice as fast; each process has state of its own, so
+nothing mutable is shared between concurrent requests; and a request past its deadline can be
+stopped for real: its worker is ended and a fresh one started (a thread cannot be stopped),
+while every other request goes on. Workers are forked
 from a fork server that imported the engine once (:data:`~.worker.PRELOAD`), so a new worker
 is ready in a fraction of a second.
 
@@ -23,6 +29,7 @@ import asyncio
 import multiprocessing
 import threading
 import time
+import zlib
 from collections.abc import Callable
 from concurrent.futures import CancelledError
 from dataclasses import dataclass, field
@@ -101,15 +108,33 @@ class WorkerPool:
         self.served = served
         self.workers = workers
         self.answers = AnswerMemo(memo_bytes)
-        self._pool: ProcessPool = ProcessPool(
-            max_workers=workers, initializer=start_worker,
-            initargs=(served.kb, None if db_root is None else str(db_root)), context=context)
+        initargs = (served.kb, None if db_root is None else str(db_root))
+        self._pools: list[ProcessPool] = [
+            ProcessPool(max_workers=1, initializer=start_worker, initargs=initargs,
+                        context=context) for _ in range(workers)]
+        self._running = [0] * workers  # requests given to each worker, not yet answered
+
+    def choose(self, affinity: str | None) -> int:
+        """The worker for a request: the one ``affinity`` (an object's id) is given to
+        (a stable hash of it) when it has nothing to do, else the one with the fewest
+        requests (the given one first among equals, then the first); no affinity: the one
+        with the fewest. Called in the event loop only."""
+        order = list(range(self.workers))
+        if isinstance(affinity, str):  # the request's own text: anything else is no id
+            given = zlib.crc32(affinity.encode("utf-8")) % self.workers
+            if self._running[given] == 0:
+                return given
+            order.insert(0, order.pop(given))
+        return min(order, key=lambda i: self._running[i])
 
     async def call(self, function: Callable[..., Reply], *args: Any,
-                   deadline: float) -> Reply:
-        """Run ``function(*args)`` in a worker; DeadlineExceeded after ``deadline`` s (the
-        worker running it is stopped and replaced; a request still waiting is dropped)."""
-        future = self._pool.schedule(function, args=args)
+                   deadline: float, affinity: str | None = None) -> Reply:
+        """Run ``function(*args)`` in a worker (:meth:`choose` with ``affinity``);
+        DeadlineExceeded after ``deadline`` s (the worker running it is stopped and replaced;
+        a request still waiting is dropped)."""
+        worker = self.choose(affinity)
+        self._running[worker] += 1
+        future = self._pools[worker].schedule(function, args=args)
         try:
             return await asyncio.wait_for(asyncio.wrap_future(future), timeout=deadline)
         except TimeoutError:
@@ -120,26 +145,36 @@ class WorkerPool:
         except Exception as e:  # noqa: BLE001 - a worker that died while answering
             return Reply(500, error_body("worker_died", f"the worker ended while answering "
                                          f"({type(e).__name__}: {e}); it was replaced"))
+        finally:
+            self._running[worker] -= 1
 
     def pids(self) -> list[int]:
         """The worker processes' ids (those alive now)."""
-        manager = getattr(self._pool, "_pool_manager", None)
-        workers = getattr(getattr(manager, "worker_manager", None), "workers", {})
-        return sorted(int(pid) for pid in workers)
+        found: list[int] = []
+        for pool in self._pools:
+            manager = getattr(pool, "_pool_manager", None)
+            workers = getattr(getattr(manager, "worker_manager", None), "workers", {})
+            found.extend(int(pid) for pid in workers)
+        return sorted(found)
 
     def close(self, wait: bool = False) -> None:
         """Stop taking requests; the workers end when those they have are answered. With
         ``wait``, return when they have."""
-        self._pool.close()
+        for pool in self._pools:
+            pool.close()
         if wait:
-            self._pool.join()
+            for pool in self._pools:
+                pool.join()
         else:  # join in the background: the old pool of a reload ends on its own
-            threading.Thread(target=self._pool.join, daemon=True).start()
+            threading.Thread(target=lambda: [p.join() for p in self._pools],
+                             daemon=True).start()
 
     def stop(self) -> None:
         """Stop now: every worker ended, waiting requests dropped."""
-        self._pool.stop()
-        self._pool.join()
+        for pool in self._pools:
+            pool.stop()
+        for pool in self._pools:
+            pool.join()
 
 
 @dataclass
@@ -181,11 +216,13 @@ class Service:
         return self.pool.served
 
     async def run(self, function: Callable[..., Reply], *args: Any,
-                  deadline: float | None = None, key: tuple | None = None) -> Reply:
+                  deadline: float | None = None, key: tuple | None = None,
+                  affinity: str | None = None) -> Reply:
         """Run a task in the current pool within ``deadline`` (at most the service's);
         Busy when ``max_pending`` requests are already in. ``key`` : what decides the
         answer's bytes: an answer the pool's memo holds under it is given at once, and a
-        200 answer is kept under it (None: neither)."""
+        200 answer is kept under it (None: neither). ``affinity`` : the object the request
+        is about (:meth:`WorkerPool.choose`)."""
         pool = self.pool
         if pool is None:
             raise RuntimeError("the service is not started")
@@ -199,7 +236,7 @@ class Service:
         limit = self.deadline if deadline is None else min(deadline, self.deadline)
         self.pending += 1
         try:
-            reply = await pool.call(function, *args, deadline=limit)
+            reply = await pool.call(function, *args, deadline=limit, affinity=affinity)
         finally:
             self.pending -= 1
         if key is not None and reply.status == 200:
