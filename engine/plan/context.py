@@ -102,6 +102,7 @@ class Memo:
     gripper_spheres: tuple[np.ndarray, float] | None = None
     interior: dict[tuple[str, ...], Any] = field(default_factory=dict)  # by tags: Interior
     keep_out_gripper: dict[tuple, np.ndarray] = field(default_factory=dict)  # (N,) int64
+    keep_out_receiver: dict[tuple, tuple[str, ...]] = field(default_factory=dict)  # names
     hand_fit: dict[tuple, Any] = field(default_factory=dict)  # hand_features.HandFit
     surface_samples: Any = None  # geometry.penetration.SurfaceSamples of the object
     forbidden_samples: dict[tuple, Any] = field(default_factory=dict)  # by tags
@@ -110,6 +111,8 @@ class Memo:
     # per row under the hands' key (the retreat), (N*K,) int64
     corridor_grasp: dict[Any, np.ndarray] = field(default_factory=dict)
     corridor_retreat: dict[tuple, np.ndarray] = field(default_factory=dict)
+    # plan.evaluate: decision tables, by phase and rules (evaluate.decided)
+    decisions: dict[tuple, Any] = field(default_factory=dict)
     # plan.arms
     arm_shoulders: dict[str, np.ndarray] = field(default_factory=dict)
     arm_checks: dict[tuple, Any] = field(default_factory=dict)  # arms.stages.ArmCheck

@@ -39,7 +39,7 @@ if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Phase
 
-__all__ = ["Decision", "evaluate", "evaluate_rule", "complete", "trace_row", "ROW_LIMIT",
+__all__ = ["Decision", "evaluate", "decided", "evaluate_rule", "complete", "trace_row", "ROW_LIMIT",
            "DEFERRED_KINDS", "ALONE_KINDS"]
 
 # Rows beyond this are a sign of a mis-set generator; the error says how to fix it.
@@ -288,6 +288,21 @@ def evaluate(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
         score=score, first_fail=first_fail, soft_scores=soft_scores, measured=measured,
         unknown=unknown, unknown_why=unknown_why, judged_in=(ctx, phase, cg),
     )  # fmt: skip
+
+
+def decided(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
+    """:func:`evaluate`, kept in ``ctx`` per phase and rules: a mode planned again in the
+    same context (after a grasp was passed over for want of motion, or for slipping in the
+    physics check) judges no row twice. The table does not depend on ``ctx.passed_over``
+    (:meth:`Decision.ranking` applies it when asked). Rules are told apart by identity: a
+    graph compiled from other rules (a what-if's, a placement's) is judged anew."""
+    key = (phase.mode, phase.hands.key, phase.pickup, phase.receiver_present,
+           phase.other_grasp, phase.arm, phase.giver_forbid, phase.midair_lift,
+           tuple(id(c.rule) for c in cg.hard), tuple(id(c.rule) for c in cg.soft))
+    found = ctx.memo.decisions.get(key)
+    if found is None:  # the Decision keeps its rules alive: no id is reused while it is kept
+        found = ctx.memo.decisions[key] = evaluate(cg, ctx, phase)
+    return found
 
 
 def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,

@@ -229,10 +229,22 @@ def keep_out_gripper(ctx: PlanContext, interior: Interior, key: tuple,
     return known[gi]
 
 
-def keep_out_receiver_hand(ctx: PlanContext, hands: Hands, interior: Interior,
-                           k: int) -> list[str]:
-    """The receiver's hand boxes (``"right palm"``, ...) that reach into ``interior`` in
-    presentation ``k``."""
+def keep_out_receiver_hand(ctx: PlanContext, hands: Hands, tags: tuple[str, ...],
+                           k: int) -> tuple[str, ...]:
+    """The receiver's hand boxes (``"right palm"``, ...) that reach into the openings of
+    ``tags`` (:func:`open_interior`) in presentation ``k`` (memoised per hands, tags and
+    presentation)."""
+    key = (hands.key, tuple(sorted(tags)), k)
+    found = ctx.memo.keep_out_receiver.get(key)
+    if found is None:
+        found = ctx.memo.keep_out_receiver[key] = _receiver_hand_entering(
+            ctx, hands, open_interior(ctx, tags), k)
+    return found
+
+
+def _receiver_hand_entering(ctx: PlanContext, hands: Hands, interior: Interior,
+                            k: int) -> tuple[str, ...]:
+    """See :func:`keep_out_receiver_hand`."""
     from handover.engine.plan.hand_features import hand_model
 
     names, boxes = [], []
@@ -241,10 +253,10 @@ def keep_out_receiver_hand(ctx: PlanContext, hands: Hands, interior: Interior,
             names.append(f"{hand} {name}")
             boxes.append((ext, np.linalg.inv(hands.poses[k]) @ pose))
     if not boxes:
-        return []
+        return ()
     enter = interior.boxes_enter(np.array([b[1][:3, 3] for b in boxes]),
                                  np.array([b[1][:3, :3] for b in boxes]),
                                  np.array([b[0] for b in boxes]) / 2.0)
-    return [n for n, e in zip(names, enter, strict=True) if e]
+    return tuple(n for n, e in zip(names, enter, strict=True) if e)
 
 

@@ -67,9 +67,11 @@ def _entered(rule: KeepOutRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
             count += (mask >> b) & 1
         names.append(("gripper", mask))
     if "receiver_hand" in rule.of and phase.receiver_present:
-        per_k = {int(k): f.keep_out_receiver_hand(ctx, phase.hands, interior, int(k))
-                 for k in np.unique(pk)}
-        count += np.array([len(per_k[int(k)]) for k in pk], dtype=np.int64)
+        ks = np.unique(pk)
+        per_k = {int(k): f.keep_out_receiver_hand(ctx, phase.hands, tuple(rule.tags), int(k))
+                 for k in ks}
+        entering = np.array([len(per_k[int(k)]) for k in ks], dtype=np.int64)
+        count += entering[np.searchsorted(ks, pk)]
         names.append(("receiver_hand", per_k))
     return count, names
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from handover.engine.plan.arms.solve import CONFIRM_LIMIT, choose_row, reach_rule
 from handover.engine.plan.attempt import Attempt, AttemptNotes, Chosen
 from handover.engine.plan.compiler import compile
-from handover.engine.plan.evaluate import evaluate
+from handover.engine.plan.evaluate import decided
 from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.hands import hands_for
 from handover.engine.plan.modes.common import gripper_at, register
@@ -26,7 +26,7 @@ def plan_h1g1(kb: KB, ctx: PlanContext, *, quick: bool = False) -> Attempt:
     cg = compile(kb, ctx, "H1G1")
     phase = Phase("H1G1", hands=hands_for(cg, ctx), pickup=True,
                   receiver_present=True, giver_forbid=cg.giver_forbid)
-    decision = evaluate(cg, ctx, phase)
+    decision = decided(cg, ctx, phase)
     ranking = decision.ranking()
     if len(ranking) == 0:
         return Attempt("H1G1", False, infeasible_reason(decision, "H1G1", quick), cg, decision,

@@ -45,7 +45,7 @@ from handover.engine.plan.attempt import (
     TwoHanded,
 )
 from handover.engine.plan.compiler import ConstraintGraph, compile
-from handover.engine.plan.evaluate import evaluate
+from handover.engine.plan.evaluate import decided
 from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.features import collision_scene
 from handover.engine.plan.hand_features import pair_leaves_receiver
@@ -232,7 +232,7 @@ def _plan(ctx: PlanContext, cg: ConstraintGraph, hands: Hands, receiver: Receive
     # Rows are judged at the presentation; pick-up is a property of the pair (below).
     phase = Phase("H2G1", hands=hands, pickup=False, receiver_present=True,
                   giver_forbid=cg.giver_forbid)
-    decision = evaluate(cg, ctx, phase)
+    decision = decided(cg, ctx, phase)
     notes = AttemptNotes(receiver_hands=receiver)
     facts = ctx.facts
     if facts.mass / 2.0 > facts.payload:

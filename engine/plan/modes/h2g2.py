@@ -25,7 +25,7 @@ from handover.engine.plan.arms.solve import reach_rule
 from handover.engine.plan.arms.stages import MIDAIR_BACKOFF, midair_poses
 from handover.engine.plan.attempt import Attempt, AttemptNotes, Chosen, FirstGrasps, Midair, Pairs
 from handover.engine.plan.compiler import CompiledRule, compile
-from handover.engine.plan.evaluate import evaluate, evaluate_rule
+from handover.engine.plan.evaluate import decided, evaluate_rule
 from handover.engine.plan.explain import infeasible_reason
 from handover.engine.plan.hands import hands_for
 from handover.engine.plan.modes.common import gripper_at, register, relocated
@@ -179,7 +179,7 @@ def _plan(ctx: PlanContext, cg, hands, quick: bool = False, lift: float = 0.0) -
     second = Phase("H2G2", hands=hands, pickup=False, receiver_present=True,
                    giver_forbid=cg.giver_forbid, midair_lift=lift)
     first = second.but(pickup=True, receiver_present=False)
-    decision = evaluate(cg, ctx, second)
+    decision = decided(cg, ctx, second)
     firsts, first_removed = _feasible_firsts(ctx, first_rules(cg.hard), first)
     notes = AttemptNotes(first=FirstGrasps(int(len(firsts)), first_removed))
     ranking = decision.ranking()
