@@ -155,11 +155,23 @@ def giver_forbid(rules: Iterable[RuleBase], facts: Facts) -> frozenset[str]:
 
 
 def compile(kb: KB, ctx: PlanContext, mode: str = "H1G1") -> ConstraintGraph:  # noqa: A001
-    """Compile the query's culture into a constraint graph for ``mode``.
+    """Compile the query's culture into a constraint graph for ``mode``: once per context,
+    KB and mode (kept in ``ctx``; a what-if's KB is another KB, compiled anew). The graph is
+    a value: nothing changes it once compiled.
 
     Raises KBError (with the rules' file:line) when the graph has a cycle (rules overriding
     each other in a loop).
     """
+    kept = ctx.memo.graphs.get(mode)
+    if kept is not None and kept[0] is kb:
+        return kept[1]
+    cg = _compile(kb, ctx, mode)
+    ctx.memo.graphs[mode] = (kb, cg)  # the KB kept with it: its identity is the key
+    return cg
+
+
+def _compile(kb: KB, ctx: PlanContext, mode: str) -> ConstraintGraph:
+    """See :func:`compile`."""
     from handover.engine.store.cultures import resolve_culture
 
     resolved = resolve_culture(kb, ctx.situation.query.culture)

@@ -111,6 +111,8 @@ class Memo:
     # per row under the hands' key (the retreat), (N*K,) int64
     corridor_grasp: dict[Any, np.ndarray] = field(default_factory=dict)
     corridor_retreat: dict[tuple, np.ndarray] = field(default_factory=dict)
+    # plan.compiler: by mode, (the KB compiled, its graph)
+    graphs: dict[str, tuple[Any, Any]] = field(default_factory=dict)
     # plan.evaluate: decision tables, by phase and rules (evaluate.decided)
     decisions: dict[tuple, Any] = field(default_factory=dict)
     # plan.arms
