@@ -51,6 +51,13 @@ class LRU(Generic[K, V]):
         self.put(key, value)
         return value
 
+    def get(self, key: K, default: V | None = None) -> V | None:
+        """The value under ``key`` (now the most recently used), or ``default``."""
+        if key not in self._items:
+            return default
+        self._items.move_to_end(key)
+        return self._items[key]
+
     def put(self, key: K, value: V) -> None:
         """Keep ``value`` under ``key`` (the most recently used), dropping the least recently
         used beyond ``size``."""

@@ -124,6 +124,8 @@ def _reply(reply: Reply) -> Response:
     headers = {"X-Handover-Outcome": reply.outcome} if reply.outcome else {}
     if reply.memo:  # an answer given before, the same bytes
         headers["X-Handover-Memo"] = "true"
+    if reply.pid:  # the worker process that made the answer
+        headers["X-Handover-Worker"] = str(reply.pid)
     return Response(reply.body, reply.status, headers=headers or None,
                     media_type=reply.media_type)
 
@@ -148,8 +150,9 @@ def create_app(service: Service, token: str | None = None) -> Starlette:
             known = service.served.kb.objects
             return _reply(error_reply(_unknown(body["object"], known)))
         request.state.object = body.get("object") if isinstance(body, dict) else None
+        key = plan_key(body)
         return _reply(await service.run(plan_task, body, deadline=_deadline(request),
-                                        key=plan_key(body), affinity=request.state.object))
+                                        key=key, affinity=_about(key, request)))
 
     async def grasp_planning(request: Request) -> Response:
         goal = await _body(request)
@@ -157,7 +160,7 @@ def create_app(service: Service, token: str | None = None) -> Starlette:
         request.state.object = obj.get("name") if isinstance(obj, dict) else None
         key = grasp_planning_key(goal, service.served.kb)
         return _reply(await service.run(grasp_planning_task, goal, deadline=_deadline(request),
-                                        key=key, affinity=request.state.object))
+                                        key=key, affinity=_about(key, request)))
 
     async def verify(request: Request) -> Response:
         body = await _body(request, required=False)
@@ -199,6 +202,13 @@ def create_app(service: Service, token: str | None = None) -> Starlette:
 
     app = Starlette(routes=routes, lifespan=lifespan, exception_handlers=HANDLERS)
     return _guarded(app, service, token)
+
+
+def _about(key: tuple | None, request: Request) -> tuple:
+    """What a plan request is about, the most telling first (:meth:`WorkerPool.choose`):
+    its memo key (the query), then its object's id."""
+    obj = getattr(request.state, "object", None)
+    return tuple(k for k in (key, obj if isinstance(obj, str) else None) if k is not None)
 
 
 def _unknown(object_id: str, known) -> Exception:
@@ -247,6 +257,8 @@ def _guarded(app: Starlette, service: Service, token: str | None
                         seen["outcome"] = v.decode("latin-1")
                     elif k.lower() == b"x-handover-memo":
                         seen["memo"] = True
+                    elif k.lower() == b"x-handover-worker":
+                        seen["worker"] = int(v)
                 message = {**message, "headers": [*message.get("headers", []), *extra]}
             await send(message)
 
@@ -265,7 +277,7 @@ def _guarded(app: Starlette, service: Service, token: str | None
                         path=scope.get("path"), status=seen.get("status"),
                         ms=round((time.perf_counter() - start) * 1000, 2),
                         outcome=seen.get("outcome"), memo=seen.get("memo", False),
-                        error=seen.get("error"),
+                        worker=seen.get("worker"), error=seen.get("error"),
                         kb=service.served.digest[:12] if service.pool else None)
 
     return asgi

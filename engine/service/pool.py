@@ -2,11 +2,10 @@
 
 Requests run in worker processes (each a Pebble ``ProcessPool`` of one process, started with
 the served KB by :func:`~.worker.start_worker`, one request at a time, a worker that dies
-replaced). A plan goes to the worker its object is given to (a stable hash of its id) when
-that worker is free, else to the least busy one: the caches a plan warms (the object's
-candidates, its torque tables, the arms' inverse-kinematics answers for its poses) serve the
-next plan of that object (benchmarks/service.py: p50 of a plan by a warm worker 300-340 ms
-with two workers taking any request, 240 ms when each object has its worker).
+replaced). Requests wait their turn for a free worker; a request goes to the free worker that
+last answered the same query, else the same object, else the one the object's id is given to
+(a stable hash): the caches a plan warms (the object's candidates, its torque tables, the
+arms' inverse-kinematics answers for its poses) serve the next plan of that object.
 
 Processes rather than threads: planning is numpy and Python that holds the GIL for most of a
 plan, so two threads would not plan twice as fast; each process has state of its own, so
@@ -30,12 +29,13 @@ import multiprocessing
 import threading
 import time
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from concurrent.futures import CancelledError
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from handover.engine.assets.lru import LRU
 from handover.engine.service.worker import (
     PRELOAD,
     AnswerMemo,
@@ -92,6 +92,11 @@ def load_served(kb_dir: Path | str | None, cache_dir: Path | None) -> ServedKB:
                     time.time())
 
 
+AFFINITY_KEPT = 4096
+"""Queries and objects whose last worker the pool remembers (to send the next request about
+them there, :meth:`WorkerPool.choose`)."""
+
+
 class WorkerPool:
     """``workers`` processes serving one KB. ``db_root`` : the grasp database folder (None:
     generate candidates). ``memo_bytes`` : the memo of the answers they gave (``answers``,
@@ -112,41 +117,72 @@ class WorkerPool:
         self._pools: list[ProcessPool] = [
             ProcessPool(max_workers=1, initializer=start_worker, initargs=initargs,
                         context=context) for _ in range(workers)]
-        self._running = [0] * workers  # requests given to each worker, not yet answered
+        self._busy = [False] * workers  # a request running in each worker
+        self._free = asyncio.Semaphore(workers)  # requests wait here for a free worker, in turn
+        self._answered: LRU[Hashable, int] = LRU(AFFINITY_KEPT)  # key -> last worker
 
-    def choose(self, affinity: str | None) -> int:
-        """The worker for a request: the one ``affinity`` (an object's id) is given to
-        (a stable hash of it) when it has nothing to do, else the one with the fewest
-        requests (the given one first among equals, then the first); no affinity: the one
-        with the fewest. Called in the event loop only."""
-        order = list(range(self.workers))
-        if isinstance(affinity, str):  # the request's own text: anything else is no id
-            given = zlib.crc32(affinity.encode("utf-8")) % self.workers
-            if self._running[given] == 0:
+    def choose(self, affinity: tuple[Hashable, ...] = ()) -> int:
+        """The free worker for a request about ``affinity`` (its keys, the most telling
+        first: the query, then its object's id): the one that last answered a request with
+        one of them, in that order, when free; else the one the object's id is given to (a
+        stable hash of it), when free; else the first free one. Called in the event loop
+        only, when one is free."""
+        free = [i for i, busy in enumerate(self._busy) if not busy]
+        for key in affinity:
+            last = self._answered.get(key)
+            if last in free:
+                return last
+        named = [key for key in affinity if isinstance(key, str)]  # an object's id
+        if named:
+            given = zlib.crc32(named[-1].encode("utf-8")) % self.workers
+            if given in free:
                 return given
-            order.insert(0, order.pop(given))
-        return min(order, key=lambda i: self._running[i])
+        return free[0]
 
-    async def call(self, function: Callable[..., Reply], *args: Any,
-                   deadline: float, affinity: str | None = None) -> Reply:
-        """Run ``function(*args)`` in a worker (:meth:`choose` with ``affinity``);
-        DeadlineExceeded after ``deadline`` s (the worker running it is stopped and replaced;
-        a request still waiting is dropped)."""
-        worker = self.choose(affinity)
-        self._running[worker] += 1
-        future = self._pools[worker].schedule(function, args=args)
+    async def call(self, function: Callable[..., Reply], *args: Any, deadline: float,
+                   affinity: tuple[Hashable, ...] = ()) -> Reply:
+        """Run ``function(*args)`` in a free worker (:meth:`choose` with ``affinity``; while
+        none is, the request waits its turn); DeadlineExceeded after ``deadline`` s, waiting
+        included (the worker running it is stopped and replaced)."""
+        worker, future = None, None
         try:
-            return await asyncio.wait_for(asyncio.wrap_future(future), timeout=deadline)
+            async with asyncio.timeout(deadline), self._free:
+                worker = self.choose(affinity)
+                self._busy[worker] = True
+                future = self._pools[worker].schedule(function, args=args)
+                reply = await asyncio.wrap_future(future)
+                for key in affinity:  # what this worker's caches now hold
+                    self._answered.put(key, worker)
+                return reply
         except TimeoutError:
-            future.cancel()
+            if future is not None:
+                future.cancel()
             raise DeadlineExceeded(deadline) from None
-        except CancelledError:
+        except (CancelledError, asyncio.CancelledError):
+            if future is None or not future.cancelled():
+                raise  # the request itself was cancelled (its client went away)
             raise DeadlineExceeded(deadline) from None
         except Exception as e:  # noqa: BLE001 - a worker that died while answering
             return Reply(500, error_body("worker_died", f"the worker ended while answering "
                                          f"({type(e).__name__}: {e}); it was replaced"))
         finally:
-            self._running[worker] -= 1
+            if worker is not None:
+                self._busy[worker] = False
+
+    async def ready(self, deadline: float) -> list[int]:
+        """Start every worker and return their process ids once each has answered (KB and
+        grasp database loaded); DeadlineExceeded after ``deadline`` s."""
+        from handover.engine.errors import HandoverError
+
+        futures = [pool.schedule(ping) for pool in self._pools]
+        try:
+            async with asyncio.timeout(deadline):
+                return list(await asyncio.gather(*map(asyncio.wrap_future, futures)))
+        except TimeoutError:
+            raise DeadlineExceeded(deadline) from None
+        except Exception as e:  # noqa: BLE001 - the worker's own error, said in one line
+            raise HandoverError(f"a worker process did not start: {type(e).__name__}: "
+                                f"{e}") from None
 
     def pids(self) -> list[int]:
         """The worker processes' ids (those alive now)."""
@@ -207,7 +243,7 @@ class Service:
         """Load the KB and start the pool; return when a worker answers."""
         served = await asyncio.to_thread(load_served, self.kb_dir, self._cache_dir())
         self.pool = WorkerPool(served, self.workers, self.db_root, self.memo_bytes)
-        await self.pool.call(ping, deadline=max(self.deadline, 120.0))
+        await self.pool.ready(deadline=max(self.deadline, 120.0))
 
     @property
     def served(self) -> ServedKB:
@@ -217,12 +253,12 @@ class Service:
 
     async def run(self, function: Callable[..., Reply], *args: Any,
                   deadline: float | None = None, key: tuple | None = None,
-                  affinity: str | None = None) -> Reply:
+                  affinity: tuple[Hashable, ...] = ()) -> Reply:
         """Run a task in the current pool within ``deadline`` (at most the service's);
         Busy when ``max_pending`` requests are already in. ``key`` : what decides the
         answer's bytes: an answer the pool's memo holds under it is given at once, and a
-        200 answer is kept under it (None: neither). ``affinity`` : the object the request
-        is about (:meth:`WorkerPool.choose`)."""
+        200 answer is kept under it (None: neither). ``affinity`` : what the request is about,
+        the most telling first (:meth:`WorkerPool.choose`)."""
         pool = self.pool
         if pool is None:
             raise RuntimeError("the service is not started")
@@ -252,7 +288,7 @@ class Service:
             if served.digest == old.digest:
                 return old, old
             pool = WorkerPool(served, self.workers, self.db_root, self.memo_bytes)
-            await pool.call(ping, deadline=max(self.deadline, 120.0))
+            await pool.ready(deadline=max(self.deadline, 120.0))
             previous, self.pool = self.pool, pool
             self.reloads += 1
             assert previous is not None

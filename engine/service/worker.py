@@ -149,7 +149,8 @@ def _state() -> WorkerState:
 
 
 def ping() -> int:
-    """The worker's process id (the service waits for one before it says it is ready)."""
+    """The worker's process id (the service waits for every worker's before it says it is
+    ready)."""
     _state()
     return os.getpid()
 

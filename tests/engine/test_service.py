@@ -156,6 +156,45 @@ def test_a_request_asked_again_is_answered_from_the_memo_whichever_worker_planne
     assert sum(1 for e in logged if e.get("memo")) >= 8
 
 
+def test_a_query_planned_again_goes_to_the_worker_that_planned_it(kb_dir, tmp_path) -> None:
+    # No memo: every answer is planned. A query asked again is sent to the worker whose
+    # caches hold it (its inverse-kinematics answers); two requests at once take both
+    # workers, the second not waiting behind the first while the other worker is free.
+    running = start(kb_dir, tmp_path, "--workers", "2", "--memo-mb", "0", "--deadline", "120")
+    try:
+        queries = [{"object": o, "receiver": r} for o in ("knife", "scissors", "screwdriver")
+                   for r in ("adult", "elder")]
+        first = {}
+        for body in queries:
+            status, headers, answer = running.plan(body)
+            assert status == 200 and "x-handover-memo" not in headers
+            first[json.dumps(body)] = (headers["x-handover-worker"], answer)
+        for _ in range(2):
+            for body in queries:
+                status, headers, answer = running.plan(body)
+                assert status == 200 and "x-handover-memo" not in headers  # planned again
+                assert (headers["x-handover-worker"], answer) == first[json.dumps(body)]
+        pids = {str(p) for p in running.health()["worker_pids"]}
+        assert {w for w, _ in first.values()} <= pids
+        together = threading.Barrier(2)
+
+        def book(receiver: str) -> str:
+            together.wait()
+            status, headers, _ = running.plan({"object": "book", "receiver": receiver})
+            assert status == 200
+            return headers["x-handover-worker"]
+
+        with ThreadPoolExecutor(2) as pool:
+            workers = list(pool.map(book, ("child", "seated_adult")))
+        assert set(workers) == pids, workers  # one each, neither queued behind the other
+        logged = [json.loads(line) for line in running.log.read_text().splitlines()
+                  if line.startswith("{") and '"path": "/v1/plan"' in line]
+        assert len(logged) == 3 * len(queries) + 2
+        assert all(str(e["worker"]) in pids for e in logged)
+    finally:
+        stop(running)
+
+
 def test_moveit_and_mcap_are_the_cli_s(service, kb_dir, tmp_path) -> None:
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
