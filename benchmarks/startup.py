@@ -4,11 +4,13 @@ and the cold plan with a 10- and a 500-object KB.
     .venv/bin/python benchmarks/startup.py [--runs 7] [--objects 10,500] [--importtime]
                                             [--profile]
 
-Times (median of ``--runs``): ``python -c pass``; ``python -c "import numpy, trimesh, fcl,
-networkx, pydantic, yaml"`` (the libraries a plan cannot do without); ``handover --help``;
-``handover plan knife --json``. Target: the plan within 2x the bare imports (lazy imports, no
-work at start-up). ``--importtime`` lists the slowest top-level imports of each command
-(``python -X importtime``); ``--profile`` shows cProfile's view of the plan process.
+Times (median of ``--runs``; the commands of a table take turns, run by run, so that a drift
+of the machine's speed weighs on each alike): ``python -c pass``; ``python -c "import numpy,
+trimesh, fcl, networkx, pydantic, yaml"`` (the libraries a plan cannot do without);
+``handover --help``; ``handover plan knife --json``. Target: the plan within 2x the bare
+imports (lazy imports, no work at start-up). ``--importtime`` lists the slowest top-level
+imports of each command (``python -X importtime``); ``--profile`` shows cProfile's view of
+the plan process.
 
 Then, for each size of ``--objects``: a KB folder in a temporary folder holding the built-in
 KB and copies of its objects under new ids up to that many objects, and the cold ``handover
@@ -38,15 +40,18 @@ CLI = ("import sys; from handover.engine.cli import main; "
        "sys.argv = ['handover', *sys.argv[1:]]; main()")
 
 
-def run(cmd: list[str], runs: int, env: dict) -> tuple[float, int]:
-    """Median wall time in s of ``cmd`` (after one untimed run), and its exit code."""
-    code = subprocess.run(cmd, capture_output=True, env=env).returncode
-    times = []
+def run(cmds: list[list[str]], runs: int, env: dict) -> list[tuple[float, int]]:
+    """Per command of ``cmds``: its median wall time in s and its exit code, after one
+    untimed run of each. The commands take turns, run by run, so that a drift of this
+    machine's speed (other work, the CPU's clock) weighs on all of them alike."""
+    codes = [subprocess.run(cmd, capture_output=True, env=env).returncode for cmd in cmds]
+    times: list[list[float]] = [[] for _ in cmds]
     for _ in range(runs):
-        t = time.perf_counter()
-        subprocess.run(cmd, capture_output=True, env=env)
-        times.append(time.perf_counter() - t)
-    return statistics.median(times), code
+        for cmd, spent in zip(cmds, times, strict=True):
+            t = time.perf_counter()
+            subprocess.run(cmd, capture_output=True, env=env)
+            spent.append(time.perf_counter() - t)
+    return [(statistics.median(spent), code) for spent, code in zip(times, codes, strict=True)]
 
 
 def importtime(args: list[str], env: dict, top: int = 12) -> None:
@@ -94,15 +99,16 @@ def kb_sizes(sizes: list[int], runs: int, env: dict) -> None:
     print(f"\n## cold `handover --kb DIR plan knife --json` by KB size, median of {runs} (s)")
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(env, HANDOVER_DB=str(Path(tmp) / "db"))
+        roots = {n: kb_of(n, Path(tmp)) for n in sizes}
+        timed = run([[HANDOVER, "--kb", str(roots[n]), "plan", "knife", "--json"]
+                     for n in sizes], runs, env)
         times = {}
-        for n in sizes:
-            root = kb_of(n, Path(tmp))
-            t, code = run([HANDOVER, "--kb", str(root), "plan", "knife", "--json"], runs, env)
+        for n, (t, code) in zip(sizes, timed, strict=True):
             load = subprocess.run(
                 [PY, "-c", "import sys, time; from handover.engine.load.loader import load_kb; "
                  "load_kb(sys.argv[1], urdf=False); t = time.perf_counter(); "
-                 "load_kb(sys.argv[1], urdf=False); print(time.perf_counter() - t)", str(root)],
-                capture_output=True, text=True, env=env).stdout.strip()
+                 "load_kb(sys.argv[1], urdf=False); print(time.perf_counter() - t)",
+                 str(roots[n])], capture_output=True, text=True, env=env).stdout.strip()
             times[n] = t
             print(f"{n:4d} objects: plan {t:7.3f}   exit {code}   (full load and check of the "
                   f"KB: {float(load):.3f} s)")
@@ -129,8 +135,8 @@ def main() -> None:
     ]
     print(f"## whole-process times, median of {args.runs} (s)")
     results = {}
-    for label, cmd in cases:
-        t, code = run(cmd, args.runs, env)
+    for (label, _), (t, code) in zip(cases, run([c for _, c in cases], args.runs, env),
+                                     strict=True):
         results[label] = t
         print(f"{label:<28} {t:7.3f}   exit {code}")
     bare = results["bare imports"]
