@@ -544,13 +544,28 @@ def test_every_object_and_mode_gives_the_same_bytes_cold_warm_and_without_databa
             assert_no_timings(json.loads(cold))
 
 
+def test_a_plan_checked_in_physics_gives_the_same_bytes_twice(capsys, tmp_path):
+    """The physics block holds what was simulated, not how long it took: a plan checked
+    twice prints the same JSON (its wall time was in it, so no two runs agreed)."""
+    db = str(tmp_path / "db")
+    first, second = (run(capsys, "plan", "hammer", "--physics", "--json", "--db", db)
+                     for _ in range(2))
+    assert first[0] == second[0] == 0 and first[1] == second[1]
+    data = json.loads(first[1])
+    assert data["physics"]["passed"] and data["physics"]["chosen"]["simulated_seconds"] > 1.0
+    assert_no_timings(data)
+
+
 def assert_no_timings(data, path="") -> None:
     """No wall-clock value in the JSON: no key with a word naming seconds, time or duration
     (``generation.seconds`` was one; ``regrasp.second`` is the second grasp)."""
     timing = {"seconds", "sec", "ms", "time", "times", "timing", "timings", "duration", "elapsed"}
     # the planned motion's own clock: when each sample of a trajectory is reached, and how
-    # long the motion takes (seeded, the same every run), not how long planning took
-    planned = {".robot_grasps.trajectory.times", ".motion.duration"}
+    # long the motion takes (seeded, the same every run), not how long planning took; and
+    # how much of its protocol a physics check simulated
+    planned = {".robot_grasps.trajectory.times", ".motion.duration",
+               *(f".physics.{group}.simulated_seconds"
+                 for group in ("chosen", "alternatives_failed", "alternative_holds"))}
     if isinstance(data, dict):
         for key, value in data.items():
             if f"{path}.{key}" in planned:

@@ -171,7 +171,7 @@ def _group_line(group: dict) -> str:
         f"slips in {group['failed_in']}" if group.get("failed_in") else "slips")
     return (f"{who}: {verdict} (slip {group['max_translation_mm']:.1f} mm / "
             f"{group['max_rotation_deg']:.1f} deg, margin {group['margin']:.2f}, "
-            f"{group['seconds']:.2f} s)")
+            f"{group['simulated_seconds']:.2f} s simulated)")
 
 
 def render_physics(physics: dict, console) -> None:
