@@ -197,21 +197,22 @@ def test_a_query_planned_again_goes_to_the_worker_that_planned_it(kb_dir, tmp_pa
 
 def test_a_request_that_waits_past_its_deadline_for_a_worker_is_answered_and_counted(
         kb_dir, tmp_path) -> None:
-    # One worker, busy with a long request (stopped at its own 3 s deadline): a request
-    # behind it whose deadline passes while it waits is a 504 at once, not after; the
-    # worker then serves the next request, and nothing stays counted as pending.
+    # One worker, busy with a long request (the tray's physics check, 3-4 s, stopped at 5 s
+    # at the latest): a request behind it whose deadline passes while it waits is a 504 at
+    # its deadline, not when the worker is free; the worker then serves the next request,
+    # and nothing stays counted as pending.
     running = start(kb_dir, tmp_path, "--workers", "1", "--memo-mb", "0", "--deadline", "120")
     try:
-        slow = {"object": "book", "receiver": "child", "what-if": True}  # minutes of what-if
+        slow = {"object": "tray", "physics": True}
         with ThreadPoolExecutor(1) as pool:
-            busy = pool.submit(running.plan, slow, "/v1/plan?deadline=3")
-            time.sleep(1.0)  # the slow request has the worker
+            busy = pool.submit(running.plan, slow, "/v1/plan?deadline=5")
+            time.sleep(0.5)  # the slow request has the worker
             began = time.monotonic()
             status, _, body = running.plan({"object": "knife"}, path="/v1/plan?deadline=0.5")
             waited = time.monotonic() - began
             assert status == 504 and _error(status, body)["code"] == "deadline_exceeded"
             assert waited < 1.5  # answered at its deadline, not when the worker was free
-            assert busy.result()[0] == 504
+            assert busy.result()[0] in (200, 504)
         status, headers, body = running.plan({"object": "knife"})
         assert status == 200 and json.loads(body)["outcome"] == "handover"
         health = running.health()
