@@ -122,7 +122,7 @@ def main() -> None:
               f"4 receivers), latency at the client")
         t = time.perf_counter()
         proc, host, port = start(args.workers, 64, env)
-        print(f"start-up (KB loaded, a worker ready): {time.perf_counter() - t:.2f} s")
+        print(f"start-up (KB loaded, every worker ready): {time.perf_counter() - t:.2f} s")
         try:
             conn = NoDelayConnection(host, port, timeout=600)
             cold = [ask(conn, q) for q in queries]
