@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from handover.geometry.atomic import atomic_path
 from handover.geometry.kinematics import Kinematics
 from handover.geometry.urdf import RobotModelError
 
@@ -214,20 +215,21 @@ class ReachMap:
         directory = Path(directory)
         directory.mkdir(parents=True, exist_ok=True)
         path = directory / f"reach-{self.key or 'unnamed'}.npz"
-        tmp = path.with_suffix(".tmp.npz")
-        np.savez_compressed(
-            tmp,
-            format=np.int64(_FORMAT),
-            lower=self.lower,
-            voxel=np.float64(self.voxel),
-            shape=self.shape,
-            directions=self.directions,
-            packed=np.packbits(self.bits),
-            key=np.str_(self.key),
-            samples=np.int64(self.samples),
-            raw_fraction=np.float64(self.raw_fraction),
-        )
-        os.replace(tmp, path)
+        # Written whole or not at all, through a temporary file of this process's own:
+        # processes sharing a database may save the same map at once.
+        with atomic_path(path) as tmp, open(tmp, "wb") as out:
+            np.savez_compressed(
+                out,
+                format=np.int64(_FORMAT),
+                lower=self.lower,
+                voxel=np.float64(self.voxel),
+                shape=self.shape,
+                directions=self.directions,
+                packed=np.packbits(self.bits),
+                key=np.str_(self.key),
+                samples=np.int64(self.samples),
+                raw_fraction=np.float64(self.raw_fraction),
+            )
         return path
 
     @classmethod

@@ -22,7 +22,7 @@ import trimesh
 import yaml
 
 import handover.engine.report.rerun.writer
-import handover.engine.store.files
+import handover.geometry.atomic
 import handover.geometry.mesh
 from handover.engine.cli.app import main
 from handover.engine.errors import (
@@ -682,7 +682,7 @@ def test_a_failed_write_keeps_the_old_file(capsys, tmp_path, monkeypatch):
     def no_rename(src, dst):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(handover.engine.store.files.os, "replace", no_rename)
+    monkeypatch.setattr(handover.geometry.atomic.os, "replace", no_rename)
     code, _, err = run(capsys, "plan", "pen", "-o", str(out), "--no-db")
     assert code == EXIT_USAGE
     assert f"-o {out}: cannot write there (No space left on device)" in err

@@ -12,13 +12,12 @@ vertices and faces, the parameters and CoACD's version.
 from __future__ import annotations
 
 import hashlib
-import os
-import tempfile
 from importlib.metadata import version
 from pathlib import Path
 
 import numpy as np
 
+from handover.geometry.atomic import atomic_path
 from handover.geometry.mesh import validate_mesh
 from handover.geometry.physics.shapes import ConvexPart, ObjectModel
 
@@ -77,11 +76,8 @@ def convex_parts(
     arrays = {"count": np.array(len(parts))}
     for k, (pv, pf) in enumerate(parts):
         arrays[f"v{k}"], arrays[f"f{k}"] = pv, pf
-    fd, tmp = tempfile.mkstemp(dir=folder, suffix=".npz.tmp")
-    os.close(fd)
-    with open(tmp, "wb") as out:
+    with atomic_path(path) as tmp, open(tmp, "wb") as out:  # a reader never sees half a file
         np.savez(out, **arrays)
-    os.replace(tmp, path)  # atomic: a reader never sees half a file
     return parts
 
 

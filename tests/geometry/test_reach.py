@@ -3,6 +3,7 @@ shipped arm's own FK poses found reachable, far poses not, and the .npz cache.""
 
 from __future__ import annotations
 
+import os
 import textwrap
 from pathlib import Path
 
@@ -89,6 +90,35 @@ def test_build_is_deterministic_and_save_load_round_trips(sweep, tmp_path):
     assert_array_equal(loaded.bits, a.bits)
     np.testing.assert_allclose(loaded.lower, a.lower)
     assert loaded.key == "k1" and loaded.samples == 5_000
+
+
+def _save_many(args: tuple) -> str:
+    """Save ``reach`` into ``folder`` ``times`` times (a process of the test below): the
+    error it met, or ''."""
+    reach, folder, times = args
+    try:
+        for _ in range(times):
+            reach.save(folder)
+    except Exception as e:  # noqa: BLE001 - reported to the test
+        return f"{type(e).__name__}: {e}"
+    return ""
+
+
+def test_processes_saving_the_same_map_at_once_all_succeed(sweep, tmp_path):
+    # Batch workers and service workers with one database build the same arm's map at the
+    # same time. Each writes its own temporary file: with one name for all, one process
+    # renamed the file another was still writing (a torn map), or found it gone.
+    import multiprocessing
+
+    reach = ReachMap.build(sweep, samples=5_000, key="shared")
+    with multiprocessing.get_context("fork").Pool(4) as pool:
+        errors = pool.map(_save_many, [(reach, tmp_path, 30)] * 4)
+    assert errors == [""] * 4
+    assert_array_equal(ReachMap.load(tmp_path / "reach-shared.npz").bits, reach.bits)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["reach-shared.npz"]  # no temporary
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (tmp_path / "reach-shared.npz").stat().st_mode & 0o777 == 0o666 & ~umask
 
 
 def test_cached_builds_once_per_urdf_hash_then_loads(sweep, tmp_path, monkeypatch):
