@@ -171,7 +171,8 @@ class WorkerPool:
 
     async def ready(self, deadline: float) -> list[int]:
         """Start every worker and return their process ids once each has answered (KB and
-        grasp database loaded); DeadlineExceeded after ``deadline`` s."""
+        grasp database loaded). Raises HandoverError (one line: the CLI's error, not a
+        traceback) when a worker cannot start or some do not answer within ``deadline`` s."""
         from handover.engine.errors import HandoverError
 
         futures = [pool.schedule(ping) for pool in self._pools]
@@ -179,7 +180,8 @@ class WorkerPool:
             async with asyncio.timeout(deadline):
                 return list(await asyncio.gather(*map(asyncio.wrap_future, futures)))
         except TimeoutError:
-            raise DeadlineExceeded(deadline) from None
+            raise HandoverError(f"the worker processes did not all start within {deadline:g} "
+                                "s") from None
         except Exception as e:  # noqa: BLE001 - the worker's own error, said in one line
             raise HandoverError(f"a worker process did not start: {type(e).__name__}: "
                                 f"{e}") from None
