@@ -43,6 +43,7 @@ if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.records import RobotGrasp
     from handover.geometry.motion.planner import Segment
+    from handover.geometry.urdf import LinkShapes
 
 __all__ = ["CARRIED", "CARRY_STEP", "CARRY_TURN", "HELD_TOLERANCE", "PATH_TOLERANCE", "LEGS",
            "Carried", "CarryFailure", "object_legs", "carry", "axis_breach"]
@@ -198,23 +199,47 @@ def _pair_clear(ctx: PlanContext, sides: tuple[str, ...], cuts: tuple[slice, ...
     where the first arm (its links and ``attached[0]``, boxes in its tool frame) touches the
     second (its links and its gripper's boxes ``attached[1]``, posed), with what touches
     what; None when none does. ``allowed``: (box of the first, target) name pairs not tested
-    (the object held by both touches the second gripper)."""
-    from handover.geometry.motion import ArmModel, ValidityChecker, obstacles
+    (the object held by both touches the second gripper). Every configuration at once
+    (:func:`~handover.geometry.armcollision.arms_hits`, the boxes carried as links of their
+    own at the tool frame)."""
+    from handover.geometry.armcollision import arms_hits
 
-    a, b = (ctx.arms.arm(s) for s in sides)
-    model = ArmModel(a.kin, a.shapes, a.base)
-    other = ArmModel(b.kin, b.shapes, b.base)
     prefix = f"arm:{sides[1]}:"
-    mine, theirs = q[:, cuts[0]], q[:, cuts[1]]
-    tools = ctx.arms.fk(sides[1], theirs)
-    for i in range(len(q)):
-        grip = [(prefix + name, ext, tools[i] @ pose) for name, ext, pose in attached[1]]
-        targets = obstacles(boxes=grip, others=[other.targets(theirs[i], prefix)])
-        check = ValidityChecker(model, targets, attached=attached[0],
-                                allowed=[(x, t) for x, t in allowed if t in targets.names])
-        if not check.valid(mine[i:i + 1])[0]:
-            return i, check.contacts(mine[i])
-    return None
+    posed = [_with_boxes(ctx, side, q[:, cut], boxes)
+             for side, cut, boxes in zip(sides, cuts, attached, strict=True)]
+    hits = arms_hits(posed[0][0], posed[0][1], posed[1][0], posed[1][1])
+    names_a = posed[0][0].links
+    names_b = [prefix + name for name in posed[1][0].links]
+    for a, b in allowed:
+        if a in names_a and b in names_b:
+            hits[:, names_a.index(a), names_b.index(b)] = False
+    touching = np.flatnonzero(hits.any(axis=(1, 2)))
+    if not len(touching):
+        return None
+    i = int(touching[0])
+    return i, [(names_a[a], names_b[b]) for a, b in zip(*np.nonzero(hits[i]), strict=True)]
+
+
+def _with_boxes(ctx: PlanContext, side: str, q: np.ndarray, boxes: list
+                ) -> tuple[LinkShapes, np.ndarray]:
+    """The arm on ``side``'s link shapes with ``boxes`` ``(name, extents (3,), pose (4, 4) in
+    its tool frame)`` as links of their own, and every link's world poses (n, L + B, 4, 4) at
+    configurations ``q`` (n, dof)."""
+    from dataclasses import replace
+
+    shapes = ctx.arms.arm(side).shapes
+    b = len(boxes)
+    extended = replace(
+        shapes, links=(*shapes.links, *(name for name, _, _ in boxes)),
+        box_link=np.concatenate([shapes.box_link, len(shapes.links) + np.arange(b)]),
+        box_pose=np.concatenate([shapes.box_pose, np.repeat(np.eye(4)[None], b, axis=0)]),
+        box_extents=np.concatenate([shapes.box_extents,
+                                    np.array([ext for _, ext, _ in boxes]).reshape(b, 3)]))
+    tools = ctx.arms.fk(side, q)  # (n, 4, 4)
+    carried = np.array([pose for _, _, pose in boxes]).reshape(b, 4, 4)
+    poses = np.concatenate([ctx.arms.link_poses(side, q), tools[:, None] @ carried[None]],
+                           axis=1)
+    return extended, poses
 
 
 def _starts(ctx: PlanContext, side: str, tool: np.ndarray, planned: np.ndarray,
