@@ -25,7 +25,7 @@ an infeasible attempt says what could not be measured and how to fix the KB.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -296,9 +296,9 @@ def decided(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
     physics check) judges no row twice. The table does not depend on ``ctx.passed_over``
     (:meth:`Decision.ranking` applies it when asked). Rules are told apart by identity: a
     graph compiled from other rules (a what-if's, a placement's) is judged anew."""
-    key = (phase.mode, phase.hands.key, phase.pickup, phase.receiver_present,
-           phase.other_grasp, phase.arm, phase.giver_forbid, phase.midair_lift,
-           tuple(id(c.rule) for c in cg.hard), tuple(id(c.rule) for c in cg.soft))
+    judged = tuple(phase.hands.key if f.name == "hands" else getattr(phase, f.name)
+                   for f in fields(phase))  # every field of the phase, the hands by their key
+    key = (judged, tuple(id(c.rule) for c in cg.hard), tuple(id(c.rule) for c in cg.soft))
     found = ctx.memo.decisions.get(key)
     if found is None:  # the Decision keeps its rules alive: no id is reused while it is kept
         found = ctx.memo.decisions[key] = evaluate(cg, ctx, phase)

@@ -180,3 +180,32 @@ def test_what_is_kept_across_plans_never_changes_a_plan(tmp_path):
         alone = Planner(kb, db=db).plan("mug", **asked).to_json()
         assert made == alone, (str(kb), asked)
     assert warm[0] != warm[4]  # the edits change the plan: the test can tell
+
+
+# ------------------------------------------------------------------ what a context keeps
+
+
+@pytest.mark.parametrize("obj", ["mug", "book"])
+def test_a_mode_planned_again_in_its_context_chooses_as_a_fresh_context_would(obj):
+    """A grasp passed over (no motion for it, or it slipped) makes the planner decide again
+    in the same context, reusing the rules' tables it judged; what it then chooses is what
+    a new context told to pass over the same grasps chooses."""
+    from handover.engine.load.loader import load_kb
+    from handover.engine.plan.prepare import prepare
+    from handover.engine.planner import decide
+
+    kb, query = load_kb(), Query(object=obj)
+    ctx = prepare(kb, query, None)
+    first = decide(kb, ctx, query.mode)
+    dropped = {c.grasp: "passed over for this test" for c in first.attempt.chosen}
+    ctx.passed_over = dict(dropped)
+    again = decide(kb, ctx, query.mode)  # the same context: its tables kept
+    assert ctx.memo.decisions and ctx.memo.graphs
+    fresh_ctx = prepare(kb, query, None)
+    fresh_ctx.passed_over = dict(dropped)
+    fresh = decide(kb, fresh_ctx, query.mode)
+    assert again.outcome == fresh.outcome == "handover"
+    chosen = [(c.grasp, c.presentation, c.gripper) for c in again.attempt.chosen]
+    assert chosen == [(c.grasp, c.presentation, c.gripper) for c in fresh.attempt.chosen]
+    assert not set(dropped) & {c.grasp for c in again.attempt.chosen}
+    assert again.attempt.score == fresh.attempt.score
