@@ -212,9 +212,7 @@ class ReachMap:
 
     def save(self, directory: str | os.PathLike) -> Path:
         """Write ``reach-<key>.npz`` into ``directory`` (created if needed); returns its path."""
-        directory = Path(directory)
-        directory.mkdir(parents=True, exist_ok=True)
-        path = directory / f"reach-{self.key or 'unnamed'}.npz"
+        path = Path(directory) / f"reach-{self.key or 'unnamed'}.npz"
         # Written whole or not at all, through a temporary file of this process's own:
         # processes sharing a database may save the same map at once.
         with atomic_path(path) as tmp, open(tmp, "wb") as out:
