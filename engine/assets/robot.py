@@ -586,13 +586,15 @@ class RobotArms:
         return self._rest[side]
 
     def describe(self) -> dict:
-        """The result's ``robot`` field: ``{id, urdf (relative to the KB folder), base_pose
-        (4x4 world), arms: {side: {base_link, tip_link, tcp (4x4, tip link -> grasp frame),
-        gripper, joints: [names], rest: {joint: value} or null, finger_joints: [two names]}}}``,
-        plain JSON types."""
+        """The result's ``robot`` field: ``{id, urdf (relative to the KB folder), root_link
+        (the URDF's), base_pose (4x4 world: the root link's pose), arms: {side: {base_link,
+        tip_link, tcp (4x4, tip link -> grasp frame), gripper, joints: [names], rest: {joint:
+        value} or null, finger_joints: [two names]}}, squeeze_force (N each arm presses in a
+        squeeze, or null)}``, plain JSON types."""
         return {
             "id": self.spec.id,
             "urdf": self.urdf,
+            "root_link": self.model.root_link,
             "base_pose": self.base_pose.tolist(),
             "arms": {
                 side: {
@@ -606,6 +608,7 @@ class RobotArms:
                 }
                 for side, arm in ((s, self.arms[s]) for s in self.sides)
             },
+            "squeeze_force": self.spec.squeeze_force,
         }
 
 

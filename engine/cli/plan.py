@@ -7,7 +7,7 @@ from pathlib import Path
 import typer
 
 from handover.engine.cli.app import app, state
-from handover.engine.store.files import write_atomic, write_error
+from handover.engine.store.files import check_outputs, write_atomic, write_error
 
 MODE_HELP = "auto (default: H1G1 first, then two hands as rules require) or h1g1|h2g2|h2g1."
 
@@ -101,6 +101,7 @@ def plan(
         raise UsageError("--json and --format moveit ask for two answers: give one")
     if json_out:
         fmt = "json"
+    check_outputs(o=output, mcap=mcap, rrd=rrd)
     request = _request(object_, task, receiver, culture, scene, mode, gripper, mesh_scale,
                        robot, why_not, what_if, physics=physics, motion=not no_motion)
     grasp_db = open_db(db, disabled=no_db)
@@ -131,6 +132,8 @@ def plan(
         typer.echo(text, nl=False)
     elif fmt == "moveit":
         typer.echo(render(planned, "moveit").decode("utf-8"), nl=False)
+        if data["outcome"] in EXIT_CODES_4:  # no grasps to give: say why, apart
+            typer.echo(f"{data['outcome']}: {data['reason']}", err=True)
     elif data["outcome"] in ("place", "refuse"):
         render_outcome(data, Console(highlight=False, soft_wrap=False), explain=explain)
     else:

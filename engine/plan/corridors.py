@@ -16,6 +16,14 @@ kind reads them; the geometry is :func:`handover.geometry.corridor.check_corrido
 - ``retreat``: after the receiver took the object, back along ``-a`` for ``corridors.retreat``
   against the receiver's hands, the scene, both bodies (but the receiving arms) and the
   object in the receiver's hands.
+- ``release`` (in the result only, not a rule's): H2G2's first gripper backing off along
+  ``-a`` once the second holds the object at the midair regrasp, over ``corridors.retreat``
+  against the second gripper (the ``midair`` corridor's sweep, the other way round).
+
+The motion backs off from the handover and from the midair regrasp by the full
+``corridors.retreat`` where the arm has collision-free joints there, else by
+``corridors.approach_min``, else by :data:`SHORTEST`: the result's ``retreat`` and ``release``
+say so with their ``min_distance``.
 
 Each is judged per candidate (pick-up) or per row (grasp, presentation) and memoised in the
 context (:class:`~handover.engine.plan.context.Memo` ``corridors``): a pure function of its
@@ -24,6 +32,7 @@ key.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -31,17 +40,22 @@ import numpy as np
 if TYPE_CHECKING:
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Hands, Phase
+    from handover.engine.plan.records import RobotGrasp
     from handover.geometry.corridor import CorridorHits
 
-__all__ = ["BITS", "CORRIDORS", "OBJECT_RESOLUTION", "UP", "Corridor", "approach", "blocked",
-           "chosen_corridors", "corridors_of", "held_box", "lift", "midair", "midair_pairs",
-           "object_distance", "object_hits", "retreat", "where"]
+__all__ = ["BITS", "CORRIDORS", "OBJECT_RESOLUTION", "SHORTEST", "UP", "Corridor", "approach",
+           "blocked", "chosen_corridors", "corridors_of", "held_box", "lift", "lifted_together",
+           "midair", "midair_pairs", "object_distance", "object_hits", "retreat", "where"]
 
 from handover.engine.assets.lru import LRU, content_key
 from handover.engine.plan.records import Corridor
 from handover.engine.spec.kinds.corridor import CORRIDORS
 
 UP = np.array([0.0, 0.0, 1.0])
+SHORTEST = 0.05
+"""m: the shortest back-off tried for a midair pre-grasp, a release or a retreat where the
+corridor's full distance leaves the arm no collision-free joints (then ``approach_min``,
+then this)."""
 OBJECT_RESOLUTION = 0.01
 """m: the step at which a corridor is sampled against the object's mesh (the slowest test:
 one mesh query per sample; the boxes and bodies are tested exactly or at 5 mm)."""
@@ -390,17 +404,48 @@ def where(phase: Phase) -> dict:
 
 
 def chosen_corridors(ctx: PlanContext, phase: Phase, grasp: int, presentation: int,
-                     midair_at: np.ndarray | None) -> dict:
-    """``{"approach": Corridor, "retreat": Corridor}`` of one chosen grasp of a feasible
-    attempt, judged in ``phase`` (those it has): the approach at pick-up (at the midair
-    regrasp, the object at ``midair_at`` (4, 4) world, for H2G2's second grasp), the retreat
-    after the receiver takes it."""
+                     midair_at: np.ndarray | None, released_to: int | None = None) -> dict:
+    """``{"approach", "lift", "retreat", "release": Corridor}`` of one chosen grasp of a
+    feasible attempt, judged in ``phase`` (those it has): the approach at pick-up (at the
+    midair regrasp, the object at ``midair_at`` (4, 4) world, for H2G2's second grasp), the
+    lift after closing at pick-up, the retreat after the receiver takes it (``min_distance``:
+    the least back-off the motion takes, see the module docstring), and for H2G2's first
+    grasp, ``released_to`` the second grasp (candidate index), its release at the midair
+    regrasp (world, the object at ``midair_at``)."""
     found = {c.name: c for c in corridors_of(
         ctx, CORRIDORS, grasp=grasp, presentation=presentation, midair_at=midair_at,
         **where(phase))}
+    least = min(_spec(ctx).approach_min, SHORTEST)
     out = {}
     if "approach" in found or "midair" in found:
         out["approach"] = found.get("approach") or found["midair"]
+    if "lift" in found:
+        out["lift"] = found["lift"]
     if "retreat" in found:
-        out["retreat"] = found["retreat"]
+        out["retreat"] = replace(found["retreat"], min_distance=least)
+    if released_to is not None and midair_at is not None:
+        hits = midair(ctx, int(released_to), np.array([grasp]))
+        start = np.asarray(midair_at, dtype=float) @ ctx.gripper_poses()[grasp]
+        end = start.copy()
+        end[:3, 3] -= _spec(ctx).retreat * start[:3, 2]
+        out["release"] = Corridor("release", -start[:3, 2], float(_spec(ctx).retreat), start,
+                                  end, not hits.hit[0], hits.reason(0), least)
+    return out
+
+
+def lifted_together(grasps: list[RobotGrasp]) -> list[RobotGrasp]:
+    """``grasps`` with every lift along the first's: grippers that lift the object together
+    (H2G1 from the table) move as the object does, along the first lifting grasp's lift
+    corridor (:func:`~handover.engine.plan.carried.carry`), each from its own grasp pose."""
+    lifts = [g.lift for g in grasps if g.lift is not None]
+    if len(lifts) < 2:
+        return grasps
+    way = lifts[0].direction
+    out = []
+    for g in grasps:
+        if g.lift is not None and g.lift is not lifts[0]:
+            end = g.lift.start.copy()
+            end[:3, 3] += g.lift.distance * way
+            g = replace(g, lift=replace(g.lift, direction=way.copy(), end=end))
+        out.append(g)
     return out

@@ -49,6 +49,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.plan.carried import CARRIED, Carried, CarryFailure, axis_breach, carry
+from handover.engine.plan.corridors import SHORTEST
 from handover.engine.plan.motion_world import Valid, checkers, joins_at_handover
 from handover.engine.plan.records import ArmJoints, RobotGrasp
 
@@ -77,11 +78,6 @@ grippers' relative pose on the way, which a rigid object held by both does not a
 IK_ANSWERS = 16
 """Answers of inverse kinematics tried for a pose between stages where the straight steps do
 not give collision-free joints."""
-
-SHORTEST = 0.05
-"""m: the shortest back-off tried for a midair pre-grasp, a release or a retreat where the
-corridor's full distance leaves the arm no collision-free joints (then ``approach_min``,
-then this)."""
 
 IK_STEP = 0.01
 """m: the step along a straight tool motion (approach, lift, retreat) at which the joints

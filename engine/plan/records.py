@@ -77,12 +77,14 @@ class GraspSupport:
 class Corridor:
     """One corridor of one grasp, for the result and the trace.
 
-    name : ``approach`` | ``lift`` | ``midair`` | ``retreat``. direction : (3,) unit, world,
-    the way the gripper moves along it (from the pre-grasp pose towards the grasp for an
-    approach, away from the grasp otherwise). distance : m, how far it goes. start, end :
-    (4, 4) grasp poses, world, where it begins and ends. free : nothing touched. reason :
-    one sentence (what it hits first and where, or that it is free). min_distance : m, the
-    least of it that must be free (MoveIt's ``min_distance``; None: all of it).
+    name : ``approach`` | ``lift`` | ``midair`` | ``retreat`` | ``release``.
+    direction : (3,) unit, world, the way the gripper moves along it (from the pre-grasp
+    pose towards the grasp for an approach, away from the grasp otherwise).
+    distance : m, how far it goes. start, end : (4, 4) grasp poses, world, where it begins
+    and ends. free : nothing touched. reason : one sentence (what it hits first and where,
+    or that it is free). min_distance : m, the least of it the plan takes (MoveIt's
+    ``min_distance``; None: all of it): an approach whose first ``min_distance`` is free; a
+    retreat or release the arm backs off less where it has no joints at the full distance.
     """
 
     name: str
@@ -129,7 +131,10 @@ class RobotGrasp:
     then says ``"hold": "squeeze"``), not by closing them across it. approach, retreat : the
     straight corridors the open gripper comes in along and withdraws along
     (:class:`Corridor`, world; the approach of H2G2's second
-    grasp is its approach at the midair regrasp), None where the plan has none. trajectory :
+    grasp is its approach at the midair regrasp), None where the plan has none. lift : the
+    straight move right after closing at pick-up, the object held (all lifting grippers of a
+    plan move the object's way); release : H2G2's first gripper backing off at the midair
+    regrasp. trajectory :
     its arm's motion, one :class:`~handover.geometry.motion.planner.Segment` per stage to
     the next (rest, pregrasp, grasp, lift, ..., rest; :mod:`handover.engine.plan.motion`),
     empty where no motion was planned.
@@ -153,6 +158,8 @@ class RobotGrasp:
     approach: Corridor | None = None
     retreat: Corridor | None = None
     trajectory: tuple = ()
+    lift: Corridor | None = None
+    release: Corridor | None = None
 
     @property
     def arm(self) -> str | None:
@@ -178,8 +185,9 @@ class RobotGrasp:
     def to_dict(self) -> dict[str, Any]:
         """The ``robot_grasps`` entry: ``hand, id, pose, pose_world, width, contacts, parts,
         score, quality, roll_deg``, then ``arm, joints[, fingers_swapped]`` with an arm,
-        then ``stage`` when staged; a supporting gripper names its ``stage`` after its
-        ``id`` and ends with ``supports`` (the order the JSON has always had)."""
+        then ``stage`` when staged, then its corridors (``approach``, ``lift``,
+        ``release``, ``retreat``: those it has) and its ``trajectory``; a supporting gripper
+        names its ``stage`` after its ``id`` and ends with ``supports``."""
         if stored_json(self) is not None:
             return stored_json(self)
         out: dict[str, Any] = {"hand": self.gripper, "id": self.id}
@@ -196,7 +204,7 @@ class RobotGrasp:
             out.update(self.arm_joints.to_dict())
         if self.staged and self.supports is None:
             out["stage"] = self.stage
-        for name in ("approach", "retreat"):
+        for name in ("approach", "lift", "release", "retreat"):
             corridor = getattr(self, name)
             if corridor is not None:
                 out[name] = corridor.to_dict()
@@ -353,7 +361,9 @@ def robot_grasp_of(data: dict) -> RobotGrasp:
         squeeze=data.get("hold") == "squeeze",
         approach=_corridor_of("approach", data.get("approach")),
         retreat=_corridor_of("retreat", data.get("retreat")),
-        trajectory=_trajectory_of(data.get("trajectory") or []))
+        trajectory=_trajectory_of(data.get("trajectory") or []),
+        lift=_corridor_of("lift", data.get("lift")),
+        release=_corridor_of("release", data.get("release")))
     return read_back(record, data)
 
 
@@ -363,7 +373,8 @@ keeps neither."""
 
 
 def _corridor_of(name: str, data: dict | None) -> Corridor | None:
-    """A ``robot_grasps[i].approach`` or ``.retreat`` entry as its record (planned, so free)."""
+    """A ``robot_grasps[i]`` corridor entry (``approach``, ``lift``, ``release``,
+    ``retreat``) as its record (planned, so free)."""
     if data is None:
         return None
     start, end = (np.asarray(p, dtype=float) for p in data["poses"])
@@ -424,7 +435,8 @@ class RobotArm:
 @dataclass(frozen=True)
 class Robot:
     """The plan's robot with arms (the JSON ``robot``). urdf : its URDF, posix path relative
-    to the KB folder. base_pose : (4, 4) the URDF's root link in the world (m). arms : side
+    to the KB folder. base_pose : (4, 4) the URDF's root link (``root_link``; "" in a result
+    written before it was named) in the world (m). arms : side
     -> :class:`RobotArm`. A grasp's pose at a stage is ``base_pose @ T(root <- tip_link at
     joints) @ arms[arm].tcp`` (the URDF's forward kinematics from its root link)."""
 
@@ -432,12 +444,13 @@ class Robot:
     urdf: str
     base_pose: np.ndarray
     arms: dict[str, RobotArm]
+    root_link: str = ""
 
 
 def robot_of(record: dict) -> Robot:
     """The JSON ``robot`` block (``{id, urdf, base_pose, arms: {side: {...}}}``) as a
     :class:`Robot`."""
-    return Robot(id=record["id"], urdf=record["urdf"],
+    return Robot(id=record["id"], urdf=record["urdf"], root_link=record.get("root_link", ""),
                  base_pose=np.asarray(record["base_pose"], dtype=float),
                  arms={side: RobotArm(base_link=a["base_link"], tip_link=a["tip_link"],
                                       tcp=np.asarray(a["tcp"], dtype=float),

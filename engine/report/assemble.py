@@ -284,7 +284,7 @@ def robot_grasps(shown: Shown) -> list[RobotGrasp]:
     of a plan held in stages (H2G2, a placement) name theirs."""
     a, sctx = shown.attempt, shown.ctx
     from handover.engine.plan.arms.solve import arm_joints
-    from handover.engine.plan.corridors import chosen_corridors
+    from handover.engine.plan.corridors import chosen_corridors, lifted_together
 
     staged = any(c.stage != "handover" for c in a.chosen)
     out = [grasp_record(sctx, c.gripper, c.grasp,
@@ -293,10 +293,13 @@ def robot_grasps(shown: Shown) -> list[RobotGrasp]:
                         arm_joints=arm_joints(sctx, c.phase, c.grasp, c.presentation)
                         if a.feasible else None)
            for c in a.chosen]
-    if a.feasible:  # the approach and retreat corridors of each
+    if a.feasible:  # the approach, lift, release and retreat corridors of each
         midair = None if a.notes.midair is None else a.notes.midair.pose
-        out = [replace(g, **chosen_corridors(sctx, c.phase, c.grasp, c.presentation, midair))
+        second = next((c.grasp for c in a.chosen if c.stage == "handover"), None)
+        out = [replace(g, **chosen_corridors(sctx, c.phase, c.grasp, c.presentation, midair,
+                                             second if c.stage == "pick" else None))
                for g, c in zip(out, a.chosen, strict=True)]
+        out = lifted_together(out)
     if a.notes.support is not None:
         out.append(a.notes.support.grasp)
     return out

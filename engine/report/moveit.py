@@ -21,20 +21,28 @@ that order, ``id`` ``"<object>/<grasp id>/<hand>"``):
   desired ``finger_length + clearance`` (the fingertips start ``finger_depth + clearance``
   behind the contacts), minimum ``finger_depth + clearance`` (they start ``clearance``
   behind them), the gripper's own dimensions from the result's ``gripper``.
-- ``post_grasp_retreat``: the grasp's ``retreat`` when given, as above. Without it: a lift
-  straight up (world +z), :data:`LIFT_DISTANCE` desired, :data:`LIFT_MIN_DISTANCE` minimum.
-- ``post_place_retreat``: where the gripper lets go (the handover or placement,
-  ``pose_world``; for H2G2's first grasp the midair regrasp), back along ``-a`` by the
-  default approach distances.
+- ``post_grasp_retreat``: the move right after closing: the grasp's ``lift`` when given
+  (the plan's lift at pick-up, the object held); without it, a grasp that closes at pick-up
+  lifts straight up (world +z), :data:`LIFT_DISTANCE` desired, :data:`LIFT_MIN_DISTANCE`
+  minimum, and one that closes midair (H2G2's second) or at the handover holds still
+  (0 m: the other gripper lets go, or the receiver takes it, before it moves).
+- ``post_place_retreat``: the move after letting go: the grasp's ``retreat`` (from the
+  handover) or ``release`` (H2G2's first, from the midair regrasp) when given, with its
+  ``min_distance`` (the least the arm backs off where it has no joints at the full
+  distance); without them, back along ``-a`` from where it lets go (``pose_world``; the
+  midair regrasp for H2G2's first grasp) by the default approach distances.
+- A supporting gripper (``stage`` ``support``: it braces the other gripper, and touches no
+  part of the object) is no ``Grasp``; its arm's joints are among the trajectories.
 - ``pre_grasp_posture`` / ``grasp_posture``: the fingers (the arm's ``finger_joints`` in
   the result's robot block, else :data:`~handover.engine.spec.robotspec.FINGER_JOINTS`,
   prismatic, m, each finger's pad from the grasp frame's centre) open at
   ``Gripper.opening(width) / 2``, then closed on the object at ``width / 2``, each one
   point :data:`POSTURE_SECONDS` from the start; the grasp posture's effort is the gripper's
-  ``grip_force`` (N per jaw) when the result gives it.
+  ``grip_force`` (N per jaw) when the result gives it (none in a squeeze).
 - ``grasp_quality``: the grasp's ``score``; ``max_contact_force``: the gripper's
-  ``grip_force`` when given, else 0 (MoveIt: <= 0 is no limit); ``allowed_touch_objects``:
-  the object's id.
+  ``grip_force`` when given (in a squeeze, ``"hold": "squeeze"``, the robot's
+  ``squeeze_force``: the arm presses, not the jaws), else 0 (MoveIt: <= 0 is no limit);
+  ``allowed_touch_objects``: the object's id.
 
 **Trajectories** (:class:`ArmTrajectory`): each robot grasp's ``trajectory`` segments when
 the result gives them (``{segment, joint_names, positions, times}``, times in s from the
@@ -111,6 +119,7 @@ POSTURE_SECONDS = 0.5
 LIFT_DISTANCE = 0.10
 LIFT_MIN_DISTANCE = 0.05
 
+UP = np.array([0.0, 0.0, 1.0])
 _SWAP = np.diag([-1.0, -1.0, 1.0, 1.0])  # half a turn about the grasp frame's a
 _ORTHO_TOL = 1e-4  # the JSON rounds matrices to 6 decimals
 
@@ -285,11 +294,14 @@ def _posture(names: tuple[str, ...], half_gap: float, effort: float | None) -> J
 
 def _stage_poses(result: dict, g: dict, where: str) -> tuple[str, np.ndarray, np.ndarray]:
     """(closing stage, the grasp frame where the gripper closes, where it lets go), world,
-    each the nearest rigid transform to the JSON's product."""
+    each the nearest rigid transform to the JSON's product. A grasp whose arm's joints are
+    given at the handover only takes hold there (``pose_world``)."""
     pose = _matrix(_field(g, "pose", where), f"{where}.pose")
     regrasp = result.get("regrasp")
     initial = _matrix(_field(result, "initial_pose", "the result"), "initial_pose")
     release = _matrix(_field(g, "pose_world", where), f"{where}.pose_world")
+    if list(g.get("joints") or ()) == ["handover"]:
+        return "handover", _rigid(release), _rigid(release)
     if regrasp:
         midair = _matrix(_field(regrasp, "midair_pose", "regrasp"), "regrasp.midair_pose")
         if g.get("stage") == "handover":  # H2G2's second grasp: taken from the other hand
@@ -341,17 +353,26 @@ def _grasp(result: dict, i: int, gripper: Gripper, force: float) -> Grasp:
     depth = gripper.finger_depth + gripper.clearance
     approach = (closing[:3, 2], gripper.finger_length + gripper.clearance, depth)
     place = (-release[:3, 2], approach[1], approach[2])
+    # After closing: the lift at pick-up; where it closes midair or at the handover, the
+    # arm holds still (the other gripper lets go first, or the receiver takes it): 0 m.
+    after = ((UP, LIFT_DISTANCE, LIFT_MIN_DISTANCE) if stage == "pickup" else (UP, 0.0, 0.0))
+    letting_go = g.get("retreat") or g.get("release")
+    if g.get("hold") == "squeeze":  # the arm presses the closed jaws on a face: its force
+        pressed = (result.get("robot") or {}).get("squeeze_force")
+        force = 0.0 if pressed is None else _number(pressed, "robot.squeeze_force")
+        jaws = None
+    else:
+        jaws = force if force > 0 else None
     return Grasp(
         id=f"{result['object']}/{g.get('id', i)}/{hand}",
         pre_grasp_posture=_posture(names, float(gripper.opening(width)) / 2.0, None),
-        grasp_posture=_posture(names, width / 2.0, force if force > 0 else None),
+        grasp_posture=_posture(names, width / 2.0, jaws),
         grasp_pose=pose_message(_tip(result, g, stage, closing, where)),
         grasp_quality=_number(_field(g, "score", where), f"{where}.score"),
         pre_grasp_approach=_translation(g.get("approach"), f"{where}.approach", approach),
-        post_grasp_retreat=_translation(g.get("retreat"), f"{where}.retreat",
-                                        (np.array([0.0, 0.0, 1.0]), LIFT_DISTANCE,
-                                         LIFT_MIN_DISTANCE)),
-        post_place_retreat=_translation(None, f"{where} (letting go)", place),
+        post_grasp_retreat=_translation(g.get("lift"), f"{where}.lift", after),
+        post_place_retreat=_translation(letting_go, f"{where}.retreat" if g.get("retreat")
+                                        else f"{where}.release", place),
         max_contact_force=force,
         allowed_touch_objects=(str(result["object"]),),
     )
@@ -424,9 +445,12 @@ def static_frames(result: dict) -> TFMessage:
     :data:`WORLD_FRAME` (z up, m): the object where it is picked up (``<object>/pickup``,
     ``initial_pose``), where the second hand takes it in H2G2 (``<object>/midair``,
     ``regrasp.midair_pose``), where it is handed over or set down (``<object>/handover`` or
-    ``<object>/place``, ``object_pose``), and the receiver (``receiver``: on the floor at their
-    feet, x the way they face, z up). The grasps' poses are in ``world``; these frames let a
-    viewer (Foxglove, RViz) show where the object and the person are. Stamps are zero, as a
+    ``<object>/place``, ``object_pose``), the receiver (``receiver``: on the floor at their
+    feet, x the way they face, z up) and the robot's URDF root link (``robot.root_link`` at
+    ``robot.base_pose``: the robot's own tree, from ``robot_state_publisher``, hangs from it).
+    The grasps' poses are in ``world``; these frames let a viewer (Foxglove, RViz) show where
+    the object, the person and the robot are, and a stack that plans in the robot's frame
+    carry a pose there. Stamps are zero, as a
     static broadcaster's frames are valid at every time."""
     name = str(_field(result, "object", "the result"))
     frames = [(f"{name}/pickup", _rigid(_matrix(_field(result, "initial_pose", "the result"),
@@ -448,7 +472,19 @@ def static_frames(result: dict) -> TFMessage:
             at = np.eye(4)
             at[:3, 0], at[:3, 1], at[:3, 3] = x, np.cross([0.0, 0.0, 1.0], x), position
             frames.append(("receiver", at))
+    robot = result.get("robot") or {}
+    if robot.get("root_link"):  # the URDF's tree hangs from its root link, placed here
+        frames.append((str(robot["root_link"]), _rigid(_matrix(robot.get("base_pose"),
+                                                               "robot.base_pose"))))
     return TFMessage(tuple(_transform(WORLD_FRAME, child, t) for child, t in frames))
+
+
+def _grasping(result: dict) -> list[int]:
+    """The indices of the robot grasps that hold the object: all but a supporting gripper
+    (``stage`` ``support``), which braces the other gripper and takes no part of the
+    object."""
+    return [i for i, g in enumerate(result["robot_grasps"])
+            if not (isinstance(g, dict) and g.get("stage") == "support")]
 
 
 def moveit_messages(result: dict) -> MoveItPlan:
@@ -467,7 +503,7 @@ def moveit_messages(result: dict) -> MoveItPlan:
     gripper, force = _gripper(result)
     return MoveItPlan(
         object=str(result["object"]),
-        grasps=tuple(_grasp(result, i, gripper, force) for i in range(len(grasps))),
+        grasps=tuple(_grasp(result, i, gripper, force) for i in _grasping(result)),
         trajectories=tuple(t for i in range(len(grasps)) for t in _trajectories(result, i)),
         tf_static=static_frames(result),
     )
@@ -485,7 +521,8 @@ def grasp_planning_result(result: dict, group_name: str = "") -> dict[str, Any]:
     arm = group_name.removesuffix("_arm")
     robot = result.get("robot")
     arms = sorted((robot or {}).get("arms") or {})
-    hands = [g.get("arm") or g.get("hand") for g in result["robot_grasps"]]
+    hands = [result["robot_grasps"][i].get("arm") or result["robot_grasps"][i].get("hand")
+             for i in _grasping(result)]
     if arms and arm not in arms:
         raise ValueError(f"group_name {group_name!r} is not an arm of robot "
                          f"'{robot.get('id')}' (arms: {', '.join(arms)})")

@@ -221,7 +221,7 @@ def test_a_grip_force_in_the_result_is_the_effort_and_the_force_limit(results):
 def test_without_approach_or_retreat_the_gripper_comes_along_a_and_lifts(results, tmp_path):
     result = copy.deepcopy(results["knife"])
     (g,) = result["robot_grasps"]
-    g.pop("approach"), g.pop("retreat")  # the planner gives both: take them away
+    g.pop("approach"), g.pop("lift"), g.pop("retreat")  # the planner gives them: take away
     (msg,) = grasps_of(bag(result, tmp_path)[1])
     gr = result["gripper"]
     a = rigid(closing_stage(result, g)[1])[:3, 2]
@@ -338,6 +338,7 @@ def test_approach_retreat_and_trajectory_of_the_result_are_used(results, tmp_pat
     q0 = [g["joints"]["pickup"][n] for n in names]
     q1 = [g["joints"]["handover"][n] for n in names]
     g["approach"] = {"direction": [0.0, 0.0, -2.0], "distance": 0.08, "poses": []}
+    g["lift"] = {"direction": [0.0, 0.0, 3.0], "distance": 0.07, "poses": []}
     g["retreat"] = {"direction": [0.3, 0.0, 0.4], "distance": 0.12, "min_distance": 0.06,
                     "poses": []}
     g["trajectory"] = [
@@ -352,7 +353,11 @@ def test_approach_retreat_and_trajectory_of_the_result_are_used(results, tmp_pat
     assert (v.x, v.y, v.z) == (0.0, 0.0, -1.0)
     assert msg.pre_grasp_approach.desired_distance == pytest.approx(0.08, abs=1e-7)
     assert msg.pre_grasp_approach.min_distance == msg.pre_grasp_approach.desired_distance
-    r = msg.post_grasp_retreat
+    lift = msg.post_grasp_retreat  # after closing: the lift
+    assert (lift.direction.vector.x, lift.direction.vector.y, lift.direction.vector.z) == (
+        0.0, 0.0, 1.0)
+    assert lift.desired_distance == lift.min_distance == pytest.approx(0.07, abs=1e-7)
+    r = msg.post_place_retreat  # after letting go: the retreat
     np.testing.assert_allclose([r.direction.vector.x, r.direction.vector.y,
                                 r.direction.vector.z], [0.6, 0.0, 0.8], atol=1e-15)
     assert (r.desired_distance, r.min_distance) == pytest.approx((0.12, 0.06), abs=1e-7)
@@ -460,7 +465,8 @@ def test_static_frames_put_the_object_and_the_receiver_where_the_json_says(resul
     info, messages = bag(result, tmp_path)
     (tf,) = [m for topic, _, m in messages if topic == "/tf_static"]
     frames = {t.child_frame_id: t for t in tf.transforms}
-    assert list(frames) == ["book/pickup", "book/midair", "book/handover", "receiver"]
+    assert list(frames) == ["book/pickup", "book/midair", "book/handover", "receiver",
+                            result["robot"]["root_link"]]
     want = {"book/pickup": result["initial_pose"],
             "book/midair": result["regrasp"]["midair_pose"],
             "book/handover": result["object_pose"]}
@@ -485,7 +491,7 @@ def test_a_set_down_object_s_last_frame_is_where_it_is_placed(results):
     result = copy.deepcopy(results["knife"])
     result["outcome"] = "place"
     names = [t.child_frame_id for t in moveit_messages(result).tf_static.transforms]
-    assert names == ["knife/pickup", "knife/place", "receiver"]
+    assert names == ["knife/pickup", "knife/place", "receiver", "base_link"]
 
 
 def test_every_topic_offers_a_latched_reliable_qos_as_rosbag2_writes_it(results, tmp_path):
