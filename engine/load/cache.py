@@ -42,7 +42,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from handover.engine.errors import UsageError
-from handover.engine.store.kb import KB, resolve_kb_dir
+from handover.engine.store.kb import KB, KIND_ATTRS, resolve_kb_dir
 from handover.engine.store.yamlpos import YAML_SUFFIXES
 
 if TYPE_CHECKING:
@@ -52,7 +52,7 @@ if TYPE_CHECKING:
 __all__ = ["load_kb_cached", "kb_digest", "kb_cache_dir", "code_fingerprint", "LazyObjects",
            "LazyMarks", "FORMAT", "KEEP"]
 
-FORMAT = 1
+FORMAT = 2
 """Layout version of an entry (part of the digest)."""
 KEEP = 16
 """Entries kept in a cache folder (the most recently used)."""
@@ -260,9 +260,8 @@ def _write_entry(folder: Path, kb: KB, yaml_files: dict[str, str]) -> None:
                 pickle.dump((model, kb.marks.get(rel)), fh, protocol=pickle.HIGHEST_PROTOCOL)
             index[item_id] = (name, rel, yaml_files.get(rel, ""))
         object_files = {rel for _, rel, _ in index.values()}
-        rest = KB(root=kb.root, **{attr: getattr(kb, attr) for attr in
-                                   ("cultures", "receivers", "grippers", "hands", "robots",
-                                    "scenes", "tests")},
+        rest = KB(root=kb.root, **{attr: getattr(kb, attr) for attr, _ in KIND_ATTRS.values()
+                                   if attr != "objects"},  # every kind: the hazards too
                   warnings=list(kb.warnings),
                   marks={rel: m for rel, m in kb.marks.items() if rel not in object_files})
         with open(tmp / _KB_FILE, "wb") as fh:

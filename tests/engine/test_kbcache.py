@@ -14,7 +14,7 @@ from handover.engine.errors import KBError
 from handover.engine.load import cache as kbcache
 from handover.engine.load.cache import LazyObjects, kb_digest, load_kb_cached
 from handover.engine.load.loader import load_kb
-from handover.engine.store.kb import builtin_kb_dir
+from handover.engine.store.kb import KIND_ATTRS, builtin_kb_dir
 
 
 @pytest.fixture
@@ -39,8 +39,10 @@ def test_a_hit_is_the_full_load_without_validating(kb_copy: Path, tmp_path: Path
     assert list(kb.objects) == list(full.objects)
     assert kb.object("knife") == full.object("knife")
     assert {k: v for k, v in kb.objects.items()} == full.objects
-    for attr in ("cultures", "receivers", "grippers", "hands", "robots", "scenes", "tests"):
-        assert getattr(kb, attr) == getattr(full, attr), attr
+    for attr, _ in KIND_ATTRS.values():  # every kind of document, the hazards too
+        if attr != "objects":
+            assert getattr(kb, attr) == getattr(full, attr), attr
+    assert kb.counts() == full.counts() and kb.counts()["hazards"] >= 1
     assert kb.warnings == full.warnings
     mug = kb.object("mug")
     assert kb.locate(mug, "mass") == full.locate(full.object("mug"), "mass")
@@ -119,3 +121,40 @@ def test_a_plan_from_the_cache_is_the_same_bytes(kb_copy: Path, tmp_path: Path,
     full = plan(load_kb(kb_copy, urdf=False), query).to_json()
     load_kb_cached(kb_copy, tmp_path / "cache")
     assert plan(load_kb_cached(kb_copy, tmp_path / "cache"), query).to_json() == full
+
+
+SYRINGE = """\
+id: syringe
+name: Syringe
+mass: 0.02
+geometry:
+  primitives:
+    - {shape: cylinder, part: barrel, radius: 0.008, height: 0.09, position: [0, 0, 0.008],
+       rotation_deg: [0, 90, 0]}
+    - {shape: cylinder, part: needle, radius: 0.001, height: 0.03, position: [0.06, 0, 0.008],
+       rotation_deg: [0, 90, 0]}
+parts:
+  barrel: {tags: [handle]}
+  needle: {tags: [needle]}
+axes:
+  tip: [1, 0, 0]
+"""
+
+
+def test_the_hazards_a_tag_implies_are_applied_from_the_cache_too(kb_copy: Path,
+                                                                   tmp_path: Path,
+                                                                   arms_off) -> None:
+    """A needle is pointed (kb/hazards: ``needle`` implies ``pointed``): the rules about
+    points judge it whether the KB comes from its files or from the cache (the CLI's and the
+    service's way), and the plan is the same."""
+    from handover.engine.planner import plan
+    from handover.engine.spec.query import Query
+
+    arms_off(kb_copy)
+    (kb_copy / "objects" / "syringe.yaml").write_text(SYRINGE)
+    full = plan(load_kb(kb_copy, urdf=False), Query(object="syringe")).to_dict()
+    load_kb_cached(kb_copy, tmp_path / "cache")
+    cached = plan(load_kb_cached(kb_copy, tmp_path / "cache"), Query(object="syringe"))
+    assert cached.to_dict() == full
+    implied = [why for tag, why in cached.context.facts.derived if tag == "pointed"]
+    assert implied, cached.context.facts.derived
