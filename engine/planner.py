@@ -17,8 +17,8 @@ facade a robot program uses.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass, field, replace
-from dataclasses import fields as dataclass_fields
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -26,7 +26,7 @@ import numpy as np
 
 from handover.engine.plan.attempt import Attempt, AttemptNotes
 from handover.engine.plan.records import HumanGrasp, Robot, RobotArm, RobotGrasp, robot_of
-from handover.engine.spec.query import Query
+from handover.engine.spec.query import QUERY_FIELDS, Query, query_of
 
 if TYPE_CHECKING:
     import trimesh
@@ -460,38 +460,35 @@ class Planner:
         return plan(self.kb, asked, why_not=tuple(why_not), db=self.db, mesh=mesh,
                     what_if=what_if, arms_cache=self.arms_cache, motion=motion)
 
+    def plan_json(self, query: Query | str | Path | trimesh.Trimesh | None = None, /, *,
+                  why_not: tuple[int, ...] = (), what_if: bool = False, motion: bool = True,
+                  **fields: Any) -> bytes:
+        """The bytes ``handover plan OBJECT --json`` prints (the arms' motion planned, as
+        the CLI does, unless ``motion=False``); the query as :meth:`plan` takes it."""
+        return self._answer("json", query, why_not, what_if, motion, fields)
 
-QUERY_FIELDS: tuple[str, ...] = tuple(f.name for f in dataclass_fields(Query))
-"""The keywords :meth:`Planner.plan` takes for a query: the fields of :class:`Query`."""
+    def moveit(self, query: Query | str | Path | trimesh.Trimesh | None = None, /, *,
+               why_not: tuple[int, ...] = (), what_if: bool = False, motion: bool = True,
+               **fields: Any) -> dict:
+        """The plan's ROS 2 messages, what ``handover plan OBJECT --format moveit`` prints
+        (docs/ros.md); the query as :meth:`plan_json` takes it."""
+        return json.loads(self._answer("moveit", query, why_not, what_if, motion, fields))
+
+    def mcap(self, query: Query | str | Path | trimesh.Trimesh | None, path: str | Path, /,
+             *, why_not: tuple[int, ...] = (), what_if: bool = False, motion: bool = True,
+             **fields: Any) -> Path:
+        """Write the plan's ROS 2 messages to ``path`` as an MCAP bag (``--mcap``); the
+        query as :meth:`plan_json` takes it."""
+        from handover.engine.store.files import write_atomic
+
+        write_atomic(path, self._answer("mcap", query, why_not, what_if, motion, fields))
+        return Path(path)
+
+    def _answer(self, fmt: str, query, why_not, what_if: bool, motion: bool,
+                fields: dict[str, Any]) -> bytes:
+        from handover.engine.report.formats import result_bytes
+
+        planned = self.plan(query, why_not=why_not, what_if=what_if, motion=motion, **fields)
+        return result_bytes(planned.result, fmt)
 
 
-def query_of(query: Query | str | Path | trimesh.Trimesh | None = None,
-             **fields: Any) -> tuple[Query, trimesh.Trimesh | None]:
-    """The :class:`Query` that :meth:`Planner.plan` plans, and the mesh it was given (or
-    None): ``query`` a Query (the ``fields`` given change it), an object id or a mesh file
-    (or neither, and ``object`` among the ``fields``), or a ``trimesh.Trimesh`` in metres
-    (planned as the object ``mesh``). Fields given as None take their defaults. Raises
-    ValueError naming what is wrong (an unknown field, no object, two objects, an object of
-    another type)."""
-    unknown = sorted(set(fields) - set(QUERY_FIELDS))
-    if unknown:
-        raise ValueError(f"unknown query field{'s' if len(unknown) > 1 else ''} "
-                         f"{', '.join(unknown)}: a query has {', '.join(QUERY_FIELDS)}")
-    given = {name: value for name, value in fields.items() if value is not None}
-    if isinstance(query, Query):
-        return replace(query, **given), None
-    if query is not None and "object" in given:
-        raise ValueError(f"two objects asked for: {query!r} and object={given['object']!r}")
-    if query is None:
-        if "object" not in given:
-            raise ValueError("no object to plan: give a Query, an object id, a mesh file or a "
-                             "trimesh.Trimesh")
-        query = given.pop("object")
-    if isinstance(query, (str, Path)):
-        return Query(object=str(query), **given), None
-    import trimesh
-
-    if isinstance(query, trimesh.Trimesh):
-        return Query(object="mesh", **given), query
-    raise ValueError(f"cannot plan a {type(query).__name__}: give a Query, an object id, a "
-                     "mesh file or a trimesh.Trimesh")

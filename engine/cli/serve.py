@@ -31,8 +31,9 @@ def serve(
     ),
     no_db: bool = typer.Option(False, "--no-db", help="Generate candidates, use no database."),
 ) -> None:
-    """Serve plans over HTTP + JSON until stopped (Ctrl-C): GET /v1/health, POST /v1/plan,
-    POST /v1/verify, GET /v1/kb/validate, POST /v1/kb/reload.
+    """Serve plans over HTTP + JSON until stopped (Ctrl-C): GET /v1/health, POST /v1/plan
+    (handover plan), POST /v1/grasp_planning (a GraspPlanning goal), POST /v1/verify
+    (handover kb test), GET /v1/kb/validate (handover kb validate), POST /v1/kb/reload.
 
     Loads the KB once (--kb) and keeps it, the grasp database and each worker's answers
     warm. Prints http://HOST:PORT when ready; one JSON line per request on stderr.

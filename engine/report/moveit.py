@@ -5,56 +5,24 @@ Everything is read from the plan's JSON result (the ``dict`` that ``handover pla
 --json`` prints, a stable contract): nothing here plans, and the same result gives the same
 messages and a byte-identical bag.
 
-**Grasps** (:func:`moveit_messages`, one :class:`~.rosmsg.Grasp` per ``robot_grasps[i]``, in
-that order, ``id`` ``"<object>/<grasp id>/<hand>"``):
+**Grasps** (:func:`moveit_messages`): one :class:`~.rosmsg.Grasp` per ``robot_grasps[i]``
+that holds the object (a supporting gripper braces the other and is none), in that order,
+``id`` ``"<object>/<grasp id>/<hand>"``: ``grasp_pose`` the arm's ``tip_link`` where the
+gripper closes (at pick-up, or midair for H2G2's second grasp; the grasp frame itself for a
+robot without arms); ``pre_grasp_approach`` the grasp's ``approach``; ``post_grasp_retreat``
+the move right after closing, its ``lift`` (0 m where it closes midair or at the handover);
+``post_place_retreat`` the move after letting go, its ``retreat`` or ``release``; the
+postures of the arm's ``finger_joints``; ``max_contact_force`` the grip force, or a
+squeeze's ``squeeze_force``. Where the result lacks a move, the defaults below stand in
+(:data:`LIFT_DISTANCE`, the gripper's own dimensions). docs/ros.md gives every field's choice.
 
-- ``grasp_pose``: where the gripper closes on the object, in :data:`WORLD_FRAME`: at pick-up
-  (``initial_pose @ pose``), or at the midair regrasp for the grasp that takes the object
-  there in H2G2 (``regrasp.midair_pose @ pose``). As MoveIt defines the field, it is the pose
-  of the end effector's parent link: the arm's ``tip_link``, ``stage pose @ inv(tcp)`` (turned
-  half a turn about ``a`` first where ``fingers_swapped`` names the stage, as the arm holds
-  it); for a robot without arms (``robot`` null), the grasp frame itself. The rotation is
-  the nearest rotation to the JSON's (rounded) matrix, its quaternion with ``w >= 0``.
-- ``pre_grasp_approach``: the grasp's ``approach`` when the result gives one (``direction``,
-  world, the way the gripper moves; ``distance`` desired, ``min_distance`` if given, else
-  the same). Without it: along the grasp frame's approach axis ``a`` at the closing stage,
-  desired ``finger_length + clearance`` (the fingertips start ``finger_depth + clearance``
-  behind the contacts), minimum ``finger_depth + clearance`` (they start ``clearance``
-  behind them), the gripper's own dimensions from the result's ``gripper``.
-- ``post_grasp_retreat``: the move right after closing: the grasp's ``lift`` when given
-  (the plan's lift at pick-up, the object held); without it, a grasp that closes at pick-up
-  lifts straight up (world +z), :data:`LIFT_DISTANCE` desired, :data:`LIFT_MIN_DISTANCE`
-  minimum, and one that closes midair (H2G2's second) or at the handover holds still
-  (0 m: the other gripper lets go, or the receiver takes it, before it moves).
-- ``post_place_retreat``: the move after letting go: the grasp's ``retreat`` (from the
-  handover) or ``release`` (H2G2's first, from the midair regrasp) when given, with its
-  ``min_distance`` (the least the arm backs off where it has no joints at the full
-  distance); without them, back along ``-a`` from where it lets go (``pose_world``; the
-  midair regrasp for H2G2's first grasp) by the default approach distances.
-- A supporting gripper (``stage`` ``support``: it braces the other gripper, and touches no
-  part of the object) is no ``Grasp``; its arm's joints are among the trajectories.
-- ``pre_grasp_posture`` / ``grasp_posture``: the fingers (the arm's ``finger_joints`` in
-  the result's robot block, else :data:`~handover.engine.spec.robotspec.FINGER_JOINTS`,
-  prismatic, m, each finger's pad from the grasp frame's centre) open at
-  ``Gripper.opening(width) / 2``, then closed on the object at ``width / 2``, each one
-  point :data:`POSTURE_SECONDS` from the start; the grasp posture's effort is the gripper's
-  ``grip_force`` (N per jaw) when the result gives it (none in a squeeze).
-- ``grasp_quality``: the grasp's ``score``; ``max_contact_force``: the gripper's
-  ``grip_force`` when given (in a squeeze, ``"hold": "squeeze"``, the robot's
-  ``squeeze_force``: the arm presses, not the jaws), else 0 (MoveIt: <= 0 is no limit);
-  ``allowed_touch_objects``: the object's id.
+**Trajectories** (:class:`ArmTrajectory`): each robot grasp's ``trajectory`` segments, one
+message per segment; without them, its stage joints as one segment ``"stages"``, the k-th at
+``(k + 1) *`` :data:`STAGE_SECONDS` (waypoints the plan checked, not a motion it checked
+between them). Joint names in the arm's chain order; headers without stamp or frame.
 
-**Trajectories** (:class:`ArmTrajectory`): each robot grasp's ``trajectory`` segments when
-the result gives them (``{segment, joint_names, positions, times}``, times in s from the
-segment's start), one message per segment. Without them, the grasp's stage joints
-(``joints``: pickup, midair, handover, place, in that order) as one segment ``"stages"``,
-the k-th stage at ``(k + 1) *`` :data:`STAGE_SECONDS`: waypoints the plan checked, not a
-motion it checked between them. Joint names follow the arm's chain order
-(``robot.arms[arm].joints``). Headers carry no stamp (ROS's zero time: "start now") and no
-frame.
-
-**Frames** (:func:`static_frames`): the object at pick-up, at the midair regrasp and at the
-handover (or where it is set down), and the receiver, as a ``tf2_msgs/TFMessage``.
+**Frames** (:func:`static_frames`): the object at pick-up, midair and handover (or where it
+is set down), the receiver and the robot's URDF root, as a ``tf2_msgs/TFMessage``.
 
 The bag of these messages is :mod:`.rosbag`'s.
 """

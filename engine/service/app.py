@@ -56,8 +56,11 @@ from handover.engine.service.worker import (
     verify_task,
 )
 
-__all__ = ["create_app", "request_log", "MAX_BODY", "LOGGER"]
+__all__ = ["create_app", "request_log", "MAX_BODY", "LOGGER", "ROUTES"]
 
+ROUTES = ("/v1/health", "/v1/plan", "/v1/grasp_planning", "/v1/verify", "/v1/kb/validate",
+          "/v1/kb/reload")
+"""The service's routes (docs/service.md)."""
 MAX_BODY = 64 * 1024
 """The largest request body taken (bytes): a query is a few hundred."""
 LOGGER = "handover.service"
@@ -101,9 +104,23 @@ async def _body(request: Request, required: bool = True) -> Any:
             raise _BadRequest(400, "bad_request", "the body is empty: send a JSON object")
         return None
     try:
-        return json.loads(raw)
+        return json.loads(raw, object_pairs_hook=_unique_keys)
     except (UnicodeDecodeError, json.JSONDecodeError) as e:
         raise _BadRequest(400, "bad_json", f"the body is not JSON: {e}") from None
+    except RecursionError:
+        raise _BadRequest(400, "bad_json", "the body nests arrays or objects too deeply to "
+                          "be a request") from None
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object's members, refusing a key given twice (json.loads would keep the last
+    silently)."""
+    out: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in out:
+            raise _BadRequest(400, "bad_json", f"the key '{key}' appears twice in an object")
+        out[key] = value
+    return out
 
 
 def _deadline(request: Request) -> float | None:
@@ -184,7 +201,7 @@ def create_app(service: Service, token: str | None = None) -> Starlette:
                            "previous": old.digest, "kb": new.describe(),
                            "warnings": new.warnings})
 
-    routes = [
+    routes = [  # ROUTES, in this order
         Route("/v1/health", health, methods=["GET"]),
         Route("/v1/plan", plan, methods=["POST"]),
         Route("/v1/grasp_planning", grasp_planning, methods=["POST"]),
@@ -201,6 +218,7 @@ def create_app(service: Service, token: str | None = None) -> Starlette:
         service.stop()
 
     app = Starlette(routes=routes, lifespan=lifespan, exception_handlers=HANDLERS)
+    app.router.redirect_slashes = False  # /v1/plan/ is no route: a JSON 404, not a redirect
     return _guarded(app, service, token)
 
 
@@ -226,8 +244,8 @@ async def _http_error(request: Request, exc: Exception) -> Response:
     """Starlette's own errors (no such route, wrong method) as JSON."""
     assert isinstance(exc, HTTPException)
     code = {404: "not_found", 405: "method_not_allowed"}.get(exc.status_code, "http_error")
-    message = (f"no route {request.url.path} (routes: /v1/health, /v1/plan, /v1/verify, "
-               "/v1/kb/validate, /v1/kb/reload)" if exc.status_code == 404
+    message = (f"no route {request.url.path} (routes: {', '.join(ROUTES)})"
+               if exc.status_code == 404
                else f"{request.method} is not allowed on {request.url.path}"
                if exc.status_code == 405 else str(exc.detail))
     return _error(exc.status_code, code, message)
@@ -237,7 +255,11 @@ def _guarded(app: Starlette, service: Service, token: str | None
              ) -> Callable[[dict, Callable, Callable], Awaitable[None]]:
     """``app`` behind the token check, the error mapping and the request log (an ASGI
     application: a plain wrapper, so that a 500 is JSON too and every request is logged)."""
-    expected = None if token is None else f"Bearer {token}".encode()
+    expected = None if token is None else token.encode()
+
+    def authorised(header: bytes) -> bool:  # RFC 7235: the scheme's case does not matter
+        scheme, _, given = header.partition(b" ")
+        return scheme.lower() == b"bearer" and hmac.compare_digest(given.strip(), expected)
 
     async def asgi(scope: dict, receive: Callable, send: Callable) -> None:
         if scope["type"] != "http":
@@ -249,6 +271,12 @@ def _guarded(app: Starlette, service: Service, token: str | None
         seen: dict[str, Any] = {}
 
         async def send_logged(message: dict) -> None:
+            if message["type"] == "http.response.body" and seen.get("status", 200) >= 400 \
+                    and "error" not in seen:  # the error's code, for the log
+                try:
+                    seen["error"] = json.loads(message.get("body", b""))["error"]["code"]
+                except (ValueError, KeyError, TypeError):
+                    pass
             if message["type"] == "http.response.start":
                 seen["status"] = message["status"]
                 extra = [(b"x-request-id", rid.encode("latin-1"))]
@@ -263,15 +291,18 @@ def _guarded(app: Starlette, service: Service, token: str | None
             await send(message)
 
         try:
-            if expected is not None and scope["path"] != "/v1/health" and not hmac.compare_digest(
-                    headers.get(b"authorization", b""), expected):
-                response = _error(401, "unauthorized", "this service needs 'Authorization: "
-                                  "Bearer TOKEN' (the token it was started with)")
+            if expected is not None and scope["path"] != "/v1/health" \
+                    and not authorised(headers.get(b"authorization", b"")):
+                response = Response(
+                    error_body("unauthorized", "this service needs 'Authorization: Bearer "
+                               "TOKEN' (the token it was started with)"), 401,
+                    headers={"WWW-Authenticate": 'Bearer realm="handover"'},
+                    media_type="application/json")
                 await response(scope, receive, send_logged)
             else:
                 await app(scope, receive, send_logged)
         except Exception as e:  # noqa: BLE001 - answered as a JSON 500 already; logged here
-            seen["error"] = f"{type(e).__name__}: {e}"
+            seen["error"] = f"internal: {type(e).__name__}: {e}"
         finally:
             request_log(ts=round(time.time(), 3), id=rid, method=scope.get("method"),
                         path=scope.get("path"), status=seen.get("status"),

@@ -3,7 +3,7 @@
 >>> from handover import Client, Planner
 >>> planner = Client("http://127.0.0.1:8750")   # or Planner(): the same calls   # doctest: +SKIP
 >>> planner.plan("mug", receiver="elder", culture="korean").mode                # doctest: +SKIP
-'H1G1'
+'H2G1'
 
 ``Client.plan`` takes the arguments of :meth:`handover.Planner.plan` (an object id, not a
 mesh) and returns the same :class:`handover.Plan` (built from the service's JSON, which is
@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from handover.engine.errors import HandoverError
+from handover.engine.spec.query import Query, query_of
 
 if TYPE_CHECKING:
     from handover.engine.planner import Plan
@@ -128,38 +129,44 @@ class Client:
 
     # ------------------------------------------------------------ the Planner's interface
 
-    def plan(self, obj: str | Path, *, receiver: str | None = None,
-             culture: str | None = None, task: str | None = None, scene: str | None = None,
-             mode: str = "auto", gripper: str | None = None, robot: str | None = None,
-             mesh_scale: float = 1.0, why_not: tuple[int, ...] = (),
-             what_if: bool = False, motion: bool = False) -> Plan:
-        """Plan as :meth:`handover.Planner.plan` does, on the service (``obj``: an object
-        id of the service's KB); ``motion`` as there (off unless asked, as the Planner)."""
+    def plan(self, query: Query | str | Path | None = None, /, *,
+             why_not: tuple[int, ...] = (), what_if: bool = False, motion: bool = False,
+             **fields: Any) -> Plan:
+        """Plan as :meth:`handover.Planner.plan` does, on the service: ``query`` a
+        :class:`~handover.Query` or an object id of the service's KB, the query's other
+        fields as keywords; ``motion`` as there (off unless asked, as the Planner)."""
         from handover.engine.planner import Plan
         from handover.engine.report.result import PlanResult
 
-        body = self._query(obj, receiver, culture, task, scene, mode, gripper, robot,
-                           mesh_scale, why_not, what_if, "json")
-        body["motion"] = bool(motion)
+        body = _body(query, why_not, what_if, motion, "json", fields)
         data = json.loads(self._call("POST", "/v1/plan", body))
         return Plan(PlanResult.from_dict(data), None, None)  # type: ignore[arg-type]
 
-    def plan_json(self, obj: str, **query: Any) -> bytes:
-        """The service's answer as it came: the bytes ``handover plan OBJ --json`` prints."""
-        return self._call("POST", "/v1/plan", self._query(obj, **_query_args(query),
-                                                          fmt="json"))
+    def plan_json(self, query: Query | str | Path | None = None, /, *,
+                  why_not: tuple[int, ...] = (), what_if: bool = False, motion: bool = True,
+                  **fields: Any) -> bytes:
+        """The service's answer as it came: the bytes ``handover plan OBJ --json`` prints
+        (as :meth:`handover.Planner.plan_json`)."""
+        return self._call("POST", "/v1/plan", _body(query, why_not, what_if, motion, "json",
+                                                     fields))
 
-    def moveit(self, obj: str, **query: Any) -> dict:
-        """The plan's ROS 2 messages (what ``handover plan OBJ --format moveit`` prints)."""
-        return json.loads(self._call("POST", "/v1/plan",
-                                     self._query(obj, **_query_args(query), fmt="moveit")))
+    def moveit(self, query: Query | str | Path | None = None, /, *,
+               why_not: tuple[int, ...] = (), what_if: bool = False, motion: bool = True,
+               **fields: Any) -> dict:
+        """The plan's ROS 2 messages (what ``handover plan OBJ --format moveit`` prints, as
+        :meth:`handover.Planner.moveit`)."""
+        return json.loads(self._call("POST", "/v1/plan", _body(query, why_not, what_if, motion,
+                                                                "moveit", fields)))
 
-    def mcap(self, obj: str, path: str | Path, **query: Any) -> Path:
-        """Write the plan's ROS 2 messages to ``path`` as an MCAP bag (``--mcap``)."""
+    def mcap(self, query: Query | str | Path | None, path: str | Path, /, *,
+             why_not: tuple[int, ...] = (), what_if: bool = False, motion: bool = True,
+             **fields: Any) -> Path:
+        """Write the plan's ROS 2 messages to ``path`` as an MCAP bag (``--mcap``, as
+        :meth:`handover.Planner.mcap`)."""
         from handover.engine.store.files import write_atomic
 
-        write_atomic(path, self._call("POST", "/v1/plan",
-                                      self._query(obj, **_query_args(query), fmt="mcap")))
+        write_atomic(path, self._call("POST", "/v1/plan", _body(query, why_not, what_if,
+                                                                motion, "mcap", fields)))
         return Path(path)
 
     def grasp_planning(self, goal: dict) -> dict:
@@ -188,37 +195,28 @@ class Client:
         old KB still served."""
         return json.loads(self._call("POST", "/v1/kb/reload", {}))
 
-    @staticmethod
-    def _query(obj: Any, receiver: str | None = None, culture: str | None = None,
-               task: str | None = None, scene: str | None = None, mode: str = "auto",
-               gripper: str | None = None, robot: str | None = None,
-               mesh_scale: float = 1.0, why_not: tuple[int, ...] = (),
-               what_if: bool = False, fmt: str = "json") -> dict[str, Any]:
-        if not isinstance(obj, str | Path):
-            raise ValueError("the plan service plans objects of its knowledge base by id: "
-                             "a mesh cannot be sent (use handover.Planner for a mesh)")
-        body: dict[str, Any] = {"object": str(obj), "mode": mode, "format": fmt}
-        for key, value in (("receiver", receiver), ("culture", culture), ("task", task),
-                           ("scene", scene), ("gripper", gripper), ("robot", robot)):
-            if value is not None:
-                body[key] = value
-        if mesh_scale != 1.0:
-            body["mesh-scale"] = mesh_scale
-        if why_not:
-            body["why-not"] = list(why_not)
-        if what_if:
-            body["what-if"] = True
-        return body
 
-
-def _query_args(query: dict[str, Any]) -> dict[str, Any]:
-    allowed = {"receiver", "culture", "task", "scene", "mode", "gripper", "robot",
-               "mesh_scale", "why_not", "what_if"}
-    unknown = sorted(set(query) - allowed)
-    if unknown:
-        raise TypeError(f"unexpected argument(s) {', '.join(unknown)} (the Planner's: "
-                        f"{', '.join(sorted(allowed))})")
-    return query
+def _body(query: Any, why_not: tuple[int, ...], what_if: bool, motion: bool, fmt: str,
+          fields: dict[str, Any]) -> dict[str, Any]:
+    """The ``/v1/plan`` body of a query given as :meth:`handover.Planner.plan` takes it.
+    Raises ValueError as the Planner does (an unknown field, no object), and for a mesh,
+    which the service cannot be sent (it plans the objects of its KB by id)."""
+    if not isinstance(query, Query | str | Path | None):
+        raise ValueError("the plan service plans objects of its knowledge base by id: a mesh "
+                         "cannot be sent (use handover.Planner for a mesh)")
+    asked, _ = query_of(query, **fields)
+    body: dict[str, Any] = {"object": asked.object, "mode": asked.mode, "format": fmt}
+    for key in ("receiver", "culture", "task", "scene", "gripper", "robot"):
+        if getattr(asked, key) is not None:
+            body[key] = getattr(asked, key)
+    if asked.mesh_scale != 1.0:
+        body["mesh-scale"] = asked.mesh_scale
+    if why_not:
+        body["why-not"] = list(why_not)
+    if what_if:
+        body["what-if"] = True
+    body["motion"] = bool(motion)
+    return body
 
 
 def _error(status: int, payload: bytes) -> HandoverError:

@@ -16,7 +16,8 @@ from a fork server that imported the engine once (:data:`~.worker.PRELOAD`), so 
 is ready in a fraction of a second.
 
 :class:`Service` holds the KB being served and its pool. :meth:`Service.reload` loads the
-KB folder again (through the validated cache, :func:`~handover.engine.load.cache.load_kb_cached`);
+KB folder again (a private snapshot of it, through the validated cache,
+:func:`~handover.engine.load.cache.load_kb_cached`, its robots' URDFs parsed);
 a KB that does not validate raises its KBError and changes nothing; a valid one gets a new
 pool, which takes the requests that come after, while the old pool finishes those it has and
 then stops. A request is answered by the KB it started with, never by a mix.
@@ -26,6 +27,8 @@ from __future__ import annotations
 
 import asyncio
 import multiprocessing
+import shutil
+import tempfile
 import threading
 import time
 import zlib
@@ -64,7 +67,12 @@ class Busy(Exception):
 @dataclass(frozen=True)
 class ServedKB:
     """The KB a pool serves: the KB, its folder, content digest, counts, warnings (as
-    ``kb validate --json`` gives them) and when it was loaded (s since the epoch)."""
+    ``kb validate --json`` gives them) and when it was loaded (s since the epoch).
+
+    snapshot : a private copy of the folder taken when it was loaded, which the KB reads its
+    files from (a robot's URDF, the objects' meshes, read when a plan first needs them):
+    edits to the folder are served from the next reload that validates them, never before.
+    Removed by :meth:`discard` when no pool serves it any more."""
 
     kb: KB
     root: Path
@@ -72,6 +80,12 @@ class ServedKB:
     counts: dict[str, int]
     warnings: list[dict]
     loaded_at: float
+    snapshot: Path | None = None
+
+    def discard(self) -> None:
+        """Remove the snapshot (its pool has stopped)."""
+        if self.snapshot is not None:
+            shutil.rmtree(self.snapshot, ignore_errors=True)
 
     def describe(self) -> dict[str, Any]:
         return {"root": str(self.root), "digest": self.digest, "counts": self.counts,
@@ -80,16 +94,31 @@ class ServedKB:
 
 def load_served(kb_dir: Path | str | None, cache_dir: Path | None) -> ServedKB:
     """Load and check the KB folder (through the cache in ``cache_dir``, None: the full
-    load). Raises KBError (every problem, file:line:col) or UsageError (no such folder)."""
+    load), and parse its robots' URDFs (every plan needs its robot's: a broken one would
+    stop them all, so it is refused here, as on a reload). Raises KBError (every problem,
+    file:line:col) or UsageError (no such folder)."""
+    from handover.engine.errors import KBError
     from handover.engine.load.cache import kb_digest, load_kb_cached
+    from handover.engine.load.lint import lint_robot
     from handover.engine.store.kb import resolve_kb_dir
     from handover.engine.tools.answer import issue_json
 
     root = resolve_kb_dir(kb_dir)
-    digest = kb_digest(root)
-    kb = load_kb_cached(root, cache_dir)
+    snapshot = Path(tempfile.mkdtemp(prefix="handover-kb-"))
+    try:
+        files = snapshot / "kb"
+        shutil.copytree(root, files, ignore=shutil.ignore_patterns("__pycache__", ".*"))
+        digest = kb_digest(files)
+        kb = load_kb_cached(files, cache_dir)
+        broken = [issue for robot in kb.robots.values() for issue in lint_robot(kb, robot)
+                  if issue.severity == "error"]
+        if broken:
+            raise KBError(sorted(broken), warnings=list(kb.warnings))
+    except BaseException:
+        shutil.rmtree(snapshot, ignore_errors=True)
+        raise
     return ServedKB(kb, root, digest, kb.counts(), [issue_json(i) for i in kb.warnings],
-                    time.time())
+                    time.time(), snapshot)
 
 
 AFFINITY_KEPT = 4096
@@ -203,9 +232,14 @@ class WorkerPool:
         if wait:
             for pool in self._pools:
                 pool.join()
+            self.served.discard()
         else:  # join in the background: the old pool of a reload ends on its own
-            threading.Thread(target=lambda: [p.join() for p in self._pools],
-                             daemon=True).start()
+            def join() -> None:
+                for pool in self._pools:
+                    pool.join()
+                self.served.discard()
+
+            threading.Thread(target=join, daemon=True).start()
 
     def stop(self) -> None:
         """Stop now: every worker ended, waiting requests dropped."""
@@ -213,6 +247,7 @@ class WorkerPool:
             pool.stop()
         for pool in self._pools:
             pool.join()
+        self.served.discard()
 
 
 @dataclass
@@ -288,9 +323,14 @@ class Service:
             old = self.served
             served = await asyncio.to_thread(load_served, self.kb_dir, self._cache_dir())
             if served.digest == old.digest:
+                served.discard()
                 return old, old
             pool = WorkerPool(served, self.workers, self.db_root, self.memo_bytes)
-            await pool.ready(deadline=max(self.deadline, 120.0))
+            try:
+                await pool.ready(deadline=max(self.deadline, 120.0))
+            except BaseException:
+                pool.stop()  # and its snapshot
+                raise
             previous, self.pool = self.pool, pool
             self.reloads += 1
             assert previous is not None

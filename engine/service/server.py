@@ -89,6 +89,10 @@ def serve(host: str = DEFAULT_HOST, port: int = DEFAULT_PORT, *, kb_dir: Path | 
         raise UsageError(f"--workers must be at least 1, got {workers}")
     if not deadline > 0:
         raise UsageError(f"--deadline must be a positive number of seconds, got {deadline}")
+    if max_pending < 1:
+        raise UsageError(f"--max-pending must be at least 1, got {max_pending}")
+    if not memo_mb >= 0:
+        raise UsageError(f"--memo-mb must be 0 (no memo) or more, got {memo_mb}")
     if not is_loopback(host) and not token:
         raise UsageError(f"--host {host} serves other machines: give a --token (or "
                          "$HANDOVER_TOKEN) that every request must bring")

@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from handover.engine.errors import UsageError
+from handover.engine.report.formats import FORMATS
 from handover.engine.spec.query import DEFAULTS, MODES, Query
 
 if TYPE_CHECKING:
@@ -36,9 +37,6 @@ __all__ = ["PlanRequest", "FORMATS", "MEDIA_TYPES", "plan_request", "render", "i
            "validate_data", "validate_text", "kb_tests", "kb_tests_text", "json_text",
            "PHYSICS_FAILED"]
 
-FORMATS = ("json", "moveit", "mcap")
-"""The formats of a plan's answer (the CLI prints ``json`` and ``moveit``; ``--mcap FILE``
-writes ``mcap``)."""
 MEDIA_TYPES = {"json": "application/json", "moveit": "application/json",
                "mcap": "application/x-mcap"}
 _STRINGS = ("object", "task", "receiver", "culture", "scene", "mode", "gripper", "robot",
@@ -85,27 +83,34 @@ class PlanRequest:
     @classmethod
     def from_mapping(cls, data: Any) -> PlanRequest:
         """A request from a JSON object whose keys are ``handover plan``'s option names
-        (``mesh-scale`` or ``mesh_scale``, and so on; ``object`` required). Raises
-        UsageError naming the key that is unknown, missing or of the wrong type."""
+        (``mesh-scale`` or ``mesh_scale``, and so on; ``no-motion`` as the CLI's flag or
+        ``motion``; ``object`` required; null: the option's default). Raises UsageError
+        naming the key that is unknown, given twice, missing or of the wrong type."""
         if not isinstance(data, Mapping):
             raise UsageError(f"the request must be a JSON object, got {type(data).__name__}")
-        known = {f.replace("_", "-") for f in cls.__dataclass_fields__}
+        known = {f.replace("_", "-") for f in cls.__dataclass_fields__} | {"no-motion"}
         values: dict[str, Any] = {}
+        given: dict[str, str] = {}
         for key, value in data.items():
             name = str(key).replace("_", "-")
             if name not in known:
                 raise UsageError(f"unknown key '{key}' (known: {', '.join(sorted(known))})")
-            values[name.replace("-", "_")] = value
-        if "object" not in values:
+            if name == "no-motion":  # the CLI's --no-motion
+                if value is not None and not isinstance(value, bool):
+                    raise UsageError(f"'{key}' must be true or false, got {value!r}")
+                name, value = "motion", None if value is None else not value
+            field = name.replace("-", "_")
+            if field in given:
+                raise UsageError(f"'{given[field]}' and '{key}' say the same thing: give one")
+            given[field] = str(key)
+            if value is not None or field == "object":  # null: the default
+                values[field] = value
+        if values.get("object") is None:
             raise UsageError("the request has no 'object': the object id to plan for")
         for name in _STRINGS:
             value = values.get(name)
             if value is not None and (not isinstance(value, str) or not value):
                 raise UsageError(f"'{name}' must be a non-empty string, got {value!r}")
-        if values.get("mode") is None:
-            values.pop("mode", None)
-        if values.get("format") is None:
-            values.pop("format", None)
         why_not = values.get("why_not", ())
         if isinstance(why_not, int) and not isinstance(why_not, bool):
             why_not = [why_not]
@@ -254,28 +259,13 @@ PHYSICS_FAILED = ("physics: the plan's grasps do not hold in the simulated check
 
 
 def render(planned: Plan, fmt: str = "json") -> bytes:
-    """The answer's bytes: ``json`` the result as ``handover plan --json`` prints it;
-    ``moveit`` its ROS 2 messages (``moveit_messages(result).to_dict()``, read from that JSON),
-    as JSON with every float as the message holds it (not rounded: the bag's values); ``mcap``
-    those messages as a ROS 2 MCAP bag."""
-    text = planned.result.to_json()
-    if fmt == "json":
-        return text.encode("utf-8")
-    from handover.engine.report.moveit import moveit_messages
-    from handover.engine.report.rosbag import write_mcap
+    """The answer's bytes in ``fmt`` (:func:`~handover.engine.report.formats.result_bytes`):
+    ``json``, ``moveit`` or ``mcap``."""
+    from handover.engine.report.formats import result_bytes
 
-    data = json.loads(text)
-    if fmt == "moveit":
-        from handover.engine.plan.jsonable import dumps
-
-        return dumps(moveit_messages(data).to_dict(), jsonable=True).encode("utf-8")
-    if fmt == "mcap":
-        import io
-
-        stream = io.BytesIO()
-        write_mcap(data, stream)
-        return stream.getvalue()
-    raise UsageError(f"unknown format '{fmt}': choose {', '.join(FORMATS)}")
+    if fmt not in FORMATS:
+        raise UsageError(f"unknown format '{fmt}': choose {', '.join(FORMATS)}")
+    return result_bytes(planned.result, fmt)
 
 
 def json_text(data: Any) -> str:

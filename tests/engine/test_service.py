@@ -325,6 +325,11 @@ def _error(status: int, body: bytes) -> dict:
     ({"object": "knife", "culture": "martian"}, 404, "unknown_id"),
     ({"object": "knife", "task": "juggle"}, 404, "unknown_id"),
     (b"{" + b" " * 70_000 + b"}", 413, "too_large"),
+    ({"object": None}, 400, "bad_request"),  # null: no object
+    (b"[" * 20_000 + b"]" * 20_000, 400, "bad_json"),  # nested past the parser's recursion
+    (b'{"object": "knife", "object": "mug"}', 400, "bad_json"),  # a key twice
+    ({"object": "knife", "why-not": 3, "why_not": 4}, 400, "bad_request"),  # twice, spelt so
+    ({"object": "knife", "no-motion": "yes"}, 400, "bad_request"),
 ])
 def test_bad_requests_are_json_errors(service, body, status, code) -> None:
     got, _, answer = service.plan(body)
@@ -335,9 +340,12 @@ def test_bad_requests_are_json_errors(service, body, status, code) -> None:
 def test_unknown_routes_methods_and_deadlines_are_json_errors(service) -> None:
     for method, path, status, code in [("GET", "/v1/plans", 404, "not_found"),
                                        ("GET", "/v1/plan", 405, "method_not_allowed"),
-                                       ("POST", "/v1/plan?deadline=soon", 400, "bad_request")]:
+                                       ("POST", "/v1/plan?deadline=soon", 400, "bad_request"),
+                                       ("POST", "/v1/plan/", 404, "not_found")]:
         got, _, body = service.request(method, path, {"object": "knife"})
         assert got == status and _error(got, body)["code"] == code
+        if status == 404:  # every route named, the GraspPlanning action's too
+            assert "/v1/grasp_planning" in _error(got, body)["message"]
 
 
 def test_the_token_guards_every_route_but_health(service) -> None:
@@ -345,12 +353,38 @@ def test_the_token_guards_every_route_but_health(service) -> None:
         status, _, body = service.request("POST", "/v1/plan", {"object": "knife"}, token=token)
         assert status == 401 and _error(status, body)["code"] == "unauthorized"
     assert service.request("GET", "/v1/health", token=None)[0] == 200
+    status, headers, _ = service.request("POST", "/v1/plan", {"object": "knife"}, token=None)
+    assert status == 401 and headers["www-authenticate"].startswith("Bearer")
+    # the scheme's case does not matter (RFC 7235); the token's does
+    for scheme, want in (("bearer", 200), ("BEARER", 200), ("Bearer", 200), ("Basic", 401)):
+        status, _, _ = service.request("POST", "/v1/plan", {"object": "knife"}, token=None,
+                                       headers={"Authorization": f"{scheme} {TOKEN}"})
+        assert status == want, scheme
+    status, _, _ = service.request("POST", "/v1/plan", {"object": "knife"},
+                                   token=TOKEN.upper())
+    assert status == 401
+
+
+def test_every_error_answer_s_code_is_in_the_request_log(service) -> None:
+    marker = f"log-{time.monotonic_ns()}"
+    for body, code in (({"object": "knife", "colour": "red"}, "bad_request"),
+                       ({"object": "spork"}, "unknown_id")):
+        status, _, _ = service.request("POST", "/v1/plan", body,
+                                       headers={"X-Request-Id": f"{marker}-{code}"})
+        assert status >= 400
+    logged = {entry["id"]: entry["error"] for entry in
+              (json.loads(line) for line in service.log.read_text().splitlines()
+               if line.startswith("{") and marker in line)}
+    assert logged == {f"{marker}-bad_request": "bad_request",
+                      f"{marker}-unknown_id": "unknown_id"}
 
 
 def test_another_host_needs_a_token(kb_dir) -> None:
     from handover.engine.cli.app import main
 
     assert main(["--kb", str(kb_dir), "serve", "--host", "0.0.0.0", "--port", "0"]) == 2
+    for option, value in (("--max-pending", "0"), ("--memo-mb", "-1"), ("--workers", "0")):
+        assert main(["--kb", str(kb_dir), "serve", "--port", "0", option, value]) == 2
 
 
 def test_verify_and_validate_are_the_cli_s(service, kb_dir) -> None:
@@ -423,6 +457,35 @@ def test_a_request_past_its_deadline_is_stopped_and_the_service_goes_on(service)
     assert status == 200 and json.loads(body)["outcome"] == "handover"
 
 
+def test_the_cli_s_no_motion_flag_and_null_options_are_taken_as_the_cli_takes_them(
+        service, kb_dir) -> None:
+    code, printed = cli(kb_dir, "plan", "pen", "--no-motion", "--json")
+    assert code == 0
+    for body in ({"object": "pen", "no-motion": True}, {"object": "pen", "no_motion": True},
+                 {"object": "pen", "motion": False, "physics": None, "why-not": None}):
+        status, _, answer = service.plan(body)
+        assert status == 200 and answer.decode() == printed, body
+
+
+def test_a_reload_that_breaks_the_robot_s_urdf_keeps_the_old_kb(service, kb_dir) -> None:
+    before = service.health()["kb"]["digest"]
+    urdf = kb_dir / "robots" / "idro_arms.urdf"
+    text = urdf.read_text()
+    try:
+        urdf.write_text('<robot name="x"><link name=')  # every plan needs the robot
+        status, _, body = service.request("POST", "/v1/kb/reload")
+        assert status == 422
+        error = _error(status, body)
+        assert error["code"] == "invalid_kb"
+        assert [i["file"] for i in error["issues"]] == ["robots/idro.yaml"]
+        assert "URDF" in error["issues"][0]["message"]
+        assert service.health()["kb"]["digest"] == before
+        status, _, body = service.plan({"object": "mug", "receiver": "child"})
+        assert status == 200 and json.loads(body)["feasible"] is True  # the old KB serves
+    finally:
+        urdf.write_text(text)
+
+
 def test_a_broken_reload_keeps_the_old_kb(service, kb_dir) -> None:
     before = service.health()["kb"]["digest"]
     knife = kb_dir / "objects" / "knife.yaml"
@@ -452,7 +515,7 @@ def test_a_broken_reload_keeps_the_old_kb(service, kb_dir) -> None:
 
 
 def test_the_client_is_the_planner(service, kb_dir) -> None:
-    from handover import Client, Planner
+    from handover import Client, Planner, Query
     from handover.engine.errors import UnknownIdError, UsageError
 
     client = Client(service.url, token=TOKEN)
@@ -466,6 +529,15 @@ def test_the_client_is_the_planner(service, kb_dir) -> None:
             planner.plan("knife", mode="h3g3")
     assert client.plan("mug", receiver="elder", culture="korean").to_json() == \
         local.plan("mug", receiver="elder", culture="korean").to_json()
+    elder = Query("mug", receiver="elder", culture="korean")  # the Planner's own example
+    assert client.plan(elder).to_json() == local.plan(elder).to_json()
+    assert client.plan(elder, receiver="adult").mode == local.plan(elder, receiver="adult").mode
+    assert client.plan(object="mug").to_json() == local.plan(object="mug").to_json()
+    assert client.plan_json("pen", receiver="child") == local.plan_json("pen", receiver="child")
+    assert client.moveit("knife") == local.moveit("knife")
+    for planner in (client, local):
+        with pytest.raises(ValueError, match="colour"):
+            planner.plan("mug", colour="red")
     with pytest.raises(UsageError, match="no planning context"):
         client.plan("knife").record(kb_dir / "x.rrd")
     assert client.health()["kb"]["counts"]["objects"] >= 10
@@ -516,7 +588,8 @@ def test_the_client_sends_a_request_at_once(service) -> None:
     assert sock.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY) != 0
 
 
-def test_the_documented_requests_are_answered(service, docs, tmp_path, monkeypatch) -> None:
+def test_the_documented_requests_are_answered(service, kb_dir, docs, tmp_path,
+                                              monkeypatch) -> None:
     import re
 
     for line in docs.example("service-curl").text.splitlines():
@@ -531,3 +604,10 @@ def test_the_documented_requests_are_answered(service, docs, tmp_path, monkeypat
     monkeypatch.chdir(tmp_path)
     exec(compile(code, "docs/service.md", "exec"), {})
     assert (tmp_path / "book.mcap").stat().st_size > 0
+    # "or: planner = Planner()": the same calls, in this process
+    local = code.replace(f'planner = Client("{service.url}", token="{TOKEN}")',
+                         f'planner = Planner({str(kb_dir)!r})', 1)
+    assert local != code
+    (tmp_path / "book.mcap").rename(tmp_path / "served.mcap")
+    exec(compile(local, "docs/service.md", "exec"), {})
+    assert (tmp_path / "book.mcap").read_bytes() == (tmp_path / "served.mcap").read_bytes()
