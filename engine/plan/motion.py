@@ -50,7 +50,7 @@ import numpy as np
 
 from handover.engine.plan.carried import CARRIED, Carried, CarryFailure, axis_breach, carry
 from handover.engine.plan.corridors import SHORTEST
-from handover.engine.plan.motion_world import Valid, checkers, joins_at_handover
+from handover.engine.plan.motion_world import Valid, checkers, joins_at_handover, phase_index
 from handover.engine.plan.records import ArmJoints, RobotGrasp
 
 if TYPE_CHECKING:
@@ -356,8 +356,9 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
                 settings: PlannerSettings | None = None, receiver=None) -> MotionPlan:
     """The arms' motion for the robot grasps ``grasps`` of a feasible ``attempt`` (the
     result's records, the chosen grasps first, in ``attempt.chosen``'s order): one tuple of
-    :class:`~handover.geometry.motion.planner.Segment` per grasp (empty for a supporting
-    gripper or a grasp without an arm), or a failure. ``receiver``: the receiver's hands and
+    :class:`~handover.geometry.motion.planner.Segment` per grasp (empty for a grasp without
+    an arm; a supporting gripper's arm comes to the supported grasp's handover and goes back,
+    :func:`~.motion_world.phase_index`), or a failure. ``receiver``: the receiver's hands and
     arms holding the object after the handover
     (:func:`~handover.engine.plan.motion_world.receiver_reach` of the result's human grasps),
     which the arms going back to rest from the retreat keep off.
@@ -402,14 +403,15 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
                 grasps[i] = replace(g, arm_joints=replace(g.arm_joints, joints=moved))
     staged: list[tuple[RobotGrasp, StagePlan, object] | None] = []
     for index, grasp in enumerate(grasps):
-        if index >= len(attempt.chosen) or grasp.arm is None or grasp.supports is not None:
+        phase = phase_index(attempt, grasps, index)
+        if phase is None or grasp.arm is None:
             staged.append(None)
             continue
-        checker = checkers(ctx, attempt, grasps, index, grasp, receiver=receiver)
-        plan = stage_plan(ctx, attempt, index, grasp, Valid(checker),
+        checker = checkers(ctx, attempt, grasps, phase, grasp, receiver=receiver)
+        plan = stage_plan(ctx, attempt, phase, grasp, Valid(checker),
                           together=index in carriers and together is not None)
         if isinstance(plan, MotionFailure):
-            return MotionPlan((), plan)
+            return MotionPlan((), _blamed(plan, grasps, grasp))
         staged.append((grasp, plan, checker))
 
     def segments(plan: StagePlan, checker):
@@ -426,7 +428,8 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
     for (grasp, side, name, check, start, goal), ok in zip(ends, clear, strict=True):
         failure = None if ok else ends_failure(check, start, goal, name=name)
         if failure is not None:
-            return MotionPlan((), MotionFailure(grasp.id, side, name, failure.reason))
+            return MotionPlan((), _blamed(MotionFailure(grasp.id, side, name, failure.reason),
+                                          grasps, grasp))
     out: list[tuple[Segment, ...]] = []
     for index, entry in enumerate(staged):
         if entry is None:
@@ -442,7 +445,8 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
             seg = plan_segment(check, start, goal, name=name, settings=settings,
                                ends_checked=True)
             if not hasattr(seg, "positions"):
-                return MotionPlan((), MotionFailure(grasp.id, plan.side, name, seg.reason))
+                return MotionPlan((), _blamed(MotionFailure(grasp.id, plan.side, name,
+                                                            seg.reason), grasps, grasp))
             found.append(seg)
             if plan.holding[k] and k >= plan.grasp_stage:
                 held.append(seg)
@@ -453,6 +457,16 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
     moved = () if together is None else tuple(
         grasps[i].arm_joints if i in carriers else None for i in range(len(grasps)))
     return MotionPlan(tuple(out), joints=moved)
+
+
+def _blamed(failure: MotionFailure, grasps: list[RobotGrasp], grasp: RobotGrasp
+            ) -> MotionFailure:
+    """``failure`` of ``grasp``'s arm; a supporting gripper's, the supported grasp's."""
+    if grasp.supports is None:
+        return failure
+    supported = grasp.supports.grasp
+    return replace(failure, grasp=supported, reason=f"the supporting {grasp.gripper} gripper: "
+                   f"{failure.reason}")
 
 
 def _carried_breach(ctx: PlanContext, attempt: Attempt, plan: StagePlan,

@@ -19,8 +19,8 @@ if TYPE_CHECKING:
     from handover.geometry.armcollision import Targets
     from handover.geometry.motion import ValidityChecker
 
-__all__ = ["segment_targets", "joins_at_handover", "other_joints", "receiver_reach", "Valid",
-           "checkers"]
+__all__ = ["segment_targets", "joins_at_handover", "other_joints", "phase_index",
+           "receiver_reach", "Valid", "checkers"]
 
 
 def _phase_stage(phase: Phase, where: str) -> str:
@@ -51,6 +51,21 @@ def segment_targets(ctx: PlanContext, attempt: Attempt, index: int, side: str, w
             a = ctx.arms.arm(other)
             extra.append(ArmModel(a.kin, a.shapes, a.base).targets(q, f"arm:{other}:"))
     return obstacles(bodies=[body], others=extra)
+
+
+def phase_index(attempt: Attempt, grasps: list[RobotGrasp], index: int) -> int | None:
+    """The index in ``attempt.chosen`` whose phase the arm of ``grasps[index]`` is checked
+    in: its own for a chosen grasp; for a supporting gripper (after them), the grasp it
+    supports, whose handover it comes to (from rest, backed off along its ``-a``, to the
+    support, and back once the receiver holds the object: a grasp that joins at the
+    handover); None for anything else."""
+    if index < len(attempt.chosen):
+        return index
+    support = grasps[index].supports
+    if support is None:
+        return None
+    return next((i for i, g in enumerate(grasps[:len(attempt.chosen)])
+                 if g.id == support.grasp and g.gripper == support.gripper), None)
 
 
 def joins_at_handover(joints) -> bool:

@@ -165,6 +165,37 @@ def test_a_supporting_gripper_is_no_grasp_of_the_object_and_its_arm_is_still_giv
     assert (tmp_path / "plum.mcap").stat().st_size > 0
 
 
+def test_the_supporting_arm_comes_to_the_giving_wrist_and_goes_back_to_rest(plans):
+    """Korean etiquette: the other hand at the giving wrist. The supporting gripper's arm
+    moves too: from its rest, backed off along its ``-a``, to the support pose (the tip link
+    where the result puts the gripper, by yourdfpy's forward kinematics), and back."""
+    result = plans["plum"]
+    (support,) = [g for g in result["robot_grasps"] if g.get("stage") == "support"]
+    arm = result["robot"]["arms"][support["arm"]]
+    segments = [s["segment"] for s in support["trajectory"]]
+    assert segments == ["rest->approach", "approach->handover", "handover->retreat",
+                        "retreat->rest"]
+    rest = [arm["rest"][j] for j in arm["joints"]]
+    first, last = support["trajectory"][0], support["trajectory"][-1]
+    np.testing.assert_allclose(first["positions"][0], rest, atol=1e-9)
+    np.testing.assert_allclose(last["positions"][-1], rest, atol=1e-9)
+    at = support["trajectory"][1]["positions"][-1]
+    np.testing.assert_allclose(at, [support["joints"]["handover"][j] for j in arm["joints"]],
+                               atol=1e-9)
+    _, tip = _tip_path(result, support, "approach->handover")
+    tcp = np.asarray(arm["tcp"])
+    want = np.asarray(support["pose_world"]) @ np.linalg.inv(tcp)
+    if "handover" in support.get("fingers_swapped", ()):
+        want = np.asarray(support["pose_world"]) @ np.diag([-1.0, -1.0, 1.0, 1.0]) \
+            @ np.linalg.inv(tcp)
+    assert np.linalg.norm(tip[:3, 3] - want[:3, 3]) < 1e-3
+    # it comes in along the support gripper's approach axis a, as every gripper does
+    start, end = _tip_path(result, support, "approach->handover")
+    way = (end[:3, 3] - start[:3, 3]) / np.linalg.norm(end[:3, 3] - start[:3, 3])
+    a = np.asarray(support["pose_world"])[:3, 2]
+    assert float(way @ a) > 0.999
+
+
 def test_a_squeeze_presses_with_the_robot_s_squeeze_force_not_the_jaws(plans):
     result = plans["parcel"]
     assert [g.get("hold") for g in result["robot_grasps"]] == ["squeeze", "squeeze"]
