@@ -706,3 +706,18 @@ def test_unwritable_outputs_are_usage_errors(capsys, tmp_path, args):
     assert code == EXIT_USAGE
     assert "cannot write there" in err and str(blocker) in err
     assert_clean(err)
+
+
+def test_output_piped_to_a_reader_that_stops_early_ends_quietly(tmp_path):
+    """``handover plan knife --explain | head -2``: the command ends as ``cat`` would, by
+    SIGPIPE, with nothing on stderr (not exit 1, "a bug")."""
+    import signal
+
+    cli = ("import sys; from handover.engine.cli import main; "
+           "sys.argv = ['handover', *sys.argv[1:]]; main()")
+    proc = subprocess.Popen([sys.executable, "-c", cli, "plan", "pen", "--no-motion",
+                             "--explain"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # the reader is gone before the command writes a byte
+    err = proc.stderr.read().decode()
+    assert proc.wait(120) == -signal.SIGPIPE, err
+    assert err == ""

@@ -5,6 +5,7 @@ Importing this package registers every command module on the app.
 
 from __future__ import annotations
 
+import signal
 import sys
 
 # Command modules register themselves on `app` / `kb_app` when imported.
@@ -16,5 +17,9 @@ __all__ = ["app", "kb_app", "state", "main"]
 
 
 def main() -> None:
-    """Console-script entry point."""
+    """Console-script entry point. Output piped to a reader that stops early (``handover
+    plan knife --json | head``) ends the command quietly, as it ends ``cat``: by SIGPIPE,
+    not by an "internal error"."""
+    if hasattr(signal, "SIGPIPE"):
+        signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     sys.exit(_main())

@@ -59,14 +59,14 @@ def _global_options(
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; map the project's errors to their exit codes, never show a traceback
     unless ``--debug`` was given."""
-    from rich.console import Console
     from rich.markup import escape
 
+    from handover.engine.cli.out import rich_console
     from handover.engine.errors import EXIT_BAD_MESH, EXIT_INTERNAL, HandoverError, KBError
 
     args = _globals_first(list(sys.argv[1:] if argv is None else argv))
     debug = "--debug" in args or os.environ.get("HANDOVER_DEBUG") == "1"
-    err = Console(stderr=True, highlight=False, soft_wrap=True)
+    err = rich_console(stderr=True)
     shown = warnings.showwarning
     if not debug:  # one line per warning, no source file and line of code
         warnings.showwarning = lambda message, *_, **__: err.print(

@@ -54,14 +54,14 @@ def batch(
     changed. A failing object is reported in its rows and does not stop the batch (exit
     code 0; 2 for a usage error such as an unknown culture).
     """
-    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from handover.engine.assets.graspdb import open_db
+    from handover.engine.cli.out import rich_console
     from handover.engine.load.loader import load_kb
     from handover.engine.tools.batch import expand, run_batch
 
-    console = Console(stderr=True, highlight=False)
+    console = rich_console(stderr=True, soft_wrap=False)
     kb = load_kb(state.kb_dir, urdf=False)
     units = expand(kb, objects, cultures, receivers, tasks, scene, mode,
                    check_mesh_scale(mesh_scale), physics=physics)  # fmt: skip
@@ -93,7 +93,7 @@ def batch(
                            max_retries=max_retries, on_start=on_start, on_rows=on_rows)  # fmt: skip
     finally:
         bar.stop()
-    render_summary(report, Console(highlight=False), db_root)
+    render_summary(report, rich_console(soft_wrap=False), db_root)
 
 
 def render_summary(report, console, db_root: Path | None, limit: int = 40) -> None:

@@ -55,11 +55,12 @@ def compare(
 
 def _render(report: dict[str, Any]) -> None:
     from rich import box
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
-    out = Console(highlight=False, soft_wrap=True)
+    from handover.engine.cli.out import rich_console
+
+    out = rich_console()
     if not out.is_terminal:
         out.width = 240  # a pipe or a file: whole lines, never wrapped cells
     combos = report["combinations"]

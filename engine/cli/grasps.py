@@ -60,16 +60,16 @@ def grasps(
 def _render(listing: GraspListing, limit: int) -> None:
     import numpy as np
     from rich import box
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
+    from handover.engine.cli.out import rich_console
     from handover.geometry.candidates import SOURCE_FACET
 
     candidates, stats, notes = listing.candidates, listing.stats, listing.notes
     mesh_info, gripper_info = listing.mesh, listing.gripper
     shown = listing.order[:limit]
-    console = Console(highlight=False)
+    console = rich_console(soft_wrap=False)
     what = escape(str(mesh_info.get("object") or mesh_info.get("file")))
     ext = " x ".join(f"{1000 * x:.0f}" for x in mesh_info["extents"])
     console.print(

@@ -30,9 +30,9 @@ def _load() -> KB:
 
 
 def _console(stderr: bool = False) -> Console:
-    from rich.console import Console
+    from handover.engine.cli.out import rich_console
 
-    return Console(stderr=stderr, highlight=False, soft_wrap=True)
+    return rich_console(stderr=stderr)
 
 
 def _dump(data: Any) -> None:

@@ -46,10 +46,11 @@ def test(
 
 
 def _render(report: Any, cov: dict[str, Any] | None) -> None:
-    from rich.console import Console
     from rich.markup import escape
 
-    out = Console(highlight=False, soft_wrap=True)
+    from handover.engine.cli.out import rich_console
+
+    out = rich_console()
     for c in report.cases:
         mark = "[green]PASS[/]" if c.passed else "[bold red]FAIL[/]"
         out.print(f"{mark} {c.file}:{c.line} {escape(c.name)}")

@@ -87,9 +87,8 @@ def plan(
     Exit codes: 0 handover or place, 4 refuse or infeasible (the result still says why),
     2 usage error, 3 invalid KB, 5 bad mesh, 1 internal error.
     """
-    from rich.console import Console
-
     from handover.engine.assets.graspdb import open_db
+    from handover.engine.cli.out import rich_console
     from handover.engine.errors import EXIT_INFEASIBLE, UsageError
     from handover.engine.load.cache import kb_cache_dir, load_kb_cached
     from handover.engine.tools.answer import plan_request, render
@@ -135,15 +134,15 @@ def plan(
         if data["outcome"] in EXIT_CODES_4:  # no grasps to give: say why, apart
             typer.echo(f"{data['outcome']}: {data['reason']}", err=True)
     elif data["outcome"] in ("place", "refuse"):
-        render_outcome(data, Console(highlight=False, soft_wrap=False), explain=explain)
+        render_outcome(data, rich_console(soft_wrap=False), explain=explain)
     else:
         from handover.engine.report.trace import render_plan
 
-        render_plan(data, Console(highlight=False, soft_wrap=False), explain=explain)
+        render_plan(data, rich_console(soft_wrap=False), explain=explain)
     if what_if and fmt == "text":
-        _render_what_if(data, Console(highlight=False, soft_wrap=False))
+        _render_what_if(data, rich_console(soft_wrap=False))
     if data.get("physics") is not None and fmt == "text":
-        render_physics(data["physics"], Console(highlight=False, soft_wrap=False))
+        render_physics(data["physics"], rich_console(soft_wrap=False))
     if data["outcome"] in EXIT_CODES_4:
         raise typer.Exit(EXIT_INFEASIBLE)
     if data.get("physics") is not None and not data["physics"]["passed"]:
@@ -211,9 +210,8 @@ def verify(
     not a plan or names an object or gripper the KB does not hold."""
     import json
 
-    from rich.console import Console
-
     from handover.engine.assets.graspdb import open_db
+    from handover.engine.cli.out import rich_console
     from handover.engine.errors import EXIT_INFEASIBLE, UsageError
     from handover.engine.load.cache import load_kb_cached
     from handover.engine.plan.physics import check_plan
@@ -232,7 +230,7 @@ def verify(
     if json_out:
         typer.echo(json_text(physics), nl=False)
     else:
-        render_physics(physics, Console(highlight=False, soft_wrap=False))
+        render_physics(physics, rich_console(soft_wrap=False))
     if not physics["passed"]:
         raise typer.Exit(EXIT_INFEASIBLE)
 
@@ -297,8 +295,7 @@ def explain_graph(
 ) -> None:
     """Print the constraint graph compiled for a query: features, rules, overrides and the
     evaluation order."""
-    from rich.console import Console
-
+    from handover.engine.cli.out import rich_console
     from handover.engine.load.loader import load_kb
     from handover.engine.plan.compiler import compile, graph_to_dot
     from handover.engine.plan.prepare import prepare
@@ -315,4 +312,4 @@ def explain_graph(
     if dot:
         typer.echo(graph_to_dot(cg), nl=False)
     else:
-        render_graph(cg, Console(highlight=False))
+        render_graph(cg, rich_console(soft_wrap=False))

@@ -106,6 +106,10 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
                                       tags_of_parts(situation.obj, situation.obj.parts, families),
                                       strict=True))
     ctx.warnings.extend(hints)
+    if obj is None:  # the KB's warnings about this object's file (a tag no vocabulary knows,
+        # a typo of "sharp" that no safety rule then reads): said where it is planned too
+        own = situation.obj.source.file
+        ctx.warnings.extend(str(issue) for issue in kb.warnings if issue.file == own)
     return ctx
 
 

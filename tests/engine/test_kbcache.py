@@ -158,3 +158,24 @@ def test_the_hazards_a_tag_implies_are_applied_from_the_cache_too(kb_copy: Path,
     assert cached.to_dict() == full
     implied = [why for tag, why in cached.context.facts.derived if tag == "pointed"]
     assert implied, cached.context.facts.derived
+
+
+def test_a_misspelt_tag_is_warned_about_where_the_object_is_planned(kb_copy: Path,
+                                                                    tmp_path: Path,
+                                                                    arms_off) -> None:
+    """A blade tagged ``sharpp``: no rule about sharp parts reads it. ``kb validate`` warns;
+    so does the plan of that object (file:line:col), from the files and from the cache."""
+    from handover.engine.planner import plan
+    from handover.engine.spec.query import Query
+
+    arms_off(kb_copy)
+    text = SYRINGE.replace("id: syringe", "id: cutter").replace("[needle]", "[blade, sharpp]")
+    (kb_copy / "objects" / "cutter.yaml").write_text(text)
+    line = text.splitlines().index("  needle: {tags: [blade, sharpp]}") + 1
+    want = f"objects/cutter.yaml:{line}:"
+    for kb in (load_kb(kb_copy, urdf=False), load_kb_cached(kb_copy, tmp_path / "cache"),
+               load_kb_cached(kb_copy, tmp_path / "cache")):
+        warned = [w for w in plan(kb, Query(object="cutter")).result.warnings if "sharpp" in w]
+        assert len(warned) == 1 and warned[0].startswith(want), warned
+    # another object's plan does not carry it
+    assert not [w for w in plan(kb, Query(object="pen")).result.warnings if "sharpp" in w]
