@@ -110,13 +110,25 @@ class ConstraintGraph:
 
     def mode_rules(self) -> tuple[CompiledRule | None, CompiledRule | None]:
         """The active mode rule that requires a mode (the first hard one in KB order) and
-        the one that prefers one (the highest-weighted soft one; ties by KB order)."""
+        the one that prefers one (the highest-weighted soft one; of equal weights, one with
+        alternatives to bend to, a culture's accepted form, before one without; then KB
+        order)."""
         modes = [c for c in self.order if c.rule.kind == "mode"]
         modes.sort(key=lambda c: self.position(c.id))
         required = next((c for c in modes if c.rule.hard), None)
         soft = [c for c in modes if not c.rule.hard]
-        preferred = max(soft, key=lambda c: c.rule.weight, default=None)  # first of ties
+        preferred = max(soft, key=lambda c: (c.rule.weight, bool(c.rule.bends_to)),
+                        default=None)  # the first of ties
         return required, preferred
+
+    def also_preferring(self, preferred: CompiledRule | None) -> list[CompiledRule]:
+        """The other active soft mode rules that ask for ``preferred``'s mode (KB order):
+        relaxed with it where that mode is not given."""
+        if preferred is None:
+            return []
+        same = [c for c in self.order if c.rule.kind == "mode" and not c.rule.hard
+                and c is not preferred and c.rule.mode == preferred.rule.mode]
+        return sorted(same, key=lambda c: self.position(c.id))
 
     def position(self, rule_id: str) -> int:
         """The rule's index in KB order (base culture first)."""

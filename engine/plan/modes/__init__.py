@@ -253,9 +253,11 @@ def choose(kb: KB, ctx: PlanContext, asked: str,
         attempt = attempt_mode(kb, ctx, mode, quick)
         return attempt, [attempt], f"forced by --mode {asked}"
 
-    required, preferred = compile(kb, ctx, "H1G1").mode_rules()
+    graph = compile(kb, ctx, "H1G1")
+    required, preferred = graph.mode_rules()
     if required is None and preferred is not None and preferred.rule.safety:
         required, preferred = preferred, None
+    also = graph.also_preferring(preferred)  # relaxed with it, where it is
     tried: list[Attempt] = []
     if required is not None:
         tried += [Attempt(m, False, f"{m}: not tried, {_said(required)}",
@@ -287,7 +289,7 @@ def choose(kb: KB, ctx: PlanContext, asked: str,
             elif preferred is not None and preferred.rule.mode == mode and bend is None:
                 why = _said(preferred)
             elif preferred is not None:
-                attempt, why = _relaxed(attempt, preferred, bend, tried)
+                attempt, why = _relaxed(attempt, preferred, bend, tried, also)
             elif mode == "H1G1":
                 why = "one hand, one grasp is tried first and is feasible"
             else:
@@ -373,10 +375,12 @@ def _with_support(ctx: PlanContext, base: Attempt, bend: Bend, rule: CompiledRul
 
 
 def _relaxed(attempt: Attempt, rule: CompiledRule, bend: Bend | None,
-             tried: list[Attempt]) -> tuple[Attempt, str]:
+             tried: list[Attempt], also: list[CompiledRule] = ()) -> tuple[Attempt, str]:
     """``attempt`` (feasible, not the mode ``rule`` prefers) with what was relaxed: its
     warning (unless the preference was for one hand, a matter of simplicity rather than
-    manners), its trace entries of ``rule`` marked, and why this mode."""
+    manners), its trace entries of ``rule`` marked, and why this mode. ``also``: the other
+    soft rules asking for the same mode, relaxed with it (each warned about, its entries
+    marked)."""
     wanted = rule.rule.mode
     because = next((a.reason for a in tried if a.mode == wanted and not a.feasible),
                    None) or f"{wanted} is infeasible"
@@ -392,8 +396,9 @@ def _relaxed(attempt: Attempt, rule: CompiledRule, bend: Bend | None,
                                    if bend is not None else ""))
     if failed_alts:
         why += "; " + "; ".join(failed_alts)
+    ids = {rule.id, *(c.id for c in also)}
     trace = tuple(dict(e, relaxed={"asked": wanted, "because": because, "used": used})
-                  if e.get("rule") == rule.id and e.get("stage", "handover") == "handover"
+                  if e.get("rule") in ids and e.get("stage", "handover") == "handover"
                   else e for e in attempt.trace)
     warnings = attempt.notes.warnings
     if wanted != "H1G1":
@@ -403,4 +408,6 @@ def _relaxed(attempt: Attempt, rule: CompiledRule, bend: Bend | None,
             + (f" ({rule.culture}'s accepted alternative)" if bend is not None else "")
             + (f" (the accepted alternative{'s' if len(failed_alts) > 1 else ''} did not "
                "fit, see modes_tried)" if failed_alts else ""),)
+        warnings += tuple(f"etiquette relaxed: {c.id} ({c.source}) asks for {wanted} too; "
+                          f"given {used} instead (see {rule.id})" for c in also)
     return replace(attempt, trace=trace).noted(relaxation=relaxation, warnings=warnings), why
