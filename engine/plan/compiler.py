@@ -104,7 +104,7 @@ class ConstraintGraph:
                     receiver_forbid.update(rule.forbid_tags)
                 if not task_tags:
                     want.update(rule.require_tags)
-            elif rule.hard:
+            elif rule.hard and not rule.own_tags:  # own tags: the judge finds those parts
                 giver_forbid.update(rule.forbid_tags)
         return Roles(frozenset(want), frozenset(receiver_forbid), frozenset(giver_forbid))
 
@@ -161,7 +161,7 @@ def giver_forbid(rules: Iterable[RuleBase], facts: Facts) -> frozenset[str]:
     forbid: set[str] = set()
     for rule in rules:
         if (rule.kind == "contact" and rule.who == "giver" and rule.hard
-                and check(rule.applies, facts)[0] is True):
+                and not rule.own_tags and check(rule.applies, facts)[0] is True):
             forbid.update(rule.forbid_tags)
     return frozenset(forbid)
 

@@ -154,6 +154,8 @@ class PlanContext:
     kb_root : the KB folder (files the KB names, e.g. a robot's URDF, are relative to it).
     arms_cache : where the robot's arms are kept between plans (a Planner's; None: this
     process's, :data:`handover.engine.assets.robot.PLAN_ARMS`).
+    own_part_tags : per part index, the tags the part itself carries and what they imply,
+    not the whole object's (a contact rule's ``own_tags``).
     declared_part_tags : every part the object's file declares -> its tags as ``part_tags``
     has them (with the object's and what they imply), those the geometry has no face of
     included (a rule about them cannot tell where they are).
@@ -179,6 +181,7 @@ class PlanContext:
     repertoire: Repertoire | None = None
     warnings: list[str] = field(default_factory=list)
     declared_part_tags: dict[str, set[str]] = field(default_factory=dict)
+    own_part_tags: list[set[str]] = field(default_factory=list)
     passed_over: dict[int, str] = field(default_factory=dict)
     memo: Memo = field(default_factory=Memo)
 

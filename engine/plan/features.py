@@ -117,10 +117,12 @@ def _collision_handover(ctx: PlanContext, hands: Hands, gi: np.ndarray,
     return out
 
 
-def tag_mask(ctx: PlanContext, tags) -> np.ndarray:
-    """(P,) bool: which parts carry any of ``tags``."""
+def tag_mask(ctx: PlanContext, tags, part_tags: list[set[str]] | None = None) -> np.ndarray:
+    """(P,) bool: which parts carry any of ``tags`` (in ``part_tags``, default the
+    context's)."""
     want = set(tags)
-    return np.array([bool(t & want) for t in ctx.part_tags] or [False], dtype=bool)
+    return np.array([bool(t & want) for t in (part_tags or ctx.part_tags)] or [False],
+                    dtype=bool)
 
 
 def axis_world(ctx: PlanContext, axis: str) -> np.ndarray:

@@ -102,6 +102,8 @@ def prepare(kb: KB, query: Query, db=None, mesh: trimesh.Trimesh | None = None,
     ctx.initial, pushed = clear_of_robot(ctx)
     if pushed:
         ctx.warnings.append(pushed)
+    ctx.own_part_tags = tags_of_parts(situation.obj, part_mesh.part_names, families,
+                                      whole_object=False)
     ctx.declared_part_tags = dict(zip(situation.obj.parts,
                                       tags_of_parts(situation.obj, situation.obj.parts, families),
                                       strict=True))

@@ -269,11 +269,13 @@ def object_tags(obj: ObjectSpec, families: TagFamilies | None = None) -> set[str
 
 
 def part_tags(obj: ObjectSpec, names: Iterable[str],
-              families: TagFamilies | None = None) -> list[set[str]]:
+              families: TagFamilies | None = None, *, whole_object: bool = True
+              ) -> list[set[str]]:
     """The tags each part of ``names`` carries: its own, the object's (a tag of the whole
-    object is a tag of every part of it: a hot potato is hot all over), and every tag those
-    imply in ``families`` (an unknown part name: the object's alone)."""
-    whole = set(obj.tags)
+    object is a tag of every part of it: a hot potato is hot all over; not with
+    ``whole_object`` False), and every tag those imply in ``families`` (an unknown part
+    name: the object's alone)."""
+    whole = set(obj.tags) if whole_object else set()
     out = []
     for name in names:
         tags = whole | (set(obj.parts[name].tags) if name in obj.parts else set())

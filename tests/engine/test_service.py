@@ -372,11 +372,15 @@ def test_every_error_answer_s_code_is_in_the_request_log(service) -> None:
         status, _, _ = service.request("POST", "/v1/plan", body,
                                        headers={"X-Request-Id": f"{marker}-{code}"})
         assert status >= 400
-    logged = {entry["id"]: entry["error"] for entry in
-              (json.loads(line) for line in service.log.read_text().splitlines()
-               if line.startswith("{") and marker in line)}
-    assert logged == {f"{marker}-bad_request": "bad_request",
-                      f"{marker}-unknown_id": "unknown_id"}
+    want = {f"{marker}-bad_request": "bad_request", f"{marker}-unknown_id": "unknown_id"}
+    for _ in range(100):  # a request's line is written once its answer is sent
+        logged = {entry["id"]: entry["error"] for entry in
+                  (json.loads(line) for line in service.log.read_text().splitlines()
+                   if line.startswith("{") and marker in line)}
+        if len(logged) == len(want):
+            break
+        time.sleep(0.05)
+    assert logged == want
 
 
 def test_another_host_needs_a_token(kb_dir) -> None:

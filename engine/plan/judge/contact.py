@@ -21,9 +21,16 @@ def not_applicable(rule: ContactRule, ctx: PlanContext) -> str | None:
     """Not applicable when no part carries the rule's tags; judged (and ``unknown``, by
     :func:`missing_parts`) when the object's file tags a part it names that its geometry
     does not have (a mesh without the region that marks it)."""
-    if not rule.tags() & set().union(*ctx.part_tags) and not missing_parts(rule, ctx):
-        return f"object has no part tagged {', '.join(sorted(rule.tags()))}"
+    if not rule.tags() & set().union(*_tags(rule, ctx)) and not missing_parts(rule, ctx):
+        whole = " (the whole object's tag says not where)" if rule.own_tags \
+            and rule.tags() & set().union(*ctx.part_tags) else ""
+        return f"object has no part tagged {', '.join(sorted(rule.tags()))}{whole}"
     return None
+
+
+def _tags(rule: ContactRule, ctx: PlanContext) -> list[set[str]]:
+    """Per part, the tags the rule reads: the part's own (``own_tags``), else all it carries."""
+    return ctx.own_part_tags if rule.own_tags and ctx.own_part_tags else ctx.part_tags
 
 
 def missing_parts(rule: ContactRule, ctx: PlanContext) -> list[str]:
@@ -68,8 +75,8 @@ def evaluate(rule: ContactRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
                        "center and extents, or a primitive's part)", rule.threshold(),
                        "contacts on forbidden parts" if rule.who == "giver" else "part index")
 
-    forbid = tag_mask(ctx, rule.forbid_tags) if rule.forbid_tags else None
-    require = tag_mask(ctx, rule.require_tags) if rule.require_tags else None
+    forbid = tag_mask(ctx, rule.forbid_tags, _tags(rule, ctx)) if rule.forbid_tags else None
+    require = tag_mask(ctx, rule.require_tags, _tags(rule, ctx)) if rule.require_tags else None
     if rule.who == "giver":
         parts = ctx.candidates.parts[gi]  # (R, 2)
         ok = np.ones(len(gi), dtype=bool)

@@ -13,12 +13,15 @@ from handover.engine.spec.kinds.base import RuleBase, register
 
 @register
 class ContactRule(RuleBase):
-    """who (giver | receiver), forbid_tags, require_tags (any of)."""
+    """who (giver | receiver), forbid_tags, require_tags (any of). own_tags: judge the tags
+    a part itself carries (and what they imply), not the whole object's: ``flame`` on a part
+    is the flame, on the whole object it says only that the object carries one."""
 
     kind: Literal["contact"] = "contact"
     who: Literal["giver", "receiver"]
     forbid_tags: list[Tag] = []
     require_tags: list[Tag] = []
+    own_tags: bool = False
 
     colour = (230, 60, 60)
     summary = "giver's contacts / receiver's site on or off tagged parts"
