@@ -281,11 +281,12 @@ class _ObjectSituation:
 class ObjectOnly:
     """What a query knows of its object before any geometry is built: the object, one of its
     tasks, and the tags of its parts. It offers the fields of a plan context that a rule
-    kind's ``not_applicable`` reads (``situation.obj``, ``situation.task``, ``part_tags``),
-    so ``kb show`` asks the kind itself, as the compiler does."""
+    kind's ``not_applicable`` reads (``situation.obj``, ``situation.task``, ``part_tags``,
+    ``own_part_tags``), so ``kb show`` asks the kind itself, as the compiler does."""
 
     situation: _ObjectSituation
     part_tags: list[set[str]]
+    own_part_tags: list[set[str]]
 
     @classmethod
     def of(cls, obj: ObjectSpec, task_id: str | None,
@@ -293,7 +294,8 @@ class ObjectOnly:
         """The object ``obj`` queried with its task ``task_id`` (None: no task); its parts'
         tags as a plan has them (the object's, and what they imply in ``families``)."""
         task = obj.tasks[task_id] if task_id is not None else None
-        return cls(_ObjectSituation(obj, task), part_tags(obj, obj.parts, families))
+        return cls(_ObjectSituation(obj, task), part_tags(obj, obj.parts, families),
+                   part_tags(obj, obj.parts, families, whole_object=False))
 
 
 def not_applicable(rule: RuleBase, obj: ObjectSpec,
