@@ -9,6 +9,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from handover.engine.cli.app import main
@@ -80,6 +81,12 @@ def test_the_robot_never_takes_the_flame(kb, capsys, args):
     held = {p for g in r["robot_grasps"] for p in g["parts"]}
     assert held and "flame" not in held, held
     assert "giver_avoids_flame" in json.dumps(r["trace"])  # judged, and said so
+    # nor do the pads close near it: every contact at least 3 cm from the flame (the
+    # capsule of the file above, measured here: its axis from z 0.110 to 0.126, radius 6 mm)
+    for g in r["robot_grasps"]:
+        for c in np.asarray(g["contacts"], dtype=float):
+            axis = np.array([0.0, 0.0, np.clip(c[2], 0.110, 0.126)])
+            assert np.linalg.norm(c - axis) - 0.006 >= 0.03 - 0.001, (g["hand"], c)
 
 
 @pytest.mark.parametrize("args", [["teapot"], ["teapot", "-r", "elder"],

@@ -83,11 +83,14 @@ def evaluate(rule: ContactRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
         bad = np.zeros(len(gi))
         if forbid is not None:
             bad = forbid[parts].sum(axis=1).astype(float)
+            if rule.min_m > 0:  # and the pads kept a distance from them
+                bad += _near(ctx, forbid, gi, rule.min_m)
             ok &= bad == 0
         if require is not None:
             ok &= require[parts].any(axis=1)
         return Outcome(ok, bad, ok.astype(float), rule.threshold(),
-                       "contacts on forbidden parts")
+                       "contacts on or near forbidden parts" if rule.min_m
+                       else "contacts on forbidden parts")
     ok = np.ones(len(pk), dtype=bool)
     measured = np.full(len(pk), -1.0)
     for sites in phase.hands.sites:  # every receiver hand must pass
@@ -100,6 +103,23 @@ def evaluate(rule: ContactRule, ctx: PlanContext, phase: Phase, gi: np.ndarray,
             ok &= require[np.maximum(part, 0)]
         measured = np.where(measured < 0, np.where(valid, part, -1), measured)
     return Outcome(ok, measured, ok.astype(float), rule.threshold(), "part index")
+
+
+def _near(ctx: PlanContext, forbid: np.ndarray, gi: np.ndarray, min_m: float) -> np.ndarray:
+    """(R,) float: how many of the two contacts of grasps ``gi`` (R,) lie within ``min_m`` m
+    of a part ``forbid`` (P,) marks (object frame; the part's surface sampled at its
+    vertices, edge midpoints and face centres)."""
+    from scipy.spatial import cKDTree
+
+    pm = ctx.part_mesh
+    faces = np.asarray(pm.mesh.faces)[np.isin(pm.face_part, np.flatnonzero(forbid))]
+    if not len(faces) or not len(gi):
+        return np.zeros(len(gi))
+    tri = np.asarray(pm.mesh.vertices, dtype=float)[faces]  # (F, 3, 3)
+    samples = np.concatenate([tri.reshape(-1, 3), 0.5 * (tri + np.roll(tri, 1, axis=1))
+                              .reshape(-1, 3), tri.mean(axis=1)])
+    distance, _ = cKDTree(samples).query(ctx.candidates.contacts[gi].reshape(-1, 3))
+    return (distance.reshape(len(gi), 2) < min_m).sum(axis=1).astype(float)
 
 
 judges(ContactRule, evaluate=evaluate, detail=detail, not_applicable=not_applicable)

@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import model_validator
 
-from handover.engine.spec.kbmodel import Tag
+from handover.engine.spec.kbmodel import NonNegative, Tag
 from handover.engine.spec.kinds.base import RuleBase, register
 
 
@@ -15,13 +15,16 @@ from handover.engine.spec.kinds.base import RuleBase, register
 class ContactRule(RuleBase):
     """who (giver | receiver), forbid_tags, require_tags (any of). own_tags: judge the tags
     a part itself carries (and what they imply), not the whole object's: ``flame`` on a part
-    is the flame, on the whole object it says only that the object carries one."""
+    is the flame, on the whole object it says only that the object carries one. min_m (the
+    giver's): the robot's contacts (the pads' centres) keep at least this far (m) from every
+    part with ``forbid_tags``, not only off them."""
 
     kind: Literal["contact"] = "contact"
     who: Literal["giver", "receiver"]
     forbid_tags: list[Tag] = []
     require_tags: list[Tag] = []
     own_tags: bool = False
+    min_m: NonNegative = 0.0
 
     colour = (230, 60, 60)
     summary = "giver's contacts / receiver's site on or off tagged parts"
@@ -53,7 +56,9 @@ class ContactRule(RuleBase):
     def threshold(self) -> str:
         bits = []
         if self.forbid_tags:
-            bits.append(f"no part tagged {'/'.join(self.forbid_tags)}")
+            bits.append(f"no part tagged {'/'.join(self.forbid_tags)}"
+                        + (f", contacts at least {self.min_m:g} m from one" if self.min_m
+                           else ""))
         if self.require_tags:
             bits.append(f"a part tagged {'/'.join(self.require_tags)}")
         return "; ".join(bits)
