@@ -36,6 +36,8 @@ from handover.engine.plan.features import collision_targets, handover_targets
 from handover.engine.plan.judge import Outcome
 
 if TYPE_CHECKING:
+    from collections.abc import Callable
+
     from handover.engine.plan.context import PlanContext
     from handover.engine.plan.phase import Phase
 
@@ -307,9 +309,10 @@ def decided(cg: ConstraintGraph, ctx: PlanContext, phase: Phase) -> Decision:
 
 def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,
               presentation: int, rules: list[CompiledRule] | None = None,
-              note: str | None = None) -> list[dict]:
+              note: str | Callable[[CompiledRule], str] | None = None) -> list[dict]:
     """Every rule's outcome on one row in ``phase``. With ``rules``, only those are judged
-    and the other active rules are listed as not applicable with ``note``. Active rules
+    and the other active rules are listed as not applicable with ``note`` (or ``note(rule)``
+    for a function). Active rules
     come first in evaluation order, then the inactive ones with their reason. Each entry:
     rule, kind, hard, status (pass | fail | scored | unknown | not_applicable), measured,
     unit, threshold, score, weight, why, source, culture, overrides, safety, note (for
@@ -322,7 +325,8 @@ def trace_row(cg: ConstraintGraph, ctx: PlanContext, phase: Phase, grasp: int,
     judged = None if rules is None else {c.id for c in rules}
     for c in cg.order:
         if judged is not None and c.id not in judged:
-            entries.append(_entry(replace(c, reason=note), "not_applicable", None, None))
+            entries.append(_entry(replace(c, reason=note(c) if callable(note) else note),
+                                  "not_applicable", None, None))
             continue
         out: Outcome = evaluate_rule(c, ctx, phase, gi, pk)
         if out.inapplicable is not None:

@@ -63,6 +63,20 @@ def test_hammer_by_the_wall_needs_a_midair_regrasp(capsys):
     assert first["parts"] == ["handle", "handle"]
 
 
+def test_the_first_grasp_of_a_midair_regrasp_says_where_a_carried_rule_is_judged(capsys):
+    """The mug forced through a midair regrasp: its pick-up grasp is not offered, so the
+    rules about how it is offered are not judged there; but open_container_upright, judged
+    while carried, is not "only for the handover grasp": the trace says the carry judges it."""
+    r = plan(capsys, "mug", "--mode", "h2g2")
+    assert r["mode"] == "H2G2" and r["feasible"], r["reason"]
+    (entry,) = [e for e in r["trace"] if e["stage"] == "pick"
+                and e["rule"] == "open_container_upright"]
+    assert entry["status"] == "not_applicable" and "on the way" in entry["note"]
+    assert "motion.passed_over" in entry["note"]
+    offered = [e for e in r["trace"] if e["stage"] == "pick" and e["rule"] == "approach_from_robot"]
+    assert offered and all("handover grasp only" in e["note"] for e in offered)
+
+
 def test_tray_is_given_with_two_hands_on_opposite_far_sides(capsys):
     r = plan(capsys, "tray")
     assert r["feasible"] and r["mode"] == "H2G1"

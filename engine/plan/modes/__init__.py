@@ -50,8 +50,7 @@ def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
     for c in attempt.chosen:
         if c.stage == "pick":
             entries = trace_row(cg, ctx, c.phase, c.grasp, c.presentation,
-                                rules=first_rules(cg.hard),
-                                note=FIRST_NOTE)
+                                rules=first_rules(cg.hard), note=_first_note)
         else:
             entries = trace_row(cg, ctx, c.phase, c.grasp, c.presentation)
         if c.phase.arm is None and ctx.arms is not None:
@@ -60,6 +59,21 @@ def chosen_traces(ctx: PlanContext, attempt: Attempt) -> list[dict]:
         trace.extend({"grasp": c.grasp, "hand": c.gripper, "stage": c.stage, **e}
                      for e in entries)
     return trace
+
+
+ON_THE_WAY = ("not judged where it is picked up, where nothing is offered: judged on the way "
+              "to the midair regrasp, from where this grasp takes hold, where the arms' motion "
+              "is planned (a carry that breaks it passes the grasp over: motion.passed_over)")
+"""The trace's note on H2G2's first grasp for a hard axis rule the carry judges."""
+
+
+def _first_note(c) -> str:
+    """Why a rule is not judged on H2G2's first grasp (:data:`FIRST_NOTE`; a hard axis rule
+    judged while carried, :data:`ON_THE_WAY`)."""
+    rule = c.rule
+    if rule.kind == "axis" and rule.hard and rule.judged_on_the_way():
+        return ON_THE_WAY
+    return FIRST_NOTE
 
 
 UNSOLVED = ("no arm was solved for this grasp: only the arms' reachability maps screened it "
