@@ -44,8 +44,9 @@ if TYPE_CHECKING:
     from handover.geometry.corridor import CorridorHits
 
 __all__ = ["BITS", "CORRIDORS", "OBJECT_RESOLUTION", "SHORTEST", "UP", "Corridor", "approach",
-           "blocked", "chosen_corridors", "corridors_of", "held_box", "lift", "lifted_together",
-           "midair", "midair_pairs", "object_distance", "object_hits", "retreat", "where"]
+           "blocked", "chosen_corridors", "corridors_of", "held_box", "least_back_off", "lift",
+           "lifted_together", "midair", "midair_pairs", "object_distance", "object_hits",
+           "retreat", "where"]
 
 from handover.engine.assets.lru import LRU, content_key
 from handover.engine.plan.records import Corridor
@@ -56,6 +57,12 @@ SHORTEST = 0.05
 """m: the shortest back-off tried for a midair pre-grasp, a release or a retreat where the
 corridor's full distance leaves the arm no collision-free joints (then ``approach_min``,
 then this)."""
+
+
+def least_back_off(ctx: PlanContext) -> float:
+    """m: the least the arm backs off from a grasp it lets go of (:data:`SHORTEST`, or the
+    gripper's ``approach_min`` where that is shorter)."""
+    return min(_spec(ctx).approach_min, SHORTEST)
 OBJECT_RESOLUTION = 0.01
 """m: the step at which a corridor is sampled against the object's mesh (the slowest test:
 one mesh query per sample; the boxes and bodies are tested exactly or at 5 mm)."""
@@ -415,7 +422,7 @@ def chosen_corridors(ctx: PlanContext, phase: Phase, grasp: int, presentation: i
     found = {c.name: c for c in corridors_of(
         ctx, CORRIDORS, grasp=grasp, presentation=presentation, midair_at=midair_at,
         **where(phase))}
-    least = min(_spec(ctx).approach_min, SHORTEST)
+    least = least_back_off(ctx)
     out = {}
     if "approach" in found or "midair" in found:
         out["approach"] = found.get("approach") or found["midair"]

@@ -49,7 +49,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from handover.engine.plan.carried import CARRIED, Carried, CarryFailure, axis_breach, carry
-from handover.engine.plan.corridors import SHORTEST
+from handover.engine.plan.corridors import least_back_off
 from handover.engine.plan.motion_world import Valid, checkers, joins_at_handover, phase_index
 from handover.engine.plan.records import ArmJoints, RobotGrasp
 
@@ -59,7 +59,7 @@ if TYPE_CHECKING:
     from handover.geometry.motion.planner import PlannerSettings, Segment
 
 __all__ = ["MotionFailure", "MotionPlan", "StagePlan", "motion_plan", "stage_plan",
-           "SETTINGS", "IK_ANSWERS", "IK_STEP", "SHORTEST", "TWO_ARM_CARRY"]
+           "SETTINGS", "IK_ANSWERS", "IK_STEP", "TWO_ARM_CARRY"]
 
 
 def _settings() -> PlannerSettings:
@@ -172,8 +172,9 @@ def _backed(pose: np.ndarray, distance: float, direction: np.ndarray | None = No
 
 def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp,
                valid=None, together: bool = False) -> StagePlan | MotionFailure:
-    """The stages of robot grasp ``grasp`` (the ``index``-th chosen of ``attempt``) and their
-    joints: the plan's at pick-up, midair and handover, inverse kinematics between.
+    """The stages of robot grasp ``grasp`` (in the phase of ``attempt.chosen[index]``: its
+    own, a support's the supported grasp's) and their joints: the plan's at pick-up, midair
+    and handover, inverse kinematics between.
     ``valid(q (dof,), where, holding) -> bool``: whether joints found between the stages are
     collision-free in plan stage ``where`` (None: not checked; with a ``many(q (k, dof),
     where, holding) -> (k,) bool`` method, answers are checked in one batch); joints that are
@@ -272,7 +273,7 @@ def stage_plan(ctx: PlanContext, attempt: Attempt, index: int, grasp: RobotGrasp
         return MotionFailure(grasp.id, side, name, "inverse kinematics found no "
                              f"collision-free joints for the {name} pose{said}")
 
-    least = min(spec.approach_min, SHORTEST)
+    least = least_back_off(ctx)
 
     def add(name: str, q: np.ndarray, carried: bool, where: str) -> None:
         if names:
@@ -411,7 +412,7 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
         plan = stage_plan(ctx, attempt, phase, grasp, Valid(checker),
                           together=index in carriers and together is not None)
         if isinstance(plan, MotionFailure):
-            return MotionPlan((), _blamed(plan, grasps, grasp))
+            return MotionPlan((), _blamed(plan, grasp))
         staged.append((grasp, plan, checker))
 
     def segments(plan: StagePlan, checker):
@@ -428,8 +429,8 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
     for (grasp, side, name, check, start, goal), ok in zip(ends, clear, strict=True):
         failure = None if ok else ends_failure(check, start, goal, name=name)
         if failure is not None:
-            return MotionPlan((), _blamed(MotionFailure(grasp.id, side, name, failure.reason),
-                                          grasps, grasp))
+            blamed = _blamed(MotionFailure(grasp.id, side, name, failure.reason), grasp)
+            return MotionPlan((), blamed)
     out: list[tuple[Segment, ...]] = []
     for index, entry in enumerate(staged):
         if entry is None:
@@ -446,7 +447,7 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
                                ends_checked=True)
             if not hasattr(seg, "positions"):
                 return MotionPlan((), _blamed(MotionFailure(grasp.id, plan.side, name,
-                                                            seg.reason), grasps, grasp))
+                                                            seg.reason), grasp))
             found.append(seg)
             if plan.holding[k] and k >= plan.grasp_stage:
                 held.append(seg)
@@ -459,14 +460,12 @@ def motion_plan(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp],
     return MotionPlan(tuple(out), joints=moved)
 
 
-def _blamed(failure: MotionFailure, grasps: list[RobotGrasp], grasp: RobotGrasp
-            ) -> MotionFailure:
+def _blamed(failure: MotionFailure, grasp: RobotGrasp) -> MotionFailure:
     """``failure`` of ``grasp``'s arm; a supporting gripper's, the supported grasp's."""
     if grasp.supports is None:
         return failure
-    supported = grasp.supports.grasp
-    return replace(failure, grasp=supported, reason=f"the supporting {grasp.gripper} gripper: "
-                   f"{failure.reason}")
+    return replace(failure, grasp=grasp.supports.grasp,
+                   reason=f"the supporting {grasp.gripper} gripper: {failure.reason}")
 
 
 def _carried_breach(ctx: PlanContext, attempt: Attempt, plan: StagePlan,

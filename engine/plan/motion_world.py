@@ -137,16 +137,16 @@ class Valid:
 
 def checkers(ctx: PlanContext, attempt: Attempt, grasps: list[RobotGrasp], index: int,
               grasp: RobotGrasp, alone: bool = False, receiver: Targets | None = None):
-    """The validity checkers of robot grasp ``grasp`` (the ``index``-th of ``grasps``), made
-    on first use and kept: ``checker(where, carried, start="")`` for a segment checked in plan
-    stage ``where`` (``pickup`` | ``midair`` | ``handover``), the object held or not, from
-    stage ``start`` (from ``grasp``, the held object may touch the table it is lifted
-    from; from ``rest``, ``retreat`` or ``release``, the arm and its open gripper keep off
-    the object where it is then, its parts' boxes; from ``retreat``, also ``receiver``, the
-    receiver's hands and arms holding it: :func:`receiver_reach`). ``alone``: without the
-    other arm (a
-    motion of both arms together checks them against each other where they are at the same
-    moment: :mod:`~handover.engine.plan.carried`)."""
+    """The validity checkers of robot grasp ``grasp`` (in the phase of
+    ``attempt.chosen[index]``, :func:`phase_index`), made on first use and kept:
+    ``checker(where, carried, start="")`` for a segment checked in plan stage ``where``
+    (``pickup`` | ``midair`` | ``handover``), the object held or not, from stage ``start``
+    (from ``grasp``, the held object may touch the table it is lifted from; from ``rest``,
+    ``retreat`` or ``release``, the arm and its open gripper keep off the object where it is
+    then, its parts' boxes; from ``retreat``, also ``receiver``, the receiver's hands and
+    arms holding it: :func:`receiver_reach`). ``alone``: without the other arm (a motion of
+    both arms together checks them against each other where they are at the same moment:
+    :mod:`~handover.engine.plan.carried`)."""
     from handover.engine.plan.corridors import held_box
     from handover.geometry.motion import ArmModel, ValidityChecker, obstacles
 

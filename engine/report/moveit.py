@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from handover.engine.plan.motion_world import joins_at_handover
 from handover.engine.report.rosmsg import (
     Duration,
     Grasp,
@@ -268,7 +269,8 @@ def _stage_poses(result: dict, g: dict, where: str) -> tuple[str, np.ndarray, np
     regrasp = result.get("regrasp")
     initial = _matrix(_field(result, "initial_pose", "the result"), "initial_pose")
     release = _matrix(_field(g, "pose_world", where), f"{where}.pose_world")
-    if list(g.get("joints") or ()) == ["handover"]:
+    joints = g.get("joints") or {}
+    if "handover" in joints and joins_at_handover(joints):
         return "handover", _rigid(release), _rigid(release)
     if regrasp:
         midair = _matrix(_field(regrasp, "midair_pose", "regrasp"), "regrasp.midair_pose")

@@ -201,10 +201,10 @@ def _body(query: Any, why_not: tuple[int, ...], what_if: bool, motion: bool, fmt
     """The ``/v1/plan`` body of a query given as :meth:`handover.Planner.plan` takes it.
     Raises ValueError as the Planner does (an unknown field, no object), and for a mesh,
     which the service cannot be sent (it plans the objects of its KB by id)."""
-    if not isinstance(query, Query | str | Path | None):
+    asked, mesh = query_of(query, **fields)
+    if mesh is not None:
         raise ValueError("the plan service plans objects of its knowledge base by id: a mesh "
                          "cannot be sent (use handover.Planner for a mesh)")
-    asked, _ = query_of(query, **fields)
     body: dict[str, Any] = {"object": asked.object, "mode": asked.mode, "format": fmt}
     for key in ("receiver", "culture", "task", "scene", "gripper", "robot"):
         if getattr(asked, key) is not None:

@@ -542,6 +542,10 @@ def test_the_client_is_the_planner(service, kb_dir) -> None:
     for planner in (client, local):
         with pytest.raises(ValueError, match="colour"):
             planner.plan("mug", colour="red")
+    import trimesh
+
+    with pytest.raises(ValueError, match="a mesh cannot be sent"):  # however it is given
+        client.plan(object=trimesh.creation.box((0.05, 0.05, 0.05)))
     with pytest.raises(UsageError, match="no planning context"):
         client.plan("knife").record(kb_dir / "x.rrd")
     assert client.health()["kb"]["counts"]["objects"] >= 10
